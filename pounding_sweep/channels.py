@@ -1,0 +1,38 @@
+"""Names of time-history channels (`disp_b1f3`, `force_f3`, ...) and their kernel codes."""
+
+from __future__ import annotations
+
+import re
+
+from . import metrics_layout as L
+
+_PATTERNS = {
+    "disp": (L.H_DISP, "m"),
+    "vel": (L.H_VEL, "m_s"),
+    "abs_acc": (L.H_ABS_ACC, "m_s2"),
+}
+
+
+def parse_channel(name: str, floors: tuple[int, int]) -> tuple[int, int, str]:
+    """Channel name -> (kind, index, column name with unit). Index is a DOF or a pair."""
+    from .config import ConfigError
+
+    m = re.fullmatch(r"(disp|vel|abs_acc)_b([12])f(\d+)", name)
+    if m:
+        kind, unit = _PATTERNS[m.group(1)]
+        b, f = int(m.group(2)), int(m.group(3))
+        if not 1 <= f <= floors[b - 1]:
+            raise ConfigError(f"[output] histories: channel '{name}': building {b} has floors 1..{floors[b - 1]}")
+        dof = (f - 1) if b == 1 else floors[0] + f - 1
+        return kind, dof, f"{name}_{unit}"
+    m = re.fullmatch(r"force_f(\d+)", name)
+    if m:
+        j = int(m.group(1))
+        if not 1 <= j <= min(floors):
+            raise ConfigError(f"[output] histories: channel '{name}': facing floor pairs are 1..{min(floors)}")
+        return L.H_FORCE, j - 1, f"{name}_N"
+    if name == "ground_acc":
+        return L.H_GROUND_ACC, 0, "ground_acc_m_s2"
+    raise ConfigError(
+        f"[output] histories: unknown channel '{name}' (use disp_b1f3, vel_b2f1, abs_acc_b1f2, force_f3, ground_acc)"
+    )

@@ -1,0 +1,97 @@
+"""Command line: `python -m pounding_sweep SCENE.toml` runs a scene's sweep and writes Parquet.
+
+Owns stdout/stderr, exit codes and progress. Bad input gives one line naming the file, key
+and value, exit status 2, and no output file.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+from .config import ConfigError, describe, load_scene
+from .records import RecordError
+
+EXIT_BAD_INPUT = 2
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="python -m pounding_sweep",
+        description="Run a pounding scene: every grid point of its [sweep] through the Newmark/Kelvin-Voigt "
+        "kernel, one Parquet row per run (metrics with units in the column names; the scene, its hash and "
+        "the package versions in the file metadata).",
+        epilog="Scene keys: python -m pounding_sweep --describe. Shipped scenes: sweeps/*.toml.",
+    )
+    p.add_argument("scene", nargs="?", help="scene file (TOML), e.g. sweeps/paper_6hz.toml")
+    p.add_argument("--out", help="result file (default: the scene's [output] path)")
+    p.add_argument("--threads", type=int, default=None, help="worker threads (default: the scene's, 0 = all cores)")
+    p.add_argument("--quiet", action="store_true", help="no progress and no summary")
+    p.add_argument("--describe", action="store_true", help="list every scene section and key, then exit")
+    return p
+
+
+class _Progress:
+    """One status line on stderr, refreshed at most 5 times a second; silent when not a terminal."""
+
+    def __init__(self, enabled: bool):
+        self.enabled = enabled and sys.stderr.isatty()
+        self.t0 = time.perf_counter()
+        self.last = 0.0
+
+    def __call__(self, done: int, total: int) -> None:
+        now = time.perf_counter()
+        if not self.enabled or (now - self.last < 0.2 and done < total):
+            return
+        self.last = now
+        rate = done / max(now - self.t0, 1e-9)
+        eta = (total - done) / rate if rate > 0 else float("inf")
+        sys.stderr.write(f"\r  {done}/{total} runs ({100 * done / total:5.1f} %), {rate:,.0f} runs/s, ETA {eta:,.0f} s ")
+        if done >= total:
+            sys.stderr.write("\n")
+        sys.stderr.flush()
+
+
+def _print_summary(s) -> None:
+    rate = s.steps / s.kernel_s if s.kernel_s > 0 else float("nan")
+    rows = [
+        ("scene", s.scene),
+        ("runs", f"{s.runs}"),
+        ("status", ", ".join(f"{k}: {v}" for k, v in sorted(s.statuses.items()))),
+        ("largest pounding force", f"{s.extremes['peak_force_N']:.3f} N"),
+        ("compile (or cache load)", f"{s.compile_s:.2f} s"),
+        ("run", f"{s.run_s:.2f} s wall on {s.threads} thread(s); {s.steps:,} steps, {rate / 1e6:.1f} M steps/s per thread"),
+        ("results", str(s.path)),
+    ]
+    if s.histories_path:
+        rows.append(("histories", str(s.histories_path)))
+    w = max(len(k) for k, _ in rows)
+    print("\n".join(f"{k:<{w}}  {v}" for k, v in rows))
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    if args.describe:
+        print(describe())
+        return 0
+    if not args.scene:
+        _parser().print_usage(sys.stderr)
+        print("error: give a scene file (TOML); see --help", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    from .sweep import run_scene
+
+    try:
+        scene = load_scene(args.scene)
+        if args.threads is not None and args.threads < 0:
+            raise ConfigError(f"--threads {args.threads}: must be >= 0")
+        summary = run_scene(scene, out_path=args.out, threads=args.threads, progress=_Progress(not args.quiet))
+    except (ConfigError, RecordError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("interrupted: no result file written", file=sys.stderr)
+        return 130
+    if not args.quiet:
+        _print_summary(summary)
+    return 0

@@ -1,0 +1,470 @@
+"""Scene files: TOML -> frozen, validated dataclasses, with did-you-mean for unknown keys.
+
+A scene names two buildings, the contact element, the excitation, the integration, an
+optional sweep (axes over scalar parameters) and the outputs. Every field has a docstring in
+its metadata; `describe()` prints them. The canonical JSON of the resolved scene and its
+SHA-256 identify a sweep (stored in the Parquet metadata).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import hashlib
+import json
+import math
+import tomllib
+import types
+import typing
+from dataclasses import dataclass, field
+from pathlib import Path
+
+
+class ConfigError(ValueError):
+    """A scene that cannot be run: the message names the file, the key and the value."""
+
+
+def _f(doc: str, default=dataclasses.MISSING, **kw):
+    if default is dataclasses.MISSING:
+        return field(metadata={"doc": doc}, **kw)
+    return field(default=default, metadata={"doc": doc}, **kw)
+
+
+# ----------------------------------------------------------------------------- sections
+
+
+@dataclass(frozen=True)
+class BuildingConfig:
+    """One shear frame. Floor 1 is the lowest. Give story stiffnesses, or column EI + count + height."""
+
+    masses_kg: tuple[float, ...] = _f("floor masses [kg], floor 1 first")
+    name: str = _f("label used in outputs", "")
+    story_stiffness_N_per_m: tuple[float, ...] | None = _f(
+        "lateral stiffness of each story [N/m] (one value: the same for every story)", None
+    )
+    column_EI_Nm2: tuple[float, ...] | None = _f("column flexural stiffness EI [N m^2] (k = n_columns 12 EI / h^3)", None)
+    n_columns: int | None = _f("columns per story (with column_EI_Nm2)", None)
+    story_height_m: tuple[float, ...] | None = _f("story height h [m] (with column_EI_Nm2)", None)
+    damping_ratio: float | None = _f("Rayleigh damping ratio matched at damping_modes (0.0105 = 1.05 %)", None)
+    damping_modes: tuple[int, ...] = _f("the two modes (1-based) at which damping_ratio holds", (1, 2))
+    rayleigh_a0_per_s: float | None = _f("explicit Rayleigh mass coefficient a0 [1/s] (instead of damping_ratio)", None)
+    rayleigh_a1_s: float | None = _f("explicit Rayleigh stiffness coefficient a1 [s] (instead of damping_ratio)", None)
+
+
+@dataclass(frozen=True)
+class ContactConfig:
+    """Kelvin-Voigt element at each facing floor pair (eqs. 8-10)."""
+
+    r: float = _f("coefficient of restitution r in [0, 1] (eq. 10)")
+    gap_m: float = _f("seismic gap d [m] between facing floors at rest", 0.0)
+    ks_ratio: float | None = _f("contact stiffness as a ratio k_s / k_ref", None)
+    ks_N_per_m: float | None = _f("contact stiffness k_s [N/m] (instead of ks_ratio)", None)
+    k_ref_N_per_m: float = _f("reference story stiffness k for ks_ratio [N/m] (paper: 6830)", 6830.0)
+    law: str = _f("'classic' (eq. 8, may pull briefly before separation) or 'no_tension' (force >= 0)", "classic")
+
+
+@dataclass(frozen=True)
+class ExcitationConfig:
+    """Table motion: harmonic displacement, or a recorded ground acceleration."""
+
+    type: str = _f("'harmonic' or 'record'")
+    name: str = _f("label used in outputs", "")
+    amplitude_m: float | None = _f("harmonic: table displacement amplitude [m]", None)
+    frequency_Hz: float | None = _f("harmonic: table frequency [Hz]", None)
+    duration_s: float | None = _f("length of the run [s] (record: default its own length; longer pads zeros)", None)
+    record: str | None = _f("record: path of a PEER .AT2 or a two-column CSV (time [s], acceleration)", None)
+    format: str = _f("record format: 'auto' (by suffix), 'at2' or 'csv'", "auto")
+    units: str | None = _f("record acceleration units: 'g', 'm/s2' or 'cm/s2' (default: the format's)", None)
+    scale: float = _f("factor on the record's acceleration", 1.0)
+    length_scale: float = _f("similitude length scale lambda_L (eqs. 17-19): time / sqrt(lambda_L), acceleration kept", 1.0)
+
+
+@dataclass(frozen=True)
+class IntegrationConfig:
+    """Time integration: Newmark average acceleration (gamma = 1/2, beta = 1/4)."""
+
+    dt_s: float = _f("time step [s]", 1e-4)
+    scheme: str = _f("'implicit' (contact in the step, active set) or 'paper' (trial force as load, sec. 2)", "implicit")
+    max_contact_iterations: int = _f("active-set iterations per step before a step counts as unsettled", 16)
+    min_steps_per_contact_period: float = _f("flag runs with fewer steps per contact period 2 pi sqrt(m_eff/k_s)", 20.0)
+
+
+@dataclass(frozen=True)
+class OutputConfig:
+    """Where results go and which time histories to keep."""
+
+    path: str = _f("Parquet file of one row per run (relative to the scene file)", "")
+    histories: tuple[str, ...] = _f(
+        "history channels: disp_b1f3, vel_b2f1, abs_acc_b1f3, force_f3, ground_acc (none: metrics only)", ()
+    )
+    history_decimate: int = _f("keep every n-th step of the histories", 1)
+
+
+@dataclass(frozen=True)
+class ExecutionConfig:
+    """How the grid is run on this machine."""
+
+    threads: int = _f("worker threads (0: all cores)", 0)
+    batch_runs: int = _f("runs handed to a thread at a time (0: automatic)", 0)
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One sweep axis: a scene parameter and its values."""
+
+    name: str
+    values: tuple
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A whole scene, resolved and validated. Paths are absolute."""
+
+    name: str
+    description: str
+    building1: BuildingConfig
+    building2: BuildingConfig
+    contact: ContactConfig
+    excitation: ExcitationConfig
+    integration: IntegrationConfig
+    output: OutputConfig
+    execution: ExecutionConfig
+    sweep: tuple[Axis, ...]
+    source: str  # the scene file
+    toml_text: str  # the scene file as written
+
+    def canonical(self) -> dict:
+        """Resolved scene as plain data (what the hash covers), with record file digests."""
+        d = dataclasses.asdict(self)
+        d.pop("source")
+        d.pop("toml_text")
+        d["sweep"] = [{"name": a.name, "values": list(a.values)} for a in self.sweep]
+        files = sorted(({self.excitation.record} | set(_axis_values(self, "record"))) - {None})
+        d["record_sha256"] = {Path(p).name: _file_digest(p) for p in files}
+        return d
+
+    def config_hash(self) -> str:
+        blob = json.dumps(self.canonical(), sort_keys=True, default=str).encode()
+        return hashlib.sha256(blob).hexdigest()
+
+
+def _axis_values(scene: Scene, name: str) -> tuple:
+    for a in scene.sweep:
+        if a.name == name:
+            return a.values
+    return ()
+
+
+def _file_digest(path: str) -> str:
+    try:
+        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    except OSError:
+        return "unreadable"
+
+
+# ----------------------------------------------------------------------------- sweep axes
+
+#: axis name -> (section, field): the scalar parameters a sweep may vary
+SWEEPABLE = {
+    "ks_ratio": ("contact", "ks_ratio"),
+    "ks_N_per_m": ("contact", "ks_N_per_m"),
+    "r": ("contact", "r"),
+    "gap_m": ("contact", "gap_m"),
+    "amplitude_m": ("excitation", "amplitude_m"),
+    "frequency_Hz": ("excitation", "frequency_Hz"),
+    "scale": ("excitation", "scale"),
+    "record": ("excitation", "record"),
+}
+
+SECTIONS = {
+    "building1": BuildingConfig,
+    "building2": BuildingConfig,
+    "contact": ContactConfig,
+    "excitation": ExcitationConfig,
+    "integration": IntegrationConfig,
+    "output": OutputConfig,
+    "execution": ExecutionConfig,
+}
+TOP_KEYS = {"name", "description", "sweep", *SECTIONS}
+MAX_GRID = 50_000_000
+
+
+# ----------------------------------------------------------------------------- loading
+
+
+def load_scene(path: str | Path) -> Scene:
+    """Read, resolve and validate a scene file; raise ConfigError naming file, key and value."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as e:
+        raise ConfigError(f"{path}: cannot read scene file ({e.strerror or e})") from None
+    except UnicodeDecodeError as e:
+        raise ConfigError(f"{path}: not UTF-8 text ({e.reason} at byte {e.start})") from None
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(f"{path}: TOML syntax error: {e}") from None
+    try:
+        return scene_from_dict(raw, base_dir=path.resolve().parent, source=str(path), toml_text=text)
+    except ConfigError as e:
+        raise ConfigError(f"{path}: {e}") from None
+
+
+def scene_from_dict(raw: dict, base_dir: Path, source: str = "<dict>", toml_text: str = "") -> Scene:
+    """Build a Scene from parsed TOML (keys checked, types coerced, values validated)."""
+    _check_keys(raw, TOP_KEYS, "top level")
+    for req in ("building1", "building2", "contact", "excitation"):
+        if req not in raw:
+            raise ConfigError(f"missing section [{req}]")
+    sections = {}
+    for name, cls in SECTIONS.items():
+        table = raw.get(name, {})
+        if not isinstance(table, dict):
+            raise ConfigError(f"'{name}' must be a table [{name}], got {type(table).__name__} {table!r}")
+        sections[name] = _build(cls, table, name)
+    name = _typed(raw.get("name", Path(source).stem), str, "name")
+    desc = _typed(raw.get("description", ""), str, "description")
+    exc = sections["excitation"]
+    if exc.record is not None:
+        sections["excitation"] = dataclasses.replace(exc, record=str((base_dir / exc.record).resolve()))
+    out = sections["output"]
+    out_path = out.path or f"results/{name}.parquet"
+    sections["output"] = dataclasses.replace(out, path=str((base_dir / out_path).resolve()))
+    sweep = _parse_sweep(raw.get("sweep", {}), base_dir)
+    scene = Scene(name=name, description=desc, sweep=sweep, source=source, toml_text=toml_text, **sections)
+    validate(scene)
+    return scene
+
+
+def _check_keys(table: dict, allowed, where: str) -> None:
+    for key in table:
+        if key not in allowed:
+            close = difflib.get_close_matches(key, list(allowed), n=1, cutoff=0.6)
+            hint = f"; did you mean '{close[0]}'?" if close else f"; allowed: {', '.join(sorted(allowed))}"
+            raise ConfigError(f"unknown key '{key}' in {where}{hint}")
+
+
+def _build(cls, table: dict, section: str):
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    _check_keys(table, fields, f"[{section}]")
+    hints = typing.get_type_hints(cls)
+    kwargs = {}
+    for name, f in fields.items():
+        key = f"[{section}] {name}"
+        if name in table:
+            kwargs[name] = _coerce(table[name], hints[name], key)
+        elif f.default is dataclasses.MISSING:
+            raise ConfigError(f"missing key '{name}' in [{section}] ({f.metadata['doc']})")
+    return cls(**kwargs)
+
+
+def _coerce(value, hint, key: str):
+    """Check a TOML value against a field type; ints are accepted for floats, scalars for tuples."""
+    origin = typing.get_origin(hint)
+    if origin in (typing.Union, types.UnionType):
+        args = [a for a in typing.get_args(hint) if a is not type(None)]
+        return _coerce(value, args[0], key)
+    if origin is tuple:
+        item = typing.get_args(hint)[0]
+        seq = value if isinstance(value, list) else [value]
+        if not seq:
+            raise ConfigError(f"{key} = []: needs at least one value")
+        return tuple(_typed(v, item, key) for v in seq)
+    return _typed(value, hint, key)
+
+
+def _typed(value, typ, key: str):
+    if typ is float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(f"{key} = {value!r}: expected a number")
+        value = float(value)
+        if not math.isfinite(value):
+            raise ConfigError(f"{key} = {value!r}: must be finite")
+        return value
+    if typ is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ConfigError(f"{key} = {value!r}: expected an integer")
+        return value
+    if typ is str:
+        if not isinstance(value, str):
+            raise ConfigError(f"{key} = {value!r}: expected a string")
+        return value
+    raise TypeError(typ)  # pragma: no cover - a field type the loader does not know
+
+
+def _parse_sweep(table, base_dir: Path) -> tuple[Axis, ...]:
+    if not isinstance(table, dict):
+        raise ConfigError(f"'sweep' must be a table [sweep], got {table!r}")
+    _check_keys(table, SWEEPABLE, "[sweep]")
+    axes = []
+    for name, spec in table.items():
+        key = f"[sweep] {name}"
+        if name == "record":
+            vals = spec if isinstance(spec, list) else [spec]
+            if not vals:
+                raise ConfigError(f"{key} = []: an axis needs at least one value")
+            vals = tuple(str((base_dir / _typed(v, str, key)).resolve()) for v in vals)
+        elif isinstance(spec, dict):
+            vals = _range_values(spec, key)
+        else:
+            vals = _coerce(spec, tuple[float, ...], key)
+        if len(set(vals)) != len(vals):
+            raise ConfigError(f"{key} = {list(vals)!r}: repeated values")
+        axes.append(Axis(name, vals))
+    return tuple(axes)
+
+
+def _range_values(spec: dict, key: str) -> tuple[float, ...]:
+    import numpy as np
+
+    _check_keys(spec, {"start", "stop", "num", "spacing"}, key)
+    for req in ("start", "stop", "num"):
+        if req not in spec:
+            raise ConfigError(f"{key}: a range needs 'start', 'stop' and 'num' (missing '{req}')")
+    start = _typed(spec["start"], float, f"{key}.start")
+    stop = _typed(spec["stop"], float, f"{key}.stop")
+    num = _typed(spec["num"], int, f"{key}.num")
+    spacing = _typed(spec.get("spacing", "linear"), str, f"{key}.spacing")
+    if num < 1:
+        raise ConfigError(f"{key}.num = {num}: must be at least 1")
+    if spacing == "linear":
+        return tuple(float(x) for x in np.linspace(start, stop, num))
+    if spacing == "log":
+        if start <= 0 or stop <= 0:
+            raise ConfigError(f"{key}: log spacing needs start and stop > 0 (got {start}, {stop})")
+        return tuple(float(x) for x in np.geomspace(start, stop, num))
+    raise ConfigError(f"{key}.spacing = {spacing!r}: expected 'linear' or 'log'")
+
+
+# ----------------------------------------------------------------------------- validation
+
+
+def _positive(value, key):
+    if value is not None and not value > 0:
+        raise ConfigError(f"{key} = {value!r}: must be > 0")
+
+
+def validate(s: Scene) -> None:
+    """Physical and logical checks that the type coercion cannot make."""
+    for bname in ("building1", "building2"):
+        b: BuildingConfig = getattr(s, bname)
+        n = len(b.masses_kg)
+        for v in b.masses_kg:
+            _positive(v, f"[{bname}] masses_kg")
+        has_k = b.story_stiffness_N_per_m is not None
+        has_ei = b.column_EI_Nm2 is not None
+        if has_k == has_ei:
+            raise ConfigError(f"[{bname}]: give either story_stiffness_N_per_m or column_EI_Nm2 (+ n_columns, story_height_m), not {'both' if has_k else 'neither'}")
+        lists = {"story_stiffness_N_per_m": b.story_stiffness_N_per_m, "column_EI_Nm2": b.column_EI_Nm2, "story_height_m": b.story_height_m}
+        for k, vals in lists.items():
+            if vals is None:
+                continue
+            if len(vals) not in (1, n):
+                raise ConfigError(f"[{bname}] {k} has {len(vals)} values for {n} floors (give 1 or {n})")
+            for v in vals:
+                _positive(v, f"[{bname}] {k}")
+        if has_ei and (b.n_columns is None or b.story_height_m is None):
+            raise ConfigError(f"[{bname}]: column_EI_Nm2 needs n_columns and story_height_m")
+        if b.n_columns is not None:
+            _positive(b.n_columns, f"[{bname}] n_columns")
+        explicit = b.rayleigh_a0_per_s is not None or b.rayleigh_a1_s is not None
+        if explicit and b.damping_ratio is not None:
+            raise ConfigError(f"[{bname}]: give damping_ratio or rayleigh_a0_per_s/rayleigh_a1_s, not both")
+        for k in ("rayleigh_a0_per_s", "rayleigh_a1_s"):
+            v = getattr(b, k)
+            if v is not None and v < 0:
+                raise ConfigError(f"[{bname}] {k} = {v!r}: must be >= 0")
+        if b.damping_ratio is not None and not 0 <= b.damping_ratio < 1:
+            raise ConfigError(f"[{bname}] damping_ratio = {b.damping_ratio!r}: must lie in [0, 1)")
+        if len(b.damping_modes) != 2 or len(set(b.damping_modes)) != 2 or not all(1 <= m <= n for m in b.damping_modes):
+            if n > 1:
+                raise ConfigError(f"[{bname}] damping_modes = {list(b.damping_modes)}: two different modes between 1 and {n}")
+    c = s.contact
+    axes = {a.name: a.values for a in s.sweep}
+    _check_r(c.r, "[contact] r")
+    for v in axes.get("r", ()):
+        _check_r(v, "[sweep] r")
+    if "ks_ratio" in axes and "ks_N_per_m" in axes:
+        raise ConfigError("[sweep]: sweep ks_ratio or ks_N_per_m, not both")
+    if c.ks_ratio is not None and c.ks_N_per_m is not None:
+        raise ConfigError("[contact]: give ks_ratio or ks_N_per_m, not both")
+    if c.ks_ratio is None and c.ks_N_per_m is None and not axes.keys() & {"ks_ratio", "ks_N_per_m"}:
+        raise ConfigError("[contact]: missing key 'ks_ratio' (or 'ks_N_per_m'): the contact stiffness")
+    _positive(c.ks_ratio, "[contact] ks_ratio")
+    _positive(c.ks_N_per_m, "[contact] ks_N_per_m")
+    _positive(c.k_ref_N_per_m, "[contact] k_ref_N_per_m")
+    for k in ("ks_ratio", "ks_N_per_m", "amplitude_m", "frequency_Hz", "scale"):
+        for v in axes.get(k, ()):
+            _positive(v, f"[sweep] {k}")
+    if c.gap_m < 0:
+        raise ConfigError(f"[contact] gap_m = {c.gap_m!r}: must be >= 0")
+    for v in axes.get("gap_m", ()):
+        if v < 0:
+            raise ConfigError(f"[sweep] gap_m = {v!r}: must be >= 0")
+    from .contact import CONTACT_LAWS
+    from .kernel import SCHEMES
+
+    if c.law not in CONTACT_LAWS:
+        raise ConfigError(f"[contact] law = {c.law!r}: expected one of {sorted(CONTACT_LAWS)}")
+    e = s.excitation
+    if e.type not in ("harmonic", "record"):
+        raise ConfigError(f"[excitation] type = {e.type!r}: expected 'harmonic' or 'record'")
+    if e.type == "harmonic":
+        for k in ("amplitude_m", "frequency_Hz", "duration_s"):
+            if getattr(e, k) is None and k not in axes:
+                raise ConfigError(f"[excitation] missing key '{k}' for a harmonic excitation")
+            _positive(getattr(e, k), f"[excitation] {k}")
+        if "record" in axes or e.record is not None:
+            raise ConfigError("[excitation] record: only for a record excitation (type = 'record')")
+    else:
+        if e.record is None and "record" not in axes:
+            raise ConfigError("[excitation] missing key 'record' (path of the .AT2 or .csv file)")
+        for k in ("amplitude_m", "frequency_Hz"):
+            if getattr(e, k) is not None or k in axes:
+                raise ConfigError(f"[excitation] {k}: only for a harmonic excitation")
+        _positive(e.duration_s, "[excitation] duration_s")
+    _positive(e.scale, "[excitation] scale")
+    _positive(e.length_scale, "[excitation] length_scale")
+    if e.format not in ("auto", "at2", "csv"):
+        raise ConfigError(f"[excitation] format = {e.format!r}: expected 'auto', 'at2' or 'csv'")
+    i = s.integration
+    _positive(i.dt_s, "[integration] dt_s")
+    if i.scheme not in SCHEMES:
+        raise ConfigError(f"[integration] scheme = {i.scheme!r}: expected one of {sorted(SCHEMES)}")
+    _positive(i.max_contact_iterations, "[integration] max_contact_iterations")
+    if i.min_steps_per_contact_period < 0:
+        raise ConfigError(f"[integration] min_steps_per_contact_period = {i.min_steps_per_contact_period!r}: must be >= 0")
+    if e.type == "harmonic" and e.duration_s is not None and i.dt_s >= e.duration_s:
+        raise ConfigError(f"[integration] dt_s = {i.dt_s!r}: must be shorter than [excitation] duration_s = {e.duration_s!r}")
+    _positive(s.output.history_decimate, "[output] history_decimate")
+    from .channels import parse_channel
+
+    for ch in s.output.histories:
+        parse_channel(ch, (len(s.building1.masses_kg), len(s.building2.masses_kg)))
+    if s.execution.threads < 0:
+        raise ConfigError(f"[execution] threads = {s.execution.threads}: must be >= 0")
+    if s.execution.batch_runs < 0:
+        raise ConfigError(f"[execution] batch_runs = {s.execution.batch_runs}: must be >= 0")
+    n = 1
+    for a in s.sweep:
+        n *= len(a.values)
+    if n > MAX_GRID:
+        raise ConfigError(f"[sweep]: {n} grid points exceed the limit of {MAX_GRID}")
+
+
+def _check_r(r, key):
+    if not 0.0 <= r <= 1.0:
+        raise ConfigError(f"{key} = {r!r}: the coefficient of restitution must lie in [0, 1]")
+
+
+def describe() -> str:
+    """Every section and key with its meaning: the reference for writing scenes."""
+    lines = []
+    for name, cls in SECTIONS.items():
+        lines.append(f"[{name}]  {cls.__doc__}")
+        for f in dataclasses.fields(cls):
+            default = "" if f.default is dataclasses.MISSING else f" (default {f.default!r})"
+            lines.append(f"  {f.name}: {f.metadata['doc']}{default}")
+    lines.append("[sweep]  axes: " + ", ".join(SWEEPABLE) + "; a list of values or {start, stop, num, spacing = 'linear'|'log'}")
+    return "\n".join(lines)

@@ -1,0 +1,64 @@
+"""Sweep grid: the Cartesian product of the scene's axes, generated chunk by chunk.
+
+Run i's parameters come from unravelling i over the axis lengths (last axis fastest), so a
+grid of any size costs memory only for the chunk being run.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .config import SWEEPABLE, Scene
+
+
+@dataclass(frozen=True)
+class Grid:
+    """Axes (name, values) and the scene's fixed values for the parameters that are not swept."""
+
+    axes: tuple[tuple[str, tuple], ...]
+    fixed: dict
+
+    @classmethod
+    def from_scene(cls, scene: Scene) -> "Grid":
+        fixed = {}
+        for name, (section, key) in SWEEPABLE.items():
+            fixed[name] = getattr(getattr(scene, section), key)
+        swept = {a.name for a in scene.sweep}
+        # a swept ks in one form makes the other form derived, not fixed
+        if "ks_ratio" in swept:
+            fixed["ks_N_per_m"] = None
+        if "ks_N_per_m" in swept:
+            fixed["ks_ratio"] = None
+        for a in scene.sweep:
+            fixed.pop(a.name)
+        return cls(tuple((a.name, a.values) for a in scene.sweep), fixed)
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return tuple(len(v) for _, v in self.axes)
+
+    @property
+    def size(self) -> int:
+        return int(np.prod(self.shape, dtype=np.int64)) if self.axes else 1
+
+    def chunk(self, start: int, stop: int) -> dict[str, np.ndarray]:
+        """Parameters of runs start..stop-1: one array per sweepable name (fixed ones broadcast)."""
+        ids = np.arange(start, stop, dtype=np.int64)
+        out: dict[str, np.ndarray] = {"run_id": ids}
+        if self.axes:
+            idx = np.unravel_index(ids, self.shape)
+            for (name, values), ix in zip(self.axes, idx):
+                out[name] = np.asarray(values, dtype=object if name == "record" else float)[ix]
+        n = ids.size
+        for name, value in self.fixed.items():
+            if name == "record":
+                out[name] = np.full(n, value, dtype=object)
+            else:
+                out[name] = np.full(n, np.nan if value is None else value, dtype=float)
+        return out
+
+    def chunks(self, chunk_runs: int):
+        for s in range(0, self.size, chunk_runs):
+            yield s, min(self.size, s + chunk_runs)

@@ -1,0 +1,421 @@
+"""Numba kernel: Newmark average-acceleration integration of two shear frames with Kelvin-Voigt contact.
+
+Knows nothing of TOML, Parquet or threads: it takes arrays, integrates runs [start, stop) of a
+batch and writes one metric row (and optionally decimated histories) per run.
+
+Equations (SI): M a + C v + K u + sum_j g_j F_j = -M 1 ag(t), the paper's eqs. (1)-(2) written
+with the restoring sign (F_j > 0 in compression pushes building 1 back by -F_j and building 2 by
++F_j; g_j = e(1, j) - e(2, j)). Newmark gamma = 1/2, beta = 1/4 (average acceleration, the paper's
+eqs. 11-16; Chopra, Dynamics of Structures, Table 5.4.2), unconditionally stable for the linear
+part, second order for smooth motion, first order across an impact that falls inside a step.
+
+Scheme "implicit" (default): the Kelvin-Voigt forces are evaluated at the end of the step, with
+the set of pairs in contact chosen so that it agrees with the end-of-step state (active-set
+iteration). With Keff0 = K + 2/dt C + 4/dt^2 M and u0 the end-of-step state without contact,
+the end state with active set A is u = u0 - H_A F_A, H = Keff0^-1 G, and F_A solves the small
+system (S_AA + diag(1/ke_A)) F_A = z0_A - b_A / ke_A with S = G^T H, z0 = G^T u0,
+ke = k_s + 2 c / dt, b = k_s d + c (2/dt g.u_n + g.v_n) (from F = k_s(g.u - d) + c g.v_{n+1}).
+
+Scheme "paper" (section 2 of the paper): a trial step with F = 0; where a pair penetrates, F from
+eq. (8) on the trial displacement and velocity is applied as a load and the step repeated once.
+This is explicit in the contact force and loses stability when k_s dt^2 / m_eff is large.
+"""
+
+from __future__ import annotations
+
+import ctypes
+
+import numpy as np
+from llvmlite import binding as llvm_binding
+from llvmlite import ir
+from numba.core import cgutils, types
+from numba.extending import intrinsic
+
+from . import metrics_layout as L
+from .numba_config import njit_kernel
+
+SCHEME_IMPLICIT = 0
+SCHEME_PAPER = 1
+SCHEMES = {"implicit": SCHEME_IMPLICIT, "paper": SCHEME_PAPER}
+
+EXC_HARMONIC = 0  # table displacement amp * sin(omega t): ground acceleration -amp omega^2 sin(omega t)
+EXC_RECORD = 1  # ground acceleration amp * record[step] (record resampled to dt beforehand)
+
+
+# libc's clock_gettime, called from compiled code without the GIL (objmode would take it, and a
+# ctypes pointer would stop numba from caching the kernel): declare it by name, tell LLVM where it is.
+llvm_binding.add_symbol("clock_gettime", ctypes.cast(ctypes.CDLL(None).clock_gettime, ctypes.c_void_p).value)
+
+
+@intrinsic
+def _monotonic_ns(typingctx):
+    """CLOCK_MONOTONIC in nanoseconds (int64)."""
+
+    def codegen(context, builder, signature, args):
+        i32, i64 = ir.IntType(32), ir.IntType(64)
+        ts_type = ir.LiteralStructType([i64, i64])
+        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(i32, [i32, ts_type.as_pointer()]), "clock_gettime")
+        ts = cgutils.alloca_once(builder, ts_type)
+        builder.call(fn, [ir.Constant(i32, 1), ts])
+        sec = builder.load(cgutils.gep_inbounds(builder, ts, 0, 0))
+        nsec = builder.load(cgutils.gep_inbounds(builder, ts, 0, 1))
+        return builder.add(builder.mul(sec, ir.Constant(i64, 1_000_000_000)), nsec)
+
+    return types.int64(), codegen
+
+
+@njit_kernel
+def _clock():
+    """Monotonic wall clock [s]."""
+    return _monotonic_ns() * 1e-9
+
+
+@njit_kernel
+def ground_acceleration(kind, amp, omega, rec_flat, rec_off, rec_len, step, dt):
+    """Ground (table) acceleration [m/s^2] at t = step * dt."""
+    if kind == EXC_HARMONIC:
+        return -amp * omega * omega * np.sin(omega * step * dt)
+    if step < rec_len:
+        return amp * rec_flat[rec_off + step]
+    return 0.0
+
+
+@njit_kernel
+def _solve_spd(A, b, n):
+    """Solve A[:n,:n] x = b[:n] in place (Gaussian elimination; A is symmetric positive definite)."""
+    for k in range(n):
+        piv = A[k, k]
+        for i in range(k + 1, n):
+            f = A[i, k] / piv
+            for j in range(k, n):
+                A[i, j] -= f * A[k, j]
+            b[i] -= f * b[k]
+    for i in range(n - 1, -1, -1):
+        s = b[i]
+        for j in range(i + 1, n):
+            s -= A[i, j] * b[j]
+        b[i] = s / A[i, i]
+
+
+@njit_kernel
+def _contact_forces(S, z0, bb, ke, active, n_pairs, idx, Asmall, rhs, F):
+    """Forces of the pairs in `active` (others 0) for the implicit step: the small SPD solve above."""
+    na = 0
+    for j in range(n_pairs):
+        F[j] = 0.0
+        if active[j]:
+            idx[na] = j
+            na += 1
+    if na == 0:
+        return
+    for p in range(na):
+        jp = idx[p]
+        for q in range(na):
+            Asmall[p, q] = S[jp, idx[q]]
+        Asmall[p, p] += 1.0 / ke[jp]
+        rhs[p] = z0[jp] - bb[jp] / ke[jp]
+    _solve_spd(Asmall, rhs, na)
+    for p in range(na):
+        F[idx[p]] = rhs[p]
+
+
+@njit_kernel
+def integrate_batch(
+    start,
+    stop,
+    # structure, shared by the batch (dt fixed)
+    dt,
+    m,
+    C,
+    Kinv,
+    H,
+    S,
+    i1,
+    i2,
+    scheme,
+    law,
+    max_iter,
+    # per run
+    ks,
+    cdash,
+    gap,
+    exc_kind,
+    exc_amp,
+    exc_omega,
+    rec_id,
+    nsteps,
+    status_in,
+    # records, flattened
+    rec_flat,
+    rec_off,
+    rec_len,
+    # histories (hist.shape[0] == 0: none kept)
+    hist_kind,
+    hist_index,
+    decimate,
+    hist,
+    # outputs
+    metrics,
+    run_time,
+):
+    """Integrate runs start..stop-1 and fill metrics[run] (see metrics_layout) and run_time[run]."""
+    n = m.shape[0]
+    npair = i1.shape[0]
+    nch = hist_kind.shape[0]
+    keep_hist = hist.shape[0] > 0
+    a1 = 4.0 / (dt * dt)
+    a2 = 4.0 / dt
+    b1 = 2.0 / dt
+    # work arrays, allocated once per batch (never inside the time loop)
+    u = np.empty(n)
+    v = np.empty(n)
+    a = np.empty(n)
+    un = np.empty(n)
+    vn = np.empty(n)
+    an = np.empty(n)
+    w = np.empty(n)
+    rhs0 = np.empty(n)
+    u0 = np.empty(n)
+    z0 = np.empty(npair)
+    wrel = np.empty(npair)
+    bb = np.empty(npair)
+    ke = np.empty(npair)
+    F = np.empty(npair)
+    Fprev = np.empty(npair)
+    active = np.zeros(npair, dtype=np.bool_)
+    trial = np.zeros(npair, dtype=np.bool_)
+    was_active = np.zeros(npair, dtype=np.bool_)
+    in_comp = np.zeros(npair, dtype=np.bool_)
+    comp_start = np.zeros(npair, dtype=np.int64)
+    idx = np.empty(npair, dtype=np.int64)
+    Asmall = np.empty((npair, npair))
+    rsmall = np.empty(npair)
+    durations = np.empty((npair, L.MEDIAN_BUFFER))
+    nphase = np.zeros(npair, dtype=np.int64)
+    seen = np.zeros(max_iter + 1, dtype=np.int64)
+    nm = metrics.shape[1]
+    pbase = L.PER_DOF * n
+    rbase = pbase + L.PER_PAIR * npair
+
+    for run in range(start, stop):
+        t_start = _clock()
+        out = metrics[run]
+        for q in range(nm):
+            out[q] = 0.0
+        for j in range(npair):
+            out[pbase + L.PER_PAIR * j + L.PAIR_MIN_FORCE] = 0.0
+            out[pbase + L.PER_PAIR * j + L.PAIR_PEAK_FORCE] = 0.0
+            active[j] = False
+            was_active[j] = False
+            in_comp[j] = False
+            nphase[j] = 0
+            Fprev[j] = 0.0
+        status = status_in[run]
+        k_s = ks[run]
+        d = gap[run]
+        kind = exc_kind[run]
+        amp = exc_amp[run]
+        om = exc_omega[run]
+        roff = 0
+        rlen = 0
+        if kind == EXC_RECORD:
+            roff = rec_off[rec_id[run]]
+            rlen = rec_len[rec_id[run]]
+        for j in range(npair):
+            ke[j] = k_s + b1 * cdash[run, j]
+        # initial state: at rest relative to the table; eq. (11): a0 = M^-1 (p0 - C v0 - K u0) = -ag(0)
+        ag = ground_acceleration(kind, amp, om, rec_flat, roff, rlen, 0, dt)
+        for i in range(n):
+            u[i] = 0.0
+            v[i] = 0.0
+            a[i] = -ag
+        if keep_hist:
+            for c in range(nch):
+                hist[run, c, 0] = _channel(hist_kind[c], hist_index[c], u, v, a, F, ag)
+        nst = nsteps[run]
+        unsettled = 0
+        max_it_seen = 0
+        steps_done = 0
+        for step in range(1, nst + 1):
+            ag = ground_acceleration(kind, amp, om, rec_flat, roff, rlen, step, dt)
+            # Newmark effective load without contact (Chopra Table 5.4.2; paper eq. 13)
+            for i in range(n):
+                w[i] = b1 * u[i] + v[i]
+            for i in range(n):
+                s = -m[i] * ag + m[i] * (a1 * u[i] + a2 * v[i] + a[i])
+                for k in range(n):
+                    s += C[i, k] * w[k]
+                rhs0[i] = s
+            for i in range(n):
+                s = 0.0
+                for k in range(n):
+                    s += Kinv[i, k] * rhs0[k]
+                u0[i] = s
+            for j in range(npair):
+                z0[j] = u0[i1[j]] - u0[i2[j]]
+                wrel[j] = w[i1[j]] - w[i2[j]]
+                bb[j] = k_s * d + cdash[run, j] * wrel[j]
+            if scheme == SCHEME_IMPLICIT:
+                it = 0
+                settled = False
+                cycled = False
+                while it < max_iter and not cycled:
+                    seen[it] = _mask(active, npair)
+                    it += 1
+                    _contact_forces(S, z0, bb, ke, active, npair, idx, Asmall, rsmall, F)
+                    changed = False
+                    for j in range(npair):
+                        z = z0[j]
+                        for l in range(npair):
+                            z -= S[j, l] * F[l]
+                        pen = z - d
+                        want = pen > 0.0
+                        if want and law == 1:  # no tension: contact only while it pushes
+                            want = (ke[j] * z - bb[j]) > 0.0
+                        trial[j] = want
+                        if want != active[j]:
+                            changed = True
+                    if not changed:
+                        settled = True
+                        break
+                    for j in range(npair):
+                        active[j] = trial[j]
+                    # a set already tried means the iteration cycles: stop early
+                    mk = _mask(active, npair)
+                    for q in range(it):
+                        if seen[q] == mk and npair <= 62:
+                            cycled = True
+                if it > max_it_seen:
+                    max_it_seen = it
+                if not settled:
+                    # the active set cycles (an impact inside the step under the classic law): keep
+                    # every pair the last two sets disagree on in contact, solve once more, count it
+                    unsettled += 1
+                    for j in range(npair):
+                        active[j] = active[j] or trial[j]
+                    _contact_forces(S, z0, bb, ke, active, npair, idx, Asmall, rsmall, F)
+            else:
+                # paper's scheme: contact force from the trial (F = 0) state, applied as a load
+                for j in range(npair):
+                    F[j] = 0.0
+                    pen = z0[j] - d
+                    active[j] = False
+                    if pen > 0.0:
+                        vrel = b1 * z0[j] - wrel[j]
+                        f = k_s * pen + cdash[run, j] * vrel
+                        if law == 1 and f < 0.0:
+                            f = 0.0
+                        F[j] = f
+                        active[j] = True
+            # end-of-step state u = u0 - H F, then Newmark velocity and acceleration (eqs. 15-16)
+            for i in range(n):
+                s = u0[i]
+                for j in range(npair):
+                    s -= H[i, j] * F[j]
+                un[i] = s
+            finite = True
+            for i in range(n):
+                du = un[i] - u[i]
+                vn[i] = b1 * du - v[i]
+                an[i] = a1 * du - a2 * v[i] - a[i]
+                if not (abs(un[i]) < L.DIVERGED_M) or not (abs(an[i]) < 1e300):
+                    finite = False
+            if not finite:
+                status |= L.STATUS_NONFINITE
+                break
+            for i in range(n):
+                u[i] = un[i]
+                v[i] = vn[i]
+                a[i] = an[i]
+            steps_done = step
+            t = step * dt
+            # metrics, per floor
+            for i in range(n):
+                base = L.PER_DOF * i
+                ad = abs(u[i])
+                if ad > out[base + L.DOF_PEAK_DISP]:
+                    out[base + L.DOF_PEAK_DISP] = ad
+                    out[base + L.DOF_PEAK_DISP_TIME] = t
+                aa = abs(a[i] + ag)
+                if aa > out[base + L.DOF_PEAK_ABS_ACC]:
+                    out[base + L.DOF_PEAK_ABS_ACC] = aa
+            # metrics, per pair
+            for j in range(npair):
+                base = pbase + L.PER_PAIR * j
+                f = F[j]
+                if active[j]:
+                    if not was_active[j]:
+                        out[base + L.PAIR_IMPACTS] += 1.0
+                    out[base + L.PAIR_CONTACT_TIME] += dt
+                    pen = u[i1[j]] - u[i2[j]] - d
+                    if pen > out[base + L.PAIR_MAX_PENETRATION]:
+                        out[base + L.PAIR_MAX_PENETRATION] = pen
+                    if f > out[base + L.PAIR_PEAK_FORCE]:
+                        out[base + L.PAIR_PEAK_FORCE] = f
+                        out[base + L.PAIR_PEAK_FORCE_TIME] = t
+                    if f < out[base + L.PAIR_MIN_FORCE]:
+                        out[base + L.PAIR_MIN_FORCE] = f
+                comp = active[j] and f > 0.0
+                if comp:
+                    out[base + L.PAIR_COMPRESSION_TIME] += dt
+                    if not in_comp[j]:
+                        comp_start[j] = step
+                elif in_comp[j]:
+                    _end_phase(durations, nphase, j, (step - comp_start[j]) * dt)
+                in_comp[j] = comp
+                was_active[j] = active[j]
+            if keep_hist and step % decimate == 0:
+                col = step // decimate
+                if col < hist.shape[2]:
+                    for c in range(nch):
+                        hist[run, c, col] = _channel(hist_kind[c], hist_index[c], u, v, a, F, ag)
+        # close phases still open at the end
+        for j in range(npair):
+            if in_comp[j]:
+                _end_phase(durations, nphase, j, (steps_done + 1 - comp_start[j]) * dt)
+            base = pbase + L.PER_PAIR * j
+            k = nphase[j]
+            out[base + L.PAIR_COMPRESSION_PHASES] = k
+            if k > L.MEDIAN_BUFFER:
+                status |= L.STATUS_MEDIAN_TRUNCATED
+                k = L.MEDIAN_BUFFER
+            out[base + L.PAIR_MEDIAN_COMPRESSION] = np.median(durations[j, :k]) if k > 0 else 0.0
+        if unsettled > 0:
+            status |= L.STATUS_UNSETTLED
+        out[rbase + L.RUN_UNSETTLED] = unsettled
+        out[rbase + L.RUN_MAX_ITER] = max_it_seen
+        out[rbase + L.RUN_STEPS] = steps_done
+        out[rbase + L.RUN_STATUS] = status
+        run_time[run] = _clock() - t_start
+
+
+@njit_kernel
+def _mask(active, npair):
+    """Active set as a bit mask (meaningful for up to 62 pairs; only used to spot cycles)."""
+    mk = 0
+    for j in range(min(npair, 62)):
+        if active[j]:
+            mk |= 1 << j
+    return mk
+
+
+@njit_kernel
+def _end_phase(durations, nphase, j, duration):
+    k = nphase[j]
+    if k < durations.shape[1]:
+        durations[j, k] = duration
+    nphase[j] = k + 1
+
+
+@njit_kernel
+def _channel(kind, index, u, v, a, F, ag):
+    """Value of one history channel (see metrics_layout.H_*)."""
+    if kind == L.H_DISP:
+        return u[index]
+    if kind == L.H_VEL:
+        return v[index]
+    if kind == L.H_ABS_ACC:
+        return a[index] + ag
+    if kind == L.H_FORCE:
+        return F[index]
+    return ag

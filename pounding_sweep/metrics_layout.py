@@ -1,0 +1,81 @@
+"""Column layout of the kernel's per-run metric array, shared by the kernel and the writer.
+
+The kernel fills a float64 row per run; `metric_columns` names each slot with its unit.
+"""
+
+from __future__ import annotations
+
+# per degree of freedom (building b, floor f)
+DOF_PEAK_DISP, DOF_PEAK_DISP_TIME, DOF_PEAK_ABS_ACC = 0, 1, 2
+PER_DOF = 3
+# per facing floor pair j
+(
+    PAIR_PEAK_FORCE,
+    PAIR_MIN_FORCE,
+    PAIR_IMPACTS,
+    PAIR_CONTACT_TIME,
+    PAIR_COMPRESSION_TIME,
+    PAIR_COMPRESSION_PHASES,
+    PAIR_MEDIAN_COMPRESSION,
+    PAIR_MAX_PENETRATION,
+    PAIR_PEAK_FORCE_TIME,
+) = range(9)
+PER_PAIR = 9
+# per run
+RUN_UNSETTLED, RUN_MAX_ITER, RUN_STEPS, RUN_STATUS = range(4)
+PER_RUN = 4
+
+# status bits (the writer turns them into words)
+STATUS_NONFINITE = 1  # NaN/inf or |u| > DIVERGED_M: integration stopped
+STATUS_UNSETTLED = 2  # the contact active set cycled in at least one step
+STATUS_UNDERRESOLVED = 4  # dt too coarse for the contact period (set before the run)
+STATUS_MEDIAN_TRUNCATED = 8  # more compressive phases than the median buffer holds
+STATUS_WORDS = {
+    STATUS_NONFINITE: "diverged",
+    STATUS_UNSETTLED: "contact_unsettled",
+    STATUS_UNDERRESOLVED: "contact_underresolved",
+    STATUS_MEDIAN_TRUNCATED: "median_truncated",
+}
+DIVERGED_M = 1.0e3  # a displacement beyond a kilometre is a numerical blow-up, not physics
+MEDIAN_BUFFER = 4096  # compressive phases kept per pair for the median duration
+
+# history channel kinds
+H_DISP, H_VEL, H_ABS_ACC, H_FORCE, H_GROUND_ACC = range(5)
+
+
+def n_metrics(n_dof: int, n_pairs: int) -> int:
+    return PER_DOF * n_dof + PER_PAIR * n_pairs + PER_RUN
+
+
+def dof_slot(dof: int, what: int) -> int:
+    return PER_DOF * dof + what
+
+
+def pair_slot(n_dof: int, pair: int, what: int) -> int:
+    return PER_DOF * n_dof + PER_PAIR * pair + what
+
+
+def run_slot(n_dof: int, n_pairs: int, what: int) -> int:
+    return PER_DOF * n_dof + PER_PAIR * n_pairs + what
+
+
+def metric_columns(floors: tuple[int, int], n_pairs: int) -> list[str]:
+    """Column names, in slot order. Building b in {1, 2}, floor f from 1 (the ground story's top)."""
+    cols: list[str] = []
+    for b, nf in zip((1, 2), floors):
+        for f in range(1, nf + 1):
+            cols += [f"peak_disp_b{b}f{f}_m", f"peak_disp_time_b{b}f{f}_s", f"peak_abs_acc_b{b}f{f}_m_s2"]
+    for j in range(1, n_pairs + 1):
+        cols += [
+            f"peak_force_f{j}_N",
+            f"min_force_f{j}_N",
+            f"impacts_f{j}",
+            f"contact_time_f{j}_s",
+            f"compression_time_f{j}_s",
+            f"compression_phases_f{j}",
+            f"median_compression_phase_f{j}_s",
+            f"max_penetration_f{j}_m",
+            f"peak_force_time_f{j}_s",
+        ]
+    cols += ["unsettled_steps", "max_contact_iterations", "steps", "status_code"]
+    return cols

@@ -1,0 +1,361 @@
+"""Recorded ground acceleration: PEER AT2 / two-column CSV readers, similitude scaling, resampling.
+
+Everything inside is SI: accelerations in m/s^2, times in s.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+G_STANDARD = 9.80665  # m/s^2
+
+__all__ = [
+    "G_STANDARD",
+    "RecordError",
+    "GroundRecord",
+    "read_at2",
+    "read_csv_record",
+    "read_record",
+    "similitude_scale",
+    "resample",
+]
+
+
+class RecordError(ValueError):
+    """Bad ground-motion file: message names the file, the line (when known) and the offending value."""
+
+
+# --------------------------------------------------------------------------- record
+
+
+@dataclass(frozen=True, eq=False)  # eq=False: identity equality/hash (arrays make == ambiguous)
+class GroundRecord:
+    """A uniformly sampled ground-acceleration history in m/s^2, starting at t = 0."""
+
+    name: str
+    source: str
+    dt_s: float
+    acc_m_s2: np.ndarray
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        """Validate dt and store a private, read-only float64 copy so the record cannot change."""
+        dt = float(self.dt_s)
+        if not (math.isfinite(dt) and dt > 0.0):
+            raise RecordError(f"{self.source}: sample interval must be finite and > 0, got {self.dt_s!r}")
+        acc = np.array(self.acc_m_s2, dtype=np.float64, copy=True)
+        if acc.ndim != 1 or acc.size == 0:
+            raise RecordError(f"{self.source}: acceleration must be a non-empty 1-D array, got shape {acc.shape}")
+        if not np.all(np.isfinite(acc)):
+            raise RecordError(f"{self.source}: acceleration contains NaN or inf")
+        acc.flags.writeable = False
+        object.__setattr__(self, "dt_s", dt)
+        object.__setattr__(self, "acc_m_s2", acc)
+
+    @property
+    def duration_s(self) -> float:
+        """Time of the last sample, (n - 1) * dt."""
+        return (self.acc_m_s2.size - 1) * self.dt_s
+
+    @property
+    def time_s(self) -> np.ndarray:
+        """Sample times n * dt, n = 0..len-1."""
+        return np.arange(self.acc_m_s2.size, dtype=np.float64) * self.dt_s
+
+    @property
+    def pga_m_s2(self) -> float:
+        """Peak ground acceleration, max |a|."""
+        return float(np.max(np.abs(self.acc_m_s2)))
+
+
+# --------------------------------------------------------------------------- helpers
+
+_UNIT_FACTORS = {"g": G_STANDARD, "m/s2": 1.0, "cm/s2": 0.01}
+_UNIT_ALIASES = {
+    "g": "g",
+    "m/s2": "m/s2",
+    "m/s^2": "m/s2",
+    "cm/s2": "cm/s2",
+    "cm/s^2": "cm/s2",
+    "gal": "cm/s2",
+}
+_ACCEPTED_UNITS = ", ".join(repr(u) for u in _UNIT_ALIASES)
+
+# How PEER line 3 spells units (spaces removed, upper case) -> our canonical name.
+_HEADER_UNITS = {
+    "G": "g",
+    "M/S/S": "m/s2", "M/SEC/SEC": "m/s2", "M/S2": "m/s2", "M/S^2": "m/s2", "M/S**2": "m/s2",
+    "M/SEC2": "m/s2", "M/SEC^2": "m/s2", "M/SEC**2": "m/s2",
+    "CM/S/S": "cm/s2", "CM/SEC/SEC": "cm/s2", "CM/S2": "cm/s2", "CM/S^2": "cm/s2", "CM/S**2": "cm/s2",
+    "CM/SEC2": "cm/s2", "CM/SEC^2": "cm/s2", "CM/SEC**2": "cm/s2", "GAL": "cm/s2",
+}
+
+# Plain decimal / Fortran E (or D) number: "-.6403182E-02", "5", "1.5d-3". No underscores, no hex.
+_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eEdD][+-]?\d+)?")
+_NPTS = re.compile(r"\bNPTS\s*[=:]?\s*([^\s,;]+)", re.IGNORECASE)
+_DT = re.compile(r"\bDT\s*[=:]?\s*([^\s,;]+)", re.IGNORECASE)
+# Very old PEER line 4: "  4000   .01000   NPTS, DT"
+_NPTS_DT_TRAILING = re.compile(r"^\s*([^\s,]+)[\s,]+([^\s,]+)[\s,]+NPTS\s*,\s*DT\b", re.IGNORECASE)
+
+
+def _unit_factor(units: object, path: str) -> tuple[str, float]:
+    """Canonical unit name and its factor to m/s^2, or RecordError listing the accepted spellings."""
+    key = units.strip().lower().replace(" ", "") if isinstance(units, str) else None
+    if key not in _UNIT_ALIASES:
+        raise RecordError(f"{path}: unknown units {units!r}; accepted: {_ACCEPTED_UNITS}")
+    canon = _UNIT_ALIASES[key]
+    return canon, _UNIT_FACTORS[canon]
+
+
+def _read_lines(path: Path) -> list[str]:
+    """Whole file as lines (any line ending); UTF-8 with a Latin-1 fallback for accented station names."""
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise RecordError(f"{path}: cannot read file ({exc.strerror or exc})") from None
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        text = raw.decode("latin-1")
+    return text.splitlines()
+
+
+def _number(token: str) -> float | None:
+    """float of a plain/Fortran number token, or None if it is not one (NaN/inf spellings included)."""
+    if _NUMBER.fullmatch(token) is None:
+        return None
+    return float(token.replace("d", "e").replace("D", "E"))
+
+
+def _is_nonfinite_spelling(token: str) -> bool:
+    """True for tokens Python reads as NaN or inf ('nan', '-Infinity', ...), to give them their own message."""
+    try:
+        return not math.isfinite(float(token))
+    except ValueError:
+        return False
+
+
+# --------------------------------------------------------------------------- AT2
+
+
+def _at2_header_units(line3: str, path: str) -> str | None:
+    """Units named on AT2 line 3 ('... IN UNITS OF G'), or None when the line names none."""
+    upper = line3.upper()
+    if ("VELOCITY" in upper or "DISPLACEMENT" in upper) and "ACCELERATION" not in upper:
+        raise RecordError(f"{path}, line 3: not an acceleration record: {line3.strip()!r}")
+    m = re.search(r"UNITS\s+OF\s+(\S+(?:\s*/\s*\S+)*)", upper)
+    if m is None:
+        return None
+    word = re.sub(r"\s+", "", m.group(1)).rstrip(".,;:")
+    if word not in _HEADER_UNITS:
+        raise RecordError(
+            f"{path}, line 3: unrecognised units {word!r} in header {line3.strip()!r}; "
+            "pass units= explicitly (e.g. 'm/s2' or 'cm/s2')"
+        )
+    return _HEADER_UNITS[word]
+
+
+def _at2_npts_dt(line4: str, path: str) -> tuple[int, float]:
+    """NPTS and DT from AT2 line 4, tolerant of spacing, commas and '.0050'-style values."""
+    m_n, m_d = _NPTS.search(line4), _DT.search(line4)
+    if m_n and m_d:
+        npts_tok, dt_tok = m_n.group(1), m_d.group(1)
+    elif (m_old := _NPTS_DT_TRAILING.match(line4)) is not None:
+        npts_tok, dt_tok = m_old.group(1), m_old.group(2)
+    else:
+        missing = " and ".join(k for k, m in (("NPTS", m_n), ("DT", m_d)) if m is None)
+        raise RecordError(f"{path}, line 4: no {missing} found in {line4.strip()!r}")
+    npts_f = _number(npts_tok)
+    if npts_f is None or not math.isfinite(npts_f) or npts_f != int(npts_f) or npts_f <= 0:
+        raise RecordError(f"{path}, line 4: NPTS must be a positive integer, got {npts_tok!r}")
+    dt = _number(dt_tok)
+    if dt is None or not math.isfinite(dt) or dt <= 0.0:
+        raise RecordError(f"{path}, line 4: DT must be a finite number > 0, got {dt_tok!r}")
+    return int(npts_f), dt
+
+
+def read_at2(path, units="g") -> GroundRecord:
+    """Read a PEER AT2 file (NGA-West2 or older PEER header) into m/s^2.
+
+    Units rule: an explicit units other than "g" always wins. With units="g" (the default), if
+    header line 3 names other units (e.g. "UNITS OF CM/S/S"), the header's units are used.
+    """
+    p = Path(path)
+    src = str(path)
+    _unit_factor(units, src)  # reject bad units before touching the file
+    lines = _read_lines(p)
+    if len(lines) < 4:
+        raise RecordError(f"{src}: only {len(lines)} line(s); a PEER AT2 file needs 4 header lines")
+    npts, dt = _at2_npts_dt(lines[3], src)
+    header_units = _at2_header_units(lines[2], src)
+    canon, _ = _unit_factor(units, src)
+    if canon == "g" and header_units is not None:
+        canon = header_units
+    factor = _UNIT_FACTORS[canon]
+
+    values: list[float] = []
+    for lineno, line in enumerate(lines[4:], start=5):
+        for tok in line.split():
+            x = _number(tok)
+            if x is None:
+                if _is_nonfinite_spelling(tok):
+                    raise RecordError(f"{src}, line {lineno}: non-finite value {tok!r}")
+                raise RecordError(f"{src}, line {lineno}: not a number: {tok!r}")
+            if not math.isfinite(x):
+                raise RecordError(f"{src}, line {lineno}: value overflows to inf: {tok!r}")
+            if len(values) == npts:
+                raise RecordError(
+                    f"{src}, line {lineno}: more values than NPTS={npts} (first extra value {tok!r})"
+                )
+            values.append(x)
+    if len(values) < npts:
+        raise RecordError(f"{src}: found {len(values)} values but NPTS={npts} (file truncated?)")
+
+    return GroundRecord(
+        name=p.stem,
+        source=src,
+        dt_s=dt,
+        acc_m_s2=np.asarray(values, dtype=np.float64) * factor,
+        description=lines[1].strip(),
+    )
+
+
+# --------------------------------------------------------------------------- CSV
+
+_CSV_SPLIT = re.compile(r"\s*[,;]\s*|\s+")
+
+
+def read_csv_record(path, units="m/s2") -> GroundRecord:
+    """Read a two-column (time s, acceleration) text file into m/s^2; the time must be uniform.
+
+    Optional single header row; comma, semicolon or whitespace delimited; blank and '#' lines are
+    skipped. A nonzero start time t0 is dropped: the record is shifted so its first sample is t = 0.
+    """
+    p = Path(path)
+    src = str(path)
+    _, factor = _unit_factor(units, src)
+    lines = _read_lines(p)
+
+    rows: list[tuple[int, float, float]] = []  # (1-based line, t, a)
+    seen_first = False
+    for lineno, line in enumerate(lines, start=1):
+        s = line.strip()
+        if not s or s.startswith("#"):
+            continue
+        fields = _CSV_SPLIT.split(s)
+        while fields and fields[-1] == "":  # tolerate a trailing delimiter
+            fields.pop()
+        parsed = [_number(f) for f in fields]
+        if not seen_first:
+            seen_first = True
+            if all(x is None and not _is_nonfinite_spelling(f) for x, f in zip(parsed, fields)):
+                continue  # header row: nothing on it is a number
+        if len(fields) != 2:
+            raise RecordError(f"{src}, line {lineno}: expected 2 columns (time, acceleration), got {len(fields)}: {s!r}")
+        for f, x in zip(fields, parsed):
+            if x is None:
+                kind = "non-finite value" if _is_nonfinite_spelling(f) else "not a number"
+                raise RecordError(f"{src}, line {lineno}: {kind}: {f!r}")
+            if not math.isfinite(x):
+                raise RecordError(f"{src}, line {lineno}: value overflows to inf: {f!r}")
+        rows.append((lineno, parsed[0], parsed[1]))
+
+    if len(rows) < 2:
+        raise RecordError(f"{src}: need at least 2 data rows, found {len(rows)}")
+    lineno_arr = np.array([r[0] for r in rows])
+    t = np.array([r[1] for r in rows], dtype=np.float64)
+    a = np.array([r[2] for r in rows], dtype=np.float64)
+
+    d = np.diff(t)
+    bad = np.flatnonzero(d <= 0.0)
+    if bad.size:
+        i = bad[0] + 1
+        raise RecordError(
+            f"{src}, line {lineno_arr[i]}: time must be strictly increasing, "
+            f"got {t[i]!r} after {t[i - 1]!r}"
+        )
+    dt = float(np.median(d))
+    if (d.max() - d.min()) / dt >= 1e-6:
+        i = int(np.argmax(np.abs(d - dt))) + 1
+        raise RecordError(
+            f"{src}, line {lineno_arr[i]}: non-uniform time step {d[i - 1]!r} s (median {dt!r} s) "
+            f"at t={t[i]!r}; resample the record to a uniform step first"
+        )
+    return GroundRecord(name=p.stem, source=src, dt_s=dt, acc_m_s2=a * factor, description="")
+
+
+# --------------------------------------------------------------------------- dispatch
+
+
+def read_record(path, format="auto", units=None) -> GroundRecord:
+    """Read a record as AT2 or CSV; format "auto" goes by suffix (.at2 -> AT2, .csv/.txt -> CSV).
+
+    units=None uses the format's default ("g" for AT2, with its header rule; "m/s2" for CSV).
+    """
+    src = str(path)
+    fmt = format.strip().lower() if isinstance(format, str) else format
+    if fmt == "auto":
+        suffix = Path(path).suffix.lower()
+        fmt = {".at2": "at2", ".csv": "csv", ".txt": "csv"}.get(suffix)
+        if fmt is None:
+            raise RecordError(f"{src}: cannot tell the format from suffix {suffix!r}; pass format='at2' or 'csv'")
+    if fmt == "at2":
+        return read_at2(path) if units is None else read_at2(path, units=units)
+    if fmt == "csv":
+        return read_csv_record(path) if units is None else read_csv_record(path, units=units)
+    raise RecordError(f"{src}: unknown format {format!r}; accepted: 'auto', 'at2', 'csv'")
+
+
+# --------------------------------------------------------------------------- scaling, resampling
+
+
+def similitude_scale(rec: GroundRecord, length_scale: float) -> GroundRecord:
+    """Record for a 1/length_scale model (Sekerci & Damci eqs. 17-19): lambda_T = sqrt(lambda_L), lambda_A = 1.
+
+    Accelerations are unchanged; time is compressed, so dt becomes dt / sqrt(length_scale).
+    """
+    try:
+        lam = float(length_scale)
+    except (TypeError, ValueError):
+        lam = math.nan
+    if isinstance(length_scale, bool) or not (math.isfinite(lam) and lam > 0.0):
+        raise RecordError(f"{rec.source}: length_scale must be finite and > 0, got {length_scale!r}")
+    tag = f"[similitude 1/{lam:g}: time / sqrt({lam:g})]"
+    return GroundRecord(
+        name=rec.name,
+        source=rec.source,
+        dt_s=rec.dt_s / math.sqrt(lam),
+        acc_m_s2=rec.acc_m_s2,
+        description=f"{rec.description} {tag}" if rec.description else tag,
+    )
+
+
+_MAX_SAMPLES = 100_000_000  # guards against dt given in the wrong units (e.g. ms)
+
+
+def resample(rec: GroundRecord, dt_s: float, duration_s: float | None = None) -> np.ndarray:
+    """Acceleration at t = n*dt_s, n = 0..N-1, N = floor(duration/dt_s + 1e-9) + 1, linear between samples.
+
+    Past the record's end the acceleration is 0 (free-vibration tail). No anti-alias filtering.
+    """
+    dt = float(dt_s)
+    if not (math.isfinite(dt) and dt > 0.0):
+        raise RecordError(f"{rec.source}: resample dt_s must be finite and > 0, got {dt_s!r}")
+    dur = rec.duration_s if duration_s is None else float(duration_s)
+    if not (math.isfinite(dur) and dur >= 0.0):
+        raise RecordError(f"{rec.source}: resample duration_s must be finite and >= 0, got {duration_s!r}")
+    n = math.floor(dur / dt + 1e-9) + 1
+    if n > _MAX_SAMPLES:
+        raise RecordError(f"{rec.source}: resampling to dt={dt!r} s over {dur!r} s needs {n} samples; dt too small?")
+
+    t = np.arange(n, dtype=np.float64) * dt
+    t_end = rec.duration_s
+    inside = t <= t_end + 1e-9 * rec.dt_s  # round-off at the last sample must not drop it to 0
+    out = np.interp(np.minimum(t, t_end), rec.time_s, rec.acc_m_s2)
+    out[~inside] = 0.0
+    return np.ascontiguousarray(out, dtype=np.float64)

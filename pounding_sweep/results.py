@@ -1,0 +1,148 @@
+"""Parquet output: one row per run, units in column names, the scene and versions in the
+file metadata, written to a temporary name and renamed only when complete."""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from . import __version__
+from . import metrics_layout as L
+
+META_KEY = b"pounding_sweep"
+
+#: what the non-obvious columns mean (stored in the metadata as well)
+COLUMN_DOCS = {
+    "run_id": "index of the run in the grid (last sweep axis fastest)",
+    "ks_ratio": "contact stiffness k_s / k_ref [-]",
+    "ks_N_per_m": "contact stiffness k_s [N/m]",
+    "r": "coefficient of restitution [-]",
+    "gap_m": "gap d between facing floors at rest [m]",
+    "contact_damping_ratio": "xi_s from r, eq. 10 [-]",
+    "steps_per_contact_period": "min over pairs of 2 pi sqrt(m_eff/k_s) / dt [-]",
+    "peak_disp_b*f*_m": "largest |displacement| of building b, floor f relative to the table [m]",
+    "peak_disp_time_b*f*_s": "time of that peak [s]",
+    "peak_abs_acc_b*f*_m_s2": "largest |absolute acceleration| (relative + table) [m/s^2]",
+    "peak_force_f*_N": "largest pounding force at floor pair f, positive in compression [N]",
+    "min_force_f*_N": "most negative (tensile) contact force of the classic law [N]",
+    "impacts_f*": "number of contact phases (penetration > 0) [-]",
+    "contact_time_f*_s": "total time with penetration > 0 [s], resolution dt",
+    "compression_time_f*_s": "total time with contact force > 0 [s], resolution dt",
+    "compression_phases_f*": "number of phases with contact force > 0 [-]",
+    "median_compression_phase_f*_s": "median duration of those phases [s], resolution dt",
+    "max_penetration_f*_m": "largest penetration u1 - u2 - d [m]",
+    "peak_force_time_f*_s": "time of the peak force [s]",
+    "unsettled_steps": "steps whose contact active set did not settle (implicit scheme) [-]",
+    "max_contact_iterations": "most active-set iterations any step needed [-]",
+    "steps": "time steps completed [-]",
+    "status": "'ok' or '+'-joined flags: diverged, contact_unsettled, contact_underresolved, median_truncated",
+    "run_time_s": "wall time of this run in the kernel [s]",
+}
+
+INT_COLUMNS = ("impacts_f", "compression_phases_f", "unsettled_steps", "max_contact_iterations", "steps")
+
+
+def status_words(codes: np.ndarray) -> list[str]:
+    """Status bit field -> 'ok' or the '+'-joined flag words."""
+    out = []
+    for c in codes.astype(np.int64):
+        words = [w for bit, w in L.STATUS_WORDS.items() if c & bit]
+        out.append("+".join(words) if words else "ok")
+    return out
+
+
+def metrics_table(params: dict[str, np.ndarray], metric_names: list[str], metrics: np.ndarray,
+                  run_time: np.ndarray) -> pa.Table:
+    """Arrow table of a chunk: parameters, metrics, status and run time."""
+    cols: dict[str, pa.Array] = {}
+    for k, v in params.items():
+        cols[k] = pa.array(v.tolist() if v.dtype == object else v)
+    for i, name in enumerate(metric_names):
+        if name == "status_code":
+            continue
+        col = metrics[:, i]
+        cols[name] = pa.array(col.astype(np.int64) if name.startswith(INT_COLUMNS) else col)
+    cols["status"] = pa.array(status_words(metrics[:, metric_names.index("status_code")]))
+    cols["run_time_s"] = pa.array(run_time)
+    return pa.table(cols)
+
+
+def file_metadata(scene, extra: dict) -> dict[bytes, bytes]:
+    """Key-value metadata: scene TOML, canonical config and hash, versions, units, model facts."""
+    import numba
+
+    info = {
+        "package": "pounding_sweep",
+        "version": __version__,
+        "numba_version": numba.__version__,
+        "numpy_version": np.__version__,
+        "python_version": platform.python_version(),
+        "scene_name": scene.name,
+        "scene_file": scene.source,
+        "config_hash": scene.config_hash(),
+        "config": scene.canonical(),
+        "units": "SI: m, kg, s, N; unit suffix in each column name",
+        "columns": COLUMN_DOCS,
+        **extra,
+    }
+    return {
+        META_KEY: json.dumps(info, default=str).encode(),
+        b"scene_toml": scene.toml_text.encode(),
+        b"config_hash": info["config_hash"].encode(),
+    }
+
+
+def read_metadata(path: str | Path) -> dict:
+    """The pounding_sweep metadata of a result file, as a dict."""
+    md = pq.read_schema(path).metadata or {}
+    return json.loads(md[META_KEY])
+
+
+class AtomicParquetWriter:
+    """Stream tables into `<path>.tmp`; rename to `path` on success, delete on failure."""
+
+    def __init__(self, path: str | Path, metadata: dict[bytes, bytes]):
+        self.path = Path(path)
+        self.tmp = self.path.with_name(self.path.name + ".tmp")
+        self.metadata = metadata
+        self._writer: pq.ParquetWriter | None = None
+
+    def write(self, table: pa.Table) -> None:
+        if self._writer is None:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            schema = table.schema.with_metadata(self.metadata)
+            self._writer = pq.ParquetWriter(self.tmp, schema, compression="zstd")
+        self._writer.write_table(table.replace_schema_metadata(self.metadata))
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        if self._writer is not None:
+            self._writer.close()
+        if exc_type is None and self._writer is not None:
+            os.replace(self.tmp, self.path)
+        else:
+            self.tmp.unlink(missing_ok=True)
+        return False
+
+
+def histories_path(path: str | Path) -> Path:
+    p = Path(path)
+    stem = p.name[: -len(".parquet")] if p.name.endswith(".parquet") else p.name
+    return p.with_name(stem + ".histories.parquet")
+
+
+def histories_table(run_ids: np.ndarray, hist: np.ndarray, dt_sample: float, columns: list[str]) -> pa.Table:
+    """Long-format history table: run_id, t_s and one column per channel (units in the names)."""
+    n_runs, n_ch, n_s = hist.shape
+    cols = {"run_id": pa.array(np.repeat(run_ids, n_s)), "t_s": pa.array(np.tile(np.arange(n_s) * dt_sample, n_runs))}
+    for c, name in enumerate(columns):
+        cols[name] = pa.array(hist[:, c, :].reshape(-1))
+    return pa.table(cols)

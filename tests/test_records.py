@@ -1,0 +1,299 @@
+"""Tests for pounding_sweep.records: AT2/CSV readers, error messages, similitude, resampling."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pounding_sweep.records import (
+    G_STANDARD,
+    GroundRecord,
+    RecordError,
+    read_at2,
+    read_csv_record,
+    read_record,
+    resample,
+    similitude_scale,
+)
+
+GM_DIR = Path(__file__).resolve().parents[2] / "shared" / "data" / "ground_motions"
+
+# file -> (NPTS, DT, published PGA in g)
+PUBLISHED = {
+    "RSN1605_DUZCE_DZC180.AT2": (5177, 0.005, 0.4043),
+    "RSN1605_DUZCE_DZC270.AT2": (5177, 0.005, 0.5150),
+    "RSN1602_DUZCE_BOL000.AT2": (5590, 0.010, 0.7392),
+    "RSN1602_DUZCE_BOL090.AT2": (5590, 0.010, 0.8057),
+    "RSN1616_DUZCE_362-E.AT2": (4316, 0.010, 0.0283),
+    "RSN6_IMPVALL.I_I-ELC180.AT2": (5372, 0.010, 0.2808),
+    "IELC180.AT2": (4000, 0.010, 0.3129),
+}
+
+
+@pytest.fixture(scope="module")
+def gm_dir() -> Path:
+    if not GM_DIR.is_dir() or not any(GM_DIR.glob("*.AT2")):
+        pytest.skip(f"../shared/data/ground_motions not present: no .AT2 files in {GM_DIR}")
+    return GM_DIR
+
+
+def _gm_file(gm_dir: Path, name: str) -> Path:
+    p = gm_dir / name
+    if not p.is_file():
+        pytest.skip(f"../shared/data/ground_motions not present: {name} missing from {gm_dir}")
+    return p
+
+
+# --------------------------------------------------------------------------- real files
+
+
+def test_every_at2_parses_and_matches_its_header(gm_dir):
+    files = sorted(gm_dir.glob("*.AT2"))
+    assert files
+    for f in files:
+        lines = f.read_text().splitlines()
+        npts = int(lines[3].split("NPTS=")[1].split(",")[0])
+        dt = float(lines[3].split("DT=")[1].split()[0])
+        rec = read_at2(f)
+        assert rec.name == f.stem
+        assert rec.source == str(f)
+        assert rec.acc_m_s2.shape == (npts,), f.name
+        assert rec.acc_m_s2.dtype == np.float64
+        assert rec.dt_s == pytest.approx(dt, rel=1e-12), f.name
+        assert rec.duration_s == pytest.approx((npts - 1) * dt), f.name
+        assert rec.description == lines[1].strip()
+        assert np.all(np.isfinite(rec.acc_m_s2))
+        # first value on line 5, in g, converted to m/s^2
+        assert rec.acc_m_s2[0] == pytest.approx(float(lines[4].split()[0]) * G_STANDARD, rel=1e-12)
+
+
+@pytest.mark.parametrize("name", sorted(PUBLISHED))
+def test_published_npts_dt_pga(gm_dir, name):
+    npts, dt, pga_g = PUBLISHED[name]
+    rec = read_record(_gm_file(gm_dir, name))
+    assert rec.acc_m_s2.size == npts
+    assert rec.dt_s == pytest.approx(dt, rel=1e-12)
+    assert round(rec.pga_m_s2 / G_STANDARD, 4) == pytest.approx(pga_g, abs=1e-12)
+
+
+def test_dzc180_time_of_pga_and_description(gm_dir):
+    rec = read_at2(_gm_file(gm_dir, "RSN1605_DUZCE_DZC180.AT2"))
+    t_pga = rec.time_s[np.argmax(np.abs(rec.acc_m_s2))]
+    assert abs(t_pga - 4.78) <= rec.dt_s
+    assert rec.description == "Duzce Turkey, 11/12/1999, Duzce, 180"
+    assert rec.duration_s == pytest.approx(5176 * 0.005)
+
+
+def test_crlf_and_older_header_descriptions(gm_dir):
+    crlf = read_at2(_gm_file(gm_dir, "RSN1616_DUZCE_362-E.AT2"))
+    assert crlf.description == "Duzce Turkey, 11/12/1999, Lamont 362, E"  # no stray '\r'
+    old = read_at2(_gm_file(gm_dir, "IELC180.AT2"))
+    assert old.description.startswith("IMPERIAL VALLEY 5/19/40 0439, EL CENTRO ARRAY #9, 180")
+    assert old.acc_m_s2[0] == pytest.approx(-0.6403182e-02 * G_STANDARD, rel=1e-12)
+
+
+def test_record_is_read_only(gm_dir):
+    rec = read_at2(_gm_file(gm_dir, "RSN1605_DUZCE_DZC180.AT2"))
+    assert not rec.acc_m_s2.flags.writeable
+    with pytest.raises(ValueError):
+        rec.acc_m_s2[0] = 1.0
+
+
+# --------------------------------------------------------------------------- synthetic AT2
+
+NGA_HEAD = (
+    "PEER NGA STRONG MOTION DATABASE RECORD\n"
+    "Test Event, 1/1/2000, Station, 0\n"
+    "ACCELERATION TIME SERIES IN UNITS OF G\n"
+)
+
+
+def _write(tmp_path: Path, name: str, text: str) -> Path:
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def test_synthetic_at2_values_units_and_header_variants(tmp_path):
+    body = "  -.1000000E-01   .2000000E+00\n   .5E-01\n"
+    p = _write(tmp_path, "a.AT2", NGA_HEAD + "NPTS=      3, DT=   .0050 SEC,   \n" + body)
+    rec = read_at2(p)
+    assert G_STANDARD == 9.80665
+    np.testing.assert_allclose(rec.acc_m_s2, [-0.0980665, 1.96133, 0.4903325], rtol=1e-14)
+    assert rec.dt_s == 0.005
+    assert rec.time_s.tolist() == pytest.approx([0.0, 0.005, 0.010])
+    assert rec.pga_m_s2 == pytest.approx(0.2 * G_STANDARD)
+    # explicit units override "g": treat the numbers as cm/s^2
+    np.testing.assert_allclose(read_at2(p, units="gal").acc_m_s2, [-1e-4, 2e-3, 5e-4], rtol=1e-14)
+    np.testing.assert_allclose(read_at2(p, units="m/s^2").acc_m_s2, [-0.01, 0.2, 0.05], rtol=1e-15)
+    # spaced variant of line 4
+    p2 = _write(tmp_path, "b.AT2", NGA_HEAD + "NPTS = 3 DT = 0.01\n" + body)
+    assert read_at2(p2).dt_s == 0.01
+    # header naming cm/s/s, units left at default -> header wins
+    head_cm = NGA_HEAD.replace("UNITS OF G", "UNITS OF CM/SEC/SEC")
+    p3 = _write(tmp_path, "c.AT2", head_cm + "NPTS=3, DT=.01 SEC\n" + body)
+    np.testing.assert_allclose(read_at2(p3).acc_m_s2, [-1e-4, 2e-3, 5e-4], rtol=1e-14)
+
+
+def test_trailing_blank_lines_are_fine(tmp_path):
+    p = _write(tmp_path, "t.AT2", NGA_HEAD + "NPTS= 2, DT= .01 SEC\n .1E+00 .2E+00\n\n   \n\n")
+    np.testing.assert_allclose(read_at2(p).acc_m_s2, [0.1 * G_STANDARD, 0.2 * G_STANDARD])
+
+
+def _raises(match_parts, fn, *args, **kwargs) -> str:
+    with pytest.raises(RecordError) as exc:
+        fn(*args, **kwargs)
+    msg = str(exc.value)
+    for part in match_parts:
+        assert part in msg, f"{part!r} not in {msg!r}"
+    return msg
+
+
+def test_at2_errors(tmp_path):
+    missing = tmp_path / "nope.AT2"
+    _raises(["nope.AT2", "cannot read"], read_at2, missing)
+
+    short = _write(tmp_path, "short.AT2", "PEER NGA STRONG MOTION DATABASE RECORD\nx\n")
+    _raises(["short.AT2", "2 line", "4 header lines"], read_at2, short)
+
+    no_npts = _write(tmp_path, "nonpts.AT2", NGA_HEAD + "DT= .01 SEC\n .1 .2\n")
+    _raises(["nonpts.AT2", "line 4", "NPTS"], read_at2, no_npts)
+
+    no_dt = _write(tmp_path, "nodt.AT2", NGA_HEAD + "NPTS= 2\n .1 .2\n")
+    msg = _raises(["nodt.AT2", "line 4", "DT"], read_at2, no_dt)
+    assert "NPTS and" not in msg
+
+    zero = _write(tmp_path, "zero.AT2", NGA_HEAD + "NPTS= 0, DT= .01\n")
+    _raises(["zero.AT2", "NPTS", "'0'"], read_at2, zero)
+
+    neg_dt = _write(tmp_path, "negdt.AT2", NGA_HEAD + "NPTS= 2, DT= -.01\n .1 .2\n")
+    _raises(["negdt.AT2", "DT", "'-.01'"], read_at2, neg_dt)
+
+    bad = _write(tmp_path, "bad.AT2", NGA_HEAD + "NPTS= 4, DT= .01\n .1 .2\n .3 1.2.3\n")
+    _raises(["bad.AT2", "line 6", "'1.2.3'"], read_at2, bad)
+
+    nan = _write(tmp_path, "nan.AT2", NGA_HEAD + "NPTS= 3, DT= .01\n .1\n .2 NaN\n")
+    _raises(["nan.AT2", "line 6", "non-finite", "'NaN'"], read_at2, nan)
+
+    few = _write(tmp_path, "few.AT2", NGA_HEAD + "NPTS= 5, DT= .01\n .1 .2 .3\n")
+    _raises(["few.AT2", "found 3 values", "NPTS=5"], read_at2, few)
+
+    many = _write(tmp_path, "many.AT2", NGA_HEAD + "NPTS= 2, DT= .01\n .1 .2\n\n .3\n")
+    _raises(["many.AT2", "line 7", "more values than NPTS=2", "'.3'"], read_at2, many)
+
+    ok = _write(tmp_path, "ok.AT2", NGA_HEAD + "NPTS= 1, DT= .01\n .1\n")
+    _raises(["ok.AT2", "'furlongs'", "'g'", "'cm/s2'"], read_at2, ok, units="furlongs")
+
+    vel = _write(tmp_path, "vel.AT2", NGA_HEAD.replace("ACCELERATION", "VELOCITY").replace("OF G", "OF CM/S")
+                 + "NPTS= 1, DT= .01\n .1\n")
+    _raises(["vel.AT2", "line 3", "not an acceleration"], read_at2, vel)
+
+
+# --------------------------------------------------------------------------- CSV
+
+
+def test_csv_header_t0_shift_and_units(tmp_path):
+    p = _write(tmp_path, "rec.csv", "time_s,acc_cm_s2\n2.00,10\n2.02,-20\n2.04,30\n2.06,0\n")
+    rec = read_csv_record(p, units="cm/s2")
+    assert rec.name == "rec"
+    assert rec.description == ""
+    assert rec.dt_s == pytest.approx(0.02, rel=1e-12)
+    np.testing.assert_allclose(rec.acc_m_s2, [0.1, -0.2, 0.3, 0.0], rtol=1e-15)
+    assert rec.time_s[0] == 0.0
+    assert rec.duration_s == pytest.approx(0.06)
+    # whitespace and semicolon delimiters, no header, default units m/s2, via read_record
+    p2 = _write(tmp_path, "rec.txt", "0.0  1.5\n0.1\t-2.5\n")
+    r2 = read_record(p2)
+    assert r2.acc_m_s2.tolist() == [1.5, -2.5] and r2.dt_s == pytest.approx(0.1)
+    p3 = _write(tmp_path, "semi.csv", "0;0.1\n0.5;0.2\n1.0;0.3\n")
+    r3 = read_record(p3, units="g")
+    np.testing.assert_allclose(r3.acc_m_s2, np.array([0.1, 0.2, 0.3]) * G_STANDARD, rtol=1e-15)
+
+
+def test_csv_errors(tmp_path):
+    unsorted = _write(tmp_path, "unsorted.csv", "t,a\n0.0,1\n0.1,2\n0.05,3\n")
+    _raises(["unsorted.csv", "line 4", "strictly increasing", "0.05"], read_csv_record, unsorted)
+
+    uneven = _write(tmp_path, "uneven.csv", "0.0,1\n0.1,2\n0.2,3\n0.31,4\n0.41,5\n")
+    _raises(["uneven.csv", "line 4", "non-uniform", "resample"], read_csv_record, uneven)
+
+    text = _write(tmp_path, "text.csv", "t,a\n0.0,1\n0.1,abc\n")
+    _raises(["text.csv", "line 3", "'abc'"], read_csv_record, text)
+
+    nan = _write(tmp_path, "nan.csv", "0.0,1\n0.1,nan\n")
+    _raises(["nan.csv", "line 2", "non-finite"], read_csv_record, nan)
+
+    one = _write(tmp_path, "one.csv", "t,a\n0.0,1\n")
+    _raises(["one.csv", "at least 2"], read_csv_record, one)
+
+    cols = _write(tmp_path, "cols.csv", "0.0,1,2\n0.1,2,3\n")
+    _raises(["cols.csv", "line 1", "2 columns"], read_csv_record, cols)
+
+    ok = _write(tmp_path, "ok.csv", "0.0,1\n0.1,2\n")
+    _raises(["ok.csv", "'mm/s2'", "accepted"], read_csv_record, ok, units="mm/s2")
+    _raises(["ok.csv", "'xyz'"], read_record, ok, format="xyz")
+    _raises(["nope.csv", "cannot read"], read_csv_record, tmp_path / "nope.csv")
+    _raises(["x.dat", "suffix"], read_record, tmp_path / "x.dat")
+
+
+# --------------------------------------------------------------------------- similitude, resample
+
+
+def _rec(acc, dt, description="event") -> GroundRecord:
+    return GroundRecord(name="syn", source="syn.csv", dt_s=dt, acc_m_s2=np.asarray(acc, float),
+                        description=description)
+
+
+def test_similitude_scale():
+    rec = _rec([0.0, 1.0, -2.0, 0.5], 0.01)
+    s = similitude_scale(rec, 15)
+    assert s.dt_s == pytest.approx(0.01 / math.sqrt(15), rel=1e-15)
+    assert np.array_equal(s.acc_m_s2, rec.acc_m_s2)
+    assert s.pga_m_s2 == rec.pga_m_s2
+    assert s.duration_s == pytest.approx(rec.duration_s / math.sqrt(15))
+    assert s.name == "syn"
+    assert s.description == "event [similitude 1/15: time / sqrt(15)]"
+    assert rec.dt_s == 0.01  # original untouched
+    for bad in (0, -2.0, float("nan"), float("inf")):
+        _raises(["length_scale", repr(bad)], similitude_scale, rec, bad)
+
+
+def test_resample_exact_linear_and_tail():
+    acc = np.array([0.0, 2.0, -4.0, 1.0])
+    rec = _rec(acc, 0.01)
+    # same grid: exact copy
+    same = resample(rec, 0.01)
+    assert same.dtype == np.float64 and same.flags.c_contiguous
+    assert np.array_equal(same, acc)
+    # half step: originals at even indices, midpoints in between
+    half = resample(rec, 0.005)
+    assert half.size == 7
+    assert np.array_equal(half[::2], acc)
+    np.testing.assert_allclose(half[1::2], [1.0, -1.0, -1.5], rtol=0, atol=1e-12)
+    # a quarter of the way into the 2nd interval: 2 + 0.25 * (-6) = 0.5
+    q = resample(rec, 0.0025)
+    assert q[5] == pytest.approx(0.5, abs=1e-12)
+    # zero tail past the end, length floor(dur/dt + 1e-9) + 1
+    long = resample(rec, 0.01, duration_s=0.1)
+    assert long.size == 11
+    assert np.array_equal(long[:4], acc)
+    assert np.all(long[4:] == 0.0)
+    # shorter duration truncates; duration that is not a multiple of dt rounds down
+    assert resample(rec, 0.01, duration_s=0.015).tolist() == [0.0, 2.0]
+    assert resample(rec, 0.007).size == math.floor(0.03 / 0.007 + 1e-9) + 1  # 5 samples
+    # the last original sample survives round-off on a non-commensurate grid
+    assert resample(rec, 0.03 / 7)[-1] == pytest.approx(1.0, abs=1e-9)
+    for bad in (0.0, -0.01, float("nan"), float("inf")):
+        _raises(["dt_s"], resample, rec, bad)
+    _raises(["duration_s"], resample, rec, 0.01, -1.0)
+
+
+def test_resample_real_record_on_original_grid(gm_dir):
+    rec = read_at2(_gm_file(gm_dir, "RSN1605_DUZCE_DZC180.AT2"))
+    out = resample(rec, rec.dt_s)
+    assert np.array_equal(out, rec.acc_m_s2)
+    scaled = similitude_scale(rec, 15)
+    assert np.array_equal(resample(scaled, scaled.dt_s), rec.acc_m_s2)

@@ -1,0 +1,26 @@
+"""Shared test fixtures: paths to the repo's scenes and to ../shared (skipped where absent)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+SWEEPS = REPO / "sweeps"
+SHARED = REPO.parent / "shared"
+
+
+@pytest.fixture
+def shared_dir() -> Path:
+    if not SHARED.is_dir():
+        pytest.skip(f"{SHARED} not present: tests that read the paper's shared data need ../shared beside the repo")
+    return SHARED
+
+
+@pytest.fixture(autouse=True)
+def _numpy_raises_on_fp_errors():
+    """Tests make NumPy raise on invalid operations and division by zero (overflow too)."""
+    with np.errstate(invalid="raise", divide="raise", over="raise"):
+        yield

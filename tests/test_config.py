@@ -1,0 +1,144 @@
+"""Scene loading: every shipped scene validates; bad scenes give one clear error naming key and value."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from conftest import REPO, SWEEPS
+from pounding_sweep.config import ConfigError, describe, load_scene
+from pounding_sweep.grid import Grid
+
+BASE = (SWEEPS / "paper_6hz.toml").read_text()
+SHIPPED = sorted(SWEEPS.glob("*.toml"))
+
+
+def test_there_are_shipped_scenes():
+    names = {p.stem for p in SHIPPED}
+    assert {"paper_6hz", "paper_4613hz", "paper_duzce", "paper_duzce_separated"} <= names
+
+
+@pytest.mark.parametrize("path", SHIPPED, ids=lambda p: p.stem)
+def test_shipped_scene_validates(path):
+    scene = load_scene(path)
+    grid = Grid.from_scene(scene)
+    assert grid.size >= 1
+    if scene.name.startswith("paper_"):
+        assert dict(grid.axes)["ks_ratio"] == (0.1, 1.0, 5.0, 10.0)
+        assert dict(grid.axes)["r"] == (0.2, 0.4, 0.6, 0.8, 1.0)
+    if scene.excitation.record:
+        assert Path(scene.excitation.record).is_file()  # shipped records live in the repo
+
+
+def write(tmp_path, text, name="scene.toml"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def edit(old, new, text=BASE):
+    assert re.search(old, text, flags=re.M), old
+    return re.sub(old, new, text, count=1, flags=re.M)
+
+
+BAD = {
+    "toml_syntax": (edit(r"^r = 0.4$", "r = = 0.4"), r"TOML syntax error"),
+    "misspelled_key": (edit(r"^ks_ratio = 1.0$", "ks_ration = 1.0"), r"unknown key 'ks_ration' in \[contact\]; did you mean 'ks_ratio'"),
+    "misspelled_section": (edit(r"^\[contact\]$", "[contcat]"), r"unknown key 'contcat' in top level; did you mean 'contact'"),
+    "missing_r": (edit(r"^r = 0.4\n", ""), r"missing key 'r' in \[contact\]"),
+    "r_above_1": (edit(r"^r = 0.4$", "r = 1.5"), r"\[contact\] r = 1.5: .* \[0, 1\]"),
+    "r_negative_in_sweep": (edit(r"^r = \[0.2, .*$", "r = [0.2, -0.1]"), r"\[sweep\] r = -0.1"),
+    "negative_mass": (edit(r"^masses_kg = \[1.7, 1.7, 1.6\]", "masses_kg = [1.7, -1.7, 1.6]"), r"\[building1\] masses_kg = -1.7: must be > 0"),
+    "zero_mass": (edit(r"^masses_kg = \[0.56, 0.56, 0.45\]", "masses_kg = [0.56, 0.0, 0.45]"), r"\[building2\] masses_kg = 0.0: must be > 0"),
+    "zero_stiffness": (edit(r"^story_stiffness_N_per_m = 5920.0", "story_stiffness_N_per_m = 0"), r"story_stiffness_N_per_m = 0.0: must be > 0"),
+    "nan_value": (edit(r"^amplitude_m = 0.002$", "amplitude_m = nan"), r"\[excitation\] amplitude_m = nan: must be finite"),
+    "inf_value": (edit(r"^dt_s = 1e-4$", "dt_s = inf"), r"\[integration\] dt_s = inf: must be finite"),
+    "string_for_number": (edit(r"^frequency_Hz = 6.0$", 'frequency_Hz = "6 Hz"'), r"frequency_Hz = '6 Hz': expected a number"),
+    "negative_gap": (edit(r"^gap_m = 0.0", "gap_m = -0.001"), r"gap_m = -0.001: must be >= 0"),
+    "dt_longer_than_run": (edit(r"^dt_s = 1e-4$", "dt_s = 6.0"), r"dt_s = 6.0: must be shorter than"),
+    "unknown_law": (edit(r'^law = "classic"$', 'law = "hertz"'), r"law = 'hertz'"),
+    "unknown_scheme": (edit(r'^scheme = "implicit"$', 'scheme = "euler"'), r"scheme = 'euler'"),
+    "empty_axis": (edit(r"^r = \[0.2, .*$", "r = []"), r"\[sweep\] r = \[\]"),
+    "unknown_axis": (edit(r"^r = \[0.2, .*$", "damping = [0.1]"), r"unknown key 'damping' in \[sweep\]"),
+    "both_ks_forms": (edit(r"^ks_ratio = 1.0$", "ks_ratio = 1.0\nks_N_per_m = 6830.0"), r"give ks_ratio or ks_N_per_m, not both"),
+    "bad_channel": (BASE + '\nhistories = ["disp_b3f1"]\n', r"unknown channel 'disp_b3f1'"),
+    "floor_out_of_range": (BASE + '\nhistories = ["disp_b1f4"]\n', r"building 1 has floors 1..3"),
+    "missing_record": (BASE.replace('type = "harmonic"', 'type = "record"\nrecord = "nowhere.AT2"').replace("amplitude_m = 0.002\n", "").replace("frequency_Hz = 6.0\n", ""), r"nowhere.AT2"),
+    "log_range_nonpositive": (edit(r"^ks_ratio = \[0.1.*$", "ks_ratio = {start = 0, stop = 10, num = 5, spacing = 'log'}"), r"log spacing needs start and stop > 0"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_bad_scene_message(tmp_path, case):
+    text, pattern = BAD[case]
+    path = write(tmp_path, text)
+    with pytest.raises(Exception) as exc:
+        scene = load_scene(path)
+        from pounding_sweep.excitation import Excitation
+
+        Excitation.from_scene(scene, scene.integration.dt_s)  # records are read here
+    msg = str(exc.value)
+    assert str(path) in msg or case == "missing_record"
+    assert re.search(pattern, msg), msg
+
+
+@pytest.mark.parametrize("case", ["misspelled_key", "r_above_1", "negative_mass", "missing_record", "toml_syntax"])
+def test_cli_bad_input_exits_2_without_output(tmp_path, case):
+    text, pattern = BAD[case]
+    out = tmp_path / "out.parquet"
+    path = write(tmp_path, text)
+    p = subprocess.run([sys.executable, "-m", "pounding_sweep", str(path), "--out", str(out)],
+                       capture_output=True, text=True, cwd=REPO)
+    assert p.returncode == 2
+    assert "Traceback" not in p.stderr
+    assert p.stderr.startswith("error: ") and re.search(pattern, p.stderr)
+    assert not out.exists() and not list(tmp_path.glob("*.parquet*"))
+
+
+def test_ranges_linear_and_log(tmp_path):
+    text = edit(r"^ks_ratio = \[0.1.*$", "ks_ratio = {start = 0.01, stop = 100, num = 5, spacing = 'log'}")
+    text = edit(r"^r = \[0.2, .*$", "r = {start = 0, stop = 1, num = 3}", text)
+    g = Grid.from_scene(load_scene(write(tmp_path, text)))
+    axes = dict(g.axes)
+    assert axes["ks_ratio"] == pytest.approx((0.01, 0.1, 1, 10, 100))
+    assert axes["r"] == (0.0, 0.5, 1.0)
+    assert g.size == 15
+
+
+def test_grid_is_the_cartesian_product_last_axis_fastest(tmp_path):
+    text = BASE.replace("[sweep]\n", "[sweep]\ngap_m = [0.0, 0.001]\n")
+    g = Grid.from_scene(load_scene(write(tmp_path, text)))
+    assert g.shape == (2, 4, 5) and g.size == 40
+    c = g.chunk(0, 40)
+    assert list(c["gap_m"][:21:20]) == [0.0, 0.001]
+    assert list(c["ks_ratio"][:10:5]) == [0.1, 1.0]
+    assert list(c["r"][:5]) == [0.2, 0.4, 0.6, 0.8, 1.0]
+    assert c["frequency_Hz"].tolist() == [6.0] * 40  # fixed parameters broadcast
+    # chunks agree with the whole
+    part = g.chunk(17, 23)
+    assert part["r"].tolist() == c["r"][17:23].tolist() and part["run_id"].tolist() == list(range(17, 23))
+
+
+def test_config_hash_changes_with_content_only(tmp_path):
+    a = load_scene(write(tmp_path, BASE, "a.toml"))
+    b = load_scene(write(tmp_path, BASE.replace("# adjacent", "# a comment changed"), "b.toml"))
+    c = load_scene(write(tmp_path, edit(r"^r = 0.4$", "r = 0.5"), "c.toml"))
+    assert a.config_hash() == b.config_hash() != c.config_hash()
+
+
+def test_column_properties_give_stiffness(tmp_path):
+    text = BASE.replace("story_stiffness_N_per_m = 5920.0", "column_EI_Nm2 = 5.4\nn_columns = 4\nstory_height_m = 0.33609")
+    from pounding_sweep.model import CoupledModel
+
+    m = CoupledModel.from_scene(load_scene(write(tmp_path, text)))
+    assert m.b1.story_stiffness_N_per_m[0] == pytest.approx(6830.0, rel=1e-3)
+
+
+def test_describe_lists_every_key():
+    d = describe()
+    for key in ("masses_kg", "ks_ratio", "length_scale", "dt_s", "histories", "threads"):
+        assert key in d

@@ -13,18 +13,27 @@ _PATTERNS = {
 }
 
 
+def floor_dof(code: str, floors: tuple[int, int], key: str) -> int:
+    """'b1f3' (building 1, floor 3) -> its DOF index in the coupled model."""
+    from .config import ConfigError
+
+    m = re.fullmatch(r"b([12])f(\d+)", code)
+    if not m:
+        raise ConfigError(f"{key} = {code!r}: a model floor is written b<building>f<floor>, e.g. 'b1f3'")
+    b, f = int(m.group(1)), int(m.group(2))
+    if not 1 <= f <= floors[b - 1]:
+        raise ConfigError(f"{key} = {code!r}: building {b} has floors 1..{floors[b - 1]}, so it maps to no floor")
+    return (f - 1) if b == 1 else floors[0] + f - 1
+
+
 def parse_channel(name: str, floors: tuple[int, int]) -> tuple[int, int, str]:
     """Channel name -> (kind, index, column name with unit). Index is a DOF or a pair."""
     from .config import ConfigError
 
-    m = re.fullmatch(r"(disp|vel|abs_acc)_b([12])f(\d+)", name)
+    m = re.fullmatch(r"(disp|vel|abs_acc)_(b\d+f\d+)", name)
     if m:
         kind, unit = _PATTERNS[m.group(1)]
-        b, f = int(m.group(2)), int(m.group(3))
-        if not 1 <= f <= floors[b - 1]:
-            raise ConfigError(f"[output] histories: channel '{name}': building {b} has floors 1..{floors[b - 1]}")
-        dof = (f - 1) if b == 1 else floors[0] + f - 1
-        return kind, dof, f"{name}_{unit}"
+        return kind, floor_dof(m.group(2), floors, f"[output] histories: channel '{name}'"), f"{name}_{unit}"
     m = re.fullmatch(r"force_f(\d+)", name)
     if m:
         j = int(m.group(1))

@@ -11,6 +11,7 @@ import sys
 import time
 
 from .config import ConfigError, describe, load_scene
+from .experiment import ExperimentError
 from .records import RecordError
 
 EXIT_BAD_INPUT = 2
@@ -68,6 +69,15 @@ def _print_summary(s) -> None:
         rows.append(("histories", str(s.histories_path)))
     w = max(len(k) for k, _ in rows)
     print("\n".join(f"{k:<{w}}  {v}" for k, v in rows))
+    if s.best is not None:
+        print(f"\nbest runs against the experiment (lowest relative RMS error, eq. 20; {s.best_path}):")
+        show = [c for c in ("criterion", "error_pct", "run_id", "ks_ratio", "r", "gap_m", "record", "status") if c in s.best]
+        print(s.best[show].to_string(index=False, float_format=lambda x: f"{x:.4g}"))
+        if s.refinement is not None:
+            rf = s.refinement
+            opt = ", ".join(f"{k} = {v:.4g}" for k, v in rf.optimum.items())
+            print(f"refined from the best cell ({rf.evaluations} runs): {opt}, combined error {rf.error_pct:.3f} % "
+                  f"(grid best {rf.start_error_pct:.3f} %)")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -86,7 +96,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.threads is not None and args.threads < 0:
             raise ConfigError(f"--threads {args.threads}: must be >= 0")
         summary = run_scene(scene, out_path=args.out, threads=args.threads, progress=_Progress(not args.quiet))
-    except (ConfigError, RecordError) as e:
+    except (ConfigError, RecordError, ExperimentError) as e:
         print(f"error: {e}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:

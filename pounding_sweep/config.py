@@ -109,6 +109,22 @@ class ExecutionConfig:
 
 
 @dataclass(frozen=True)
+class ExperimentConfig:
+    """Tracked displacement to score every run against (CSV or Parquet; see the README's format)."""
+
+    table: str = _f("path of the tracked-displacement table (.csv or .parquet)")
+    channels: dict = _f("table column -> model floor, e.g. {model1_floor3 = 'b1f3'}")
+    time_column: str = _f("name of the time column [s]", "t_s")
+    units: str = _f("units of the displacement columns: 'mm' or 'm'", "mm")
+    window_s: tuple[float, ...] | None = _f("[start, end] of the compared window in simulation time [s] (default: all overlap)", None)
+    time_offset_s: float = _f("experiment time minus simulation time [s] (the table's t = offset is the simulation's t = 0)", 0.0)
+    max_lag_s: float = _f("largest lag searched for the best correlation [s]", 0.1)
+    combine: str = _f("how channels combine into one error: 'mean', 'max' or 'rms' of their eq. 20 errors", "mean")
+    refine: bool = _f("after the grid, minimise the combined error over continuous k_s/k and r (scipy.optimize)", False)
+    refine_max_evals: int = _f("simulations the refinement may spend", 80)
+
+
+@dataclass(frozen=True)
 class Axis:
     """One sweep axis: a scene parameter and its values."""
 
@@ -132,6 +148,7 @@ class Scene:
     sweep: tuple[Axis, ...]
     source: str  # the scene file
     toml_text: str  # the scene file as written
+    experiment: ExperimentConfig | None = None
 
     def canonical(self) -> dict:
         """Resolved scene as plain data (what the hash covers), with record file digests."""
@@ -140,6 +157,8 @@ class Scene:
         d.pop("toml_text")
         d["sweep"] = [{"name": a.name, "values": list(a.values)} for a in self.sweep]
         files = sorted(({self.excitation.record} | set(_axis_values(self, "record"))) - {None})
+        if self.experiment is not None:
+            files.append(self.experiment.table)
         d["record_sha256"] = {Path(p).name: _file_digest(p) for p in files}
         return d
 
@@ -185,7 +204,7 @@ SECTIONS = {
     "output": OutputConfig,
     "execution": ExecutionConfig,
 }
-TOP_KEYS = {"name", "description", "sweep", *SECTIONS}
+TOP_KEYS = {"name", "description", "sweep", "experiment", *SECTIONS}
 MAX_GRID = 50_000_000
 
 
@@ -232,7 +251,14 @@ def scene_from_dict(raw: dict, base_dir: Path, source: str = "<dict>", toml_text
     out_path = out.path or f"results/{name}.parquet"
     sections["output"] = dataclasses.replace(out, path=str((base_dir / out_path).resolve()))
     sweep = _parse_sweep(raw.get("sweep", {}), base_dir)
-    scene = Scene(name=name, description=desc, sweep=sweep, source=source, toml_text=toml_text, **sections)
+    experiment = None
+    if "experiment" in raw:
+        if not isinstance(raw["experiment"], dict):
+            raise ConfigError(f"'experiment' must be a table [experiment], got {raw['experiment']!r}")
+        experiment = _build(ExperimentConfig, raw["experiment"], "experiment")
+        experiment = dataclasses.replace(experiment, table=str((base_dir / experiment.table).resolve()))
+    scene = Scene(name=name, description=desc, sweep=sweep, source=source, toml_text=toml_text,
+                  experiment=experiment, **sections)
     validate(scene)
     return scene
 
@@ -275,6 +301,14 @@ def _coerce(value, hint, key: str):
 
 
 def _typed(value, typ, key: str):
+    if typ is bool:
+        if not isinstance(value, bool):
+            raise ConfigError(f"{key} = {value!r}: expected true or false")
+        return value
+    if typ is dict:
+        if not isinstance(value, dict) or not value:
+            raise ConfigError(f"{key} = {value!r}: expected a non-empty table of name = value")
+        return {str(k): _typed(v, str, f"{key}.{k}") for k, v in value.items()}
     if typ is float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ConfigError(f"{key} = {value!r}: expected a number")
@@ -446,11 +480,35 @@ def validate(s: Scene) -> None:
         raise ConfigError(f"[execution] threads = {s.execution.threads}: must be >= 0")
     if s.execution.batch_runs < 0:
         raise ConfigError(f"[execution] batch_runs = {s.execution.batch_runs}: must be >= 0")
+    if s.experiment is not None:
+        _validate_experiment(s)
     n = 1
     for a in s.sweep:
         n *= len(a.values)
     if n > MAX_GRID:
         raise ConfigError(f"[sweep]: {n} grid points exceed the limit of {MAX_GRID}")
+
+
+def _validate_experiment(s: Scene) -> None:
+    x = s.experiment
+    if x.units not in ("mm", "m"):
+        raise ConfigError(f"[experiment] units = {x.units!r}: expected 'mm' or 'm'")
+    if x.combine not in ("mean", "max", "rms"):
+        raise ConfigError(f"[experiment] combine = {x.combine!r}: expected 'mean', 'max' or 'rms'")
+    if x.window_s is not None and (len(x.window_s) != 2 or not x.window_s[0] < x.window_s[1]):
+        raise ConfigError(f"[experiment] window_s = {list(x.window_s)}: expected [start, end] with start < end")
+    if x.max_lag_s < 0:
+        raise ConfigError(f"[experiment] max_lag_s = {x.max_lag_s!r}: must be >= 0")
+    _positive(x.refine_max_evals, "[experiment] refine_max_evals")
+    from .channels import floor_dof
+
+    floors = (len(s.building1.masses_kg), len(s.building2.masses_kg))
+    seen = {}
+    for col, target in x.channels.items():
+        floor_dof(target, floors, f"[experiment] channels.{col}")
+        if target in seen:
+            raise ConfigError(f"[experiment] channels: '{seen[target]}' and '{col}' both map to floor '{target}'")
+        seen[target] = col
 
 
 def _check_r(r, key):

@@ -18,6 +18,7 @@ import numpy as np
 from . import metrics_layout as L
 from .kernel import integrate_batch
 from .model import SystemArrays
+from .score_kernel import N_SCORES
 
 
 @dataclass
@@ -57,6 +58,25 @@ class HistorySpec:
 
 
 @dataclass(frozen=True)
+class ScoreSpec:
+    """Experiment samples to score against: simulation times, displacements [m] per channel, DOFs."""
+
+    t: np.ndarray
+    x: np.ndarray  # (channels, samples)
+    dof: np.ndarray
+    max_lag: int
+    dt_sample: float
+
+    @classmethod
+    def none(cls) -> "ScoreSpec":
+        return cls(np.zeros(0), np.zeros((0, 0)), np.zeros(0, np.int64), 0, 1.0)
+
+    @property
+    def active(self) -> bool:
+        return self.dof.size > 0
+
+
+@dataclass(frozen=True)
 class KernelOptions:
     scheme: int
     law: int
@@ -68,8 +88,9 @@ def resolve_threads(threads: int) -> int:
 
 
 def run_chunk(sys: SystemArrays, runs: RunArrays, rec, hist: HistorySpec, opts: KernelOptions,
-              threads: int = 1, batch_runs: int = 0):
-    """Integrate every run of the chunk; return (metrics, run_time_s, histories or None)."""
+              threads: int = 1, batch_runs: int = 0, score: ScoreSpec | None = None):
+    """Integrate every run of the chunk; return (metrics, run_time_s, histories or None, scores or None)."""
+    score = score or ScoreSpec.none()
     n = runs.n
     n_metrics = L.n_metrics(sys.m.size, sys.i1.size)
     metrics = np.zeros((n, n_metrics))
@@ -80,6 +101,7 @@ def run_chunk(sys: SystemArrays, runs: RunArrays, rec, hist: HistorySpec, opts: 
     else:
         hist_arr = np.zeros((0, 0, 0))
     rec_flat, rec_off, rec_len = rec
+    scores = np.full((n, score.dof.size, N_SCORES), np.nan)
 
     def work(bounds):
         s, e = bounds
@@ -90,7 +112,8 @@ def run_chunk(sys: SystemArrays, runs: RunArrays, rec, hist: HistorySpec, opts: 
             runs.rec_id, runs.nsteps, runs.status_in,
             rec_flat, rec_off, rec_len,
             hist.kinds, hist.index, hist.decimate, hist_arr,
-            metrics, run_time,
+            score.t, score.x, score.dof, score.max_lag, score.dt_sample,
+            metrics, run_time, scores,
         )
 
     threads = max(1, min(threads, n))
@@ -103,7 +126,7 @@ def run_chunk(sys: SystemArrays, runs: RunArrays, rec, hist: HistorySpec, opts: 
     else:
         with ThreadPoolExecutor(max_workers=threads) as pool:
             list(pool.map(work, bounds))
-    return metrics, run_time, (hist_arr if hist.active else None)
+    return metrics, run_time, (hist_arr if hist.active else None), (scores if score.active else None)
 
 
 def compile_kernel(sys: SystemArrays, opts: KernelOptions) -> float:

@@ -35,7 +35,6 @@ class Excitation:
     def from_scene(cls, scene: Scene, dt: float) -> "Excitation":
         e = scene.excitation
         if e.type == "harmonic":
-            z = np.zeros(0)
             return cls("harmonic", dt, e.duration_s, (), (), np.zeros(1), np.zeros(1, np.int64), np.zeros(1, np.int64))
         paths = []
         for a in scene.sweep:
@@ -77,6 +76,17 @@ class Excitation:
             rec_id=rec_id,
             nsteps=self.rec_len[rec_id] - 1,
         )
+
+    @property
+    def max_steps(self) -> int:
+        """Steps of the longest run this excitation can make."""
+        if self.kind == "harmonic":
+            return int(round(self.duration_s / self.dt))
+        return int(self.rec_len.max()) - 1
+
+    @property
+    def max_duration_s(self) -> float:
+        return self.max_steps * self.dt
 
     def record_name(self, path: str) -> str:
         return self.records[self.paths.index(path)].name

@@ -33,6 +33,7 @@ from numba.extending import intrinsic
 
 from . import metrics_layout as L
 from .numba_config import njit_kernel
+from .score_kernel import N_SCORES, score_channel
 
 SCHEME_IMPLICIT = 0
 SCHEME_PAPER = 1
@@ -154,11 +155,19 @@ def integrate_batch(
     hist_index,
     decimate,
     hist,
+    # experiment to score against (exp_t.size == 0: no scoring)
+    exp_t,
+    exp_x,
+    exp_dof,
+    max_lag,
+    exp_dt,
     # outputs
     metrics,
     run_time,
+    scores,
 ):
-    """Integrate runs start..stop-1 and fill metrics[run] (see metrics_layout) and run_time[run]."""
+    """Integrate runs start..stop-1; fill metrics[run] (see metrics_layout), run_time[run] and,
+    when an experiment is given, scores[run, channel, :] (see score_kernel)."""
     n = m.shape[0]
     npair = i1.shape[0]
     nch = hist_kind.shape[0]
@@ -194,6 +203,9 @@ def integrate_batch(
     nphase = np.zeros(npair, dtype=np.int64)
     seen = np.zeros(max_iter + 1, dtype=np.int64)
     nm = metrics.shape[1]
+    n_exp = exp_t.size
+    n_exp_ch = exp_dof.size
+    xs = np.empty((n_exp_ch, n_exp))  # the run sampled at the experiment's time stamps
     pbase = L.PER_DOF * n
     rbase = pbase + L.PER_PAIR * npair
 
@@ -233,6 +245,11 @@ def integrate_batch(
             for c in range(nch):
                 hist[run, c, 0] = _channel(hist_kind[c], hist_index[c], u, v, a, F, ag)
         nst = nsteps[run]
+        ke_next = 0  # next experiment sample to fill
+        while ke_next < n_exp and exp_t[ke_next] <= 0.0:
+            for c in range(n_exp_ch):
+                xs[c, ke_next] = 0.0
+            ke_next += 1
         unsettled = 0
         max_it_seen = 0
         steps_done = 0
@@ -323,12 +340,19 @@ def integrate_batch(
             if not finite:
                 status |= L.STATUS_NONFINITE
                 break
+            t = step * dt
+            # experiment samples inside (t - dt, t]: linear interpolation between the step ends
+            while ke_next < n_exp and exp_t[ke_next] <= t + 1e-12 * dt:
+                theta = (exp_t[ke_next] - (t - dt)) / dt
+                for c in range(n_exp_ch):
+                    q = exp_dof[c]
+                    xs[c, ke_next] = u[q] + theta * (un[q] - u[q])
+                ke_next += 1
             for i in range(n):
                 u[i] = un[i]
                 v[i] = vn[i]
                 a[i] = an[i]
             steps_done = step
-            t = step * dt
             # metrics, per floor
             for i in range(n):
                 base = L.PER_DOF * i
@@ -380,6 +404,12 @@ def integrate_batch(
                 status |= L.STATUS_MEDIAN_TRUNCATED
                 k = L.MEDIAN_BUFFER
             out[base + L.PAIR_MEDIAN_COMPRESSION] = np.median(durations[j, :k]) if k > 0 else 0.0
+        for c in range(n_exp_ch):
+            if ke_next < n_exp:  # the run stopped before the experiment's window ended
+                for q in range(N_SCORES):
+                    scores[run, c, q] = np.nan
+            else:
+                score_channel(xs[c], exp_x[c], exp_t, max_lag, exp_dt, scores[run, c])
         if unsettled > 0:
             status |= L.STATUS_UNSETTLED
         out[rbase + L.RUN_UNSETTLED] = unsettled

@@ -58,8 +58,8 @@ def status_words(codes: np.ndarray) -> list[str]:
 
 
 def metrics_table(params: dict[str, np.ndarray], metric_names: list[str], metrics: np.ndarray,
-                  run_time: np.ndarray) -> pa.Table:
-    """Arrow table of a chunk: parameters, metrics, status and run time."""
+                  run_time: np.ndarray, extra: dict[str, np.ndarray] | None = None) -> pa.Table:
+    """Arrow table of a chunk: parameters, metrics, scores (extra), status and run time."""
     cols: dict[str, pa.Array] = {}
     for k, v in params.items():
         cols[k] = pa.array(v.tolist() if v.dtype == object else v)
@@ -68,6 +68,8 @@ def metrics_table(params: dict[str, np.ndarray], metric_names: list[str], metric
             continue
         col = metrics[:, i]
         cols[name] = pa.array(col.astype(np.int64) if name.startswith(INT_COLUMNS) else col)
+    for name, col in (extra or {}).items():
+        cols[name] = pa.array(col)
     cols["status"] = pa.array(status_words(metrics[:, metric_names.index("status_code")]))
     cols["run_time_s"] = pa.array(run_time)
     return pa.table(cols)
@@ -133,10 +135,15 @@ class AtomicParquetWriter:
         return False
 
 
-def histories_path(path: str | Path) -> Path:
+def sidecar_path(path: str | Path, what: str) -> Path:
+    """`results/x.parquet` -> `results/x.<what>.parquet` (histories, best)."""
     p = Path(path)
     stem = p.name[: -len(".parquet")] if p.name.endswith(".parquet") else p.name
-    return p.with_name(stem + ".histories.parquet")
+    return p.with_name(f"{stem}.{what}.parquet")
+
+
+def histories_path(path: str | Path) -> Path:
+    return sidecar_path(path, "histories")
 
 
 def histories_table(run_ids: np.ndarray, hist: np.ndarray, dt_sample: float, columns: list[str]) -> pa.Table:

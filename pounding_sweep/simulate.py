@@ -13,12 +13,8 @@ import pandas as pd
 
 from . import metrics_layout as L
 from .config import SWEEPABLE, ConfigError, Scene, validate
-from .contact import CONTACT_LAWS
-from .driver import KernelOptions, RunArrays, run_chunk
-from .excitation import Excitation
-from .grid import Grid
-from .kernel import SCHEMES
 from .model import CoupledModel
+from .ranking import score_table_columns
 from .results import status_words
 
 ALL_CHANNELS_TEMPLATE = ("disp_b{b}f{f}", "vel_b{b}f{f}", "abs_acc_b{b}f{f}")
@@ -58,32 +54,26 @@ def with_overrides(scene: Scene, **overrides) -> Scene:
 
 
 def simulate(scene: Scene, channels: list[str] | None = None, decimate: int = 1, **overrides):
-    """Run one point; return (histories DataFrame with t_s first, metrics dict incl. 'status')."""
-    from .sweep import contact_arrays, history_spec
+    """Run one point; return (histories DataFrame with t_s first, metrics dict incl. 'status' and scores)."""
+    from .sweep import prepare
 
     s = with_overrides(scene, **overrides)
     floors = CoupledModel.from_scene(s).floors
     s = dataclasses.replace(s, output=dataclasses.replace(s.output, histories=tuple(channels or all_channels(floors)),
                                                           history_decimate=decimate))
     validate(s)
-    model = CoupledModel.from_scene(s)
-    dt = s.integration.dt_s
-    sysarr = model.system_arrays(dt)
-    exc = Excitation.from_scene(s, dt)
-    params = Grid.from_scene(s).chunk(0, 1)
-    ks, c, xi, spp, status = contact_arrays(model, s, params, dt)
-    ex = exc.run_arrays(params)
-    runs = RunArrays(ks, c, params["gap_m"], ex["exc_kind"], ex["exc_amp"], ex["exc_omega"], ex["rec_id"], ex["nsteps"], status)
-    hspec, hcols = history_spec(s, model.floors)
-    opts = KernelOptions(SCHEMES[s.integration.scheme], CONTACT_LAWS[s.contact.law], s.integration.max_contact_iterations)
-    metrics, run_time, hist = run_chunk(sysarr, runs, (exc.rec_flat, exc.rec_off, exc.rec_len), hspec, opts)
-    n_s = hist.shape[2]
-    df = pd.DataFrame({"t_s": np.arange(n_s) * dt * decimate})
-    for i, name in enumerate(hcols):
+    prep = prepare(s)
+    params = prep.grid.chunk(0, 1)
+    metrics, run_time, hist, scores, derived = prep.run(params)
+    df = pd.DataFrame({"t_s": np.arange(hist.shape[2]) * prep.dt * decimate})
+    for i, name in enumerate(prep.hist_columns):
         df[name] = hist[0, i]
-    names = L.metric_columns(model.floors, model.n_pairs)
+    names = L.metric_columns(prep.model.floors, prep.model.n_pairs)
     m = dict(zip(names, metrics[0].tolist()))
     m["status"] = status_words(metrics[:1, names.index("status_code")])[0]
-    m["ks_N_per_m"] = float(ks[0])
+    m["ks_N_per_m"] = float(derived["ks_N_per_m"][0])
     m["run_time_s"] = float(run_time[0])
+    if scores is not None:
+        how = s.experiment.combine
+        m.update({k: float(v[0]) for k, v in score_table_columns(scores, prep.score_codes, how).items()})
     return df, m

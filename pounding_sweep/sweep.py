@@ -1,11 +1,13 @@
 """Orchestration of one scene: config -> model -> excitation -> kernel -> metrics -> Parquet.
 
 The grid is run chunk by chunk: each chunk's rows are written as soon as they are done, so
-memory follows the chunk, not the grid.
+memory follows the chunk, not the grid. When the scene has an [experiment], every run is
+scored as it finishes and the best runs are kept as running minima.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections import Counter
 from dataclasses import dataclass, field
@@ -13,24 +15,28 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
+import pandas as pd
 
 from . import metrics_layout as L
 from .channels import parse_channel
 from .config import Scene
 from .contact import CONTACT_LAWS, contact_period, damping_ratio_from_restitution, dashpot_coefficient
-from .driver import HistorySpec, KernelOptions, RunArrays, compile_kernel, resolve_threads, run_chunk
+from .driver import HistorySpec, KernelOptions, RunArrays, ScoreSpec, compile_kernel, resolve_threads, run_chunk
 from .excitation import Excitation
 from .grid import Grid
 from .kernel import SCHEMES
-from .model import CoupledModel
-from .results import AtomicParquetWriter, file_metadata, histories_path, histories_table, metrics_table
+from .model import CoupledModel, SystemArrays
+from .ranking import Ranking, Refinement, refine, score_columns, score_table_columns
+from .results import (AtomicParquetWriter, file_metadata, histories_path, histories_table, metrics_table,
+                      sidecar_path)
 
 HISTORY_CHUNK_BYTES = 256 * 2**20
+CHUNK_RUNS = 4096
 
 
 @dataclass
 class SweepSummary:
-    """What ran: counts, statuses, timings and where the output went."""
+    """What ran: counts, statuses, timings, best runs and where the output went."""
 
     scene: str
     runs: int
@@ -43,6 +49,59 @@ class SweepSummary:
     steps: int
     threads: int
     extremes: dict = field(default_factory=dict)
+    best: pd.DataFrame | None = None
+    best_path: Path | None = None
+    refinement: Refinement | None = None
+
+
+@dataclass(frozen=True)
+class Prepared:
+    """A scene turned into kernel inputs, before any run: shared by sweeps, single runs and refinement."""
+
+    scene: Scene
+    model: CoupledModel
+    sysarr: SystemArrays
+    excitation: Excitation
+    grid: Grid
+    opts: KernelOptions
+    hist: HistorySpec
+    hist_columns: list[str]
+    score: ScoreSpec
+    score_codes: list[str]
+
+    @property
+    def dt(self) -> float:
+        return self.sysarr.dt
+
+    def run(self, params: dict[str, np.ndarray], threads: int = 1, batch_runs: int = 0):
+        """Integrate the runs described by `params` (as Grid.chunk gives them)."""
+        ks, c, xi, spp, status = contact_arrays(self.model, self.scene, params, self.dt)
+        ex = self.excitation.run_arrays(params)
+        runs = RunArrays(ks, c, params["gap_m"], ex["exc_kind"], ex["exc_amp"], ex["exc_omega"], ex["rec_id"],
+                         ex["nsteps"], status)
+        rec = (self.excitation.rec_flat, self.excitation.rec_off, self.excitation.rec_len)
+        metrics, run_time, hist, scores = run_chunk(self.sysarr, runs, rec, self.hist, self.opts, threads, batch_runs,
+                                                    self.score)
+        derived = {"ks_N_per_m": ks, "contact_damping_ratio": xi, "steps_per_contact_period": spp}
+        return metrics, run_time, hist, scores, derived
+
+
+def prepare(scene: Scene) -> Prepared:
+    """Model, system matrices at dt, excitation, grid, history and experiment specs of a scene."""
+    dt = scene.integration.dt_s
+    model = CoupledModel.from_scene(scene)
+    exc = Excitation.from_scene(scene, dt)
+    opts = KernelOptions(SCHEMES[scene.integration.scheme], CONTACT_LAWS[scene.contact.law],
+                         scene.integration.max_contact_iterations)
+    hspec, hcols = history_spec(scene, model.floors)
+    score, codes = ScoreSpec.none(), []
+    if scene.experiment is not None:
+        from .experiment import load_experiment, score_spec
+
+        exp = load_experiment(scene.experiment, model.floors)
+        score = score_spec(exp, scene.experiment, model.floors, exc.max_duration_s)
+        codes = list(exp.channels)
+    return Prepared(scene, model, model.system_arrays(dt), exc, Grid.from_scene(scene), opts, hspec, hcols, score, codes)
 
 
 def contact_arrays(model: CoupledModel, scene: Scene, params: dict[str, np.ndarray], dt: float):
@@ -68,29 +127,92 @@ def history_spec(scene: Scene, floors: tuple[int, int]) -> tuple[HistorySpec, li
 def run_scene(scene: Scene, out_path: str | Path | None = None, threads: int | None = None,
               progress: Callable[[int, int], None] | None = None) -> SweepSummary:
     """Run every grid point of the scene and write the result table(s); return a summary."""
-    t_all = time.perf_counter()
     out_path = Path(out_path or scene.output.path)
-    dt = scene.integration.dt_s
-    model = CoupledModel.from_scene(scene)
-    sysarr = model.system_arrays(dt)
-    exc = Excitation.from_scene(scene, dt)
-    grid = Grid.from_scene(scene)
-    opts = KernelOptions(SCHEMES[scene.integration.scheme], CONTACT_LAWS[scene.contact.law],
-                         scene.integration.max_contact_iterations)
-    hspec, hcols = history_spec(scene, model.floors)
+    prep = prepare(scene)
+    grid, model, exc = prep.grid, prep.model, prep.excitation
     n_threads = resolve_threads(threads if threads is not None else scene.execution.threads)
-    compile_s = compile_kernel(sysarr, opts)
+    compile_s = compile_kernel(prep.sysarr, prep.opts)
 
-    if hspec.active:
-        max_steps = int(exc.rec_len.max()) if exc.kind == "record" else int(round(exc.duration_s / dt)) + 1
-        per_run = hspec.kinds.size * (max_steps // hspec.decimate + 1) * 8
-        chunk_runs = max(1, min(4096, HISTORY_CHUNK_BYTES // per_run))
+    if prep.hist.active:
+        per_run = prep.hist.kinds.size * (int(exc.max_steps) // prep.hist.decimate + 1) * 8
+        chunk_runs = max(1, min(CHUNK_RUNS, HISTORY_CHUNK_BYTES // per_run))
     else:
-        chunk_runs = 4096
+        chunk_runs = CHUNK_RUNS
+    how = scene.experiment.combine if scene.experiment else "mean"
+    meta = file_metadata(scene, _model_facts(prep))
+    names = L.metric_columns(model.floors, model.n_pairs)
+    ranking = Ranking([f"rel_rms_{c}_pct" for c in prep.score_codes] + ["rel_rms_combined_pct"]) if prep.score_codes else None
+    statuses: Counter = Counter()
+    kernel_s, steps, peak_force = 0.0, 0, 0.0
+    hpath = histories_path(out_path) if prep.hist.active else None
+    t_run = time.perf_counter()
+    with AtomicParquetWriter(out_path, meta) as writer, _maybe_writer(hpath, meta) as hwriter:
+        for s, e in grid.chunks(chunk_runs):
+            params = grid.chunk(s, e)
+            metrics, run_time, hist, scores, derived = prep.run(params, n_threads, scene.execution.batch_runs)
+            columns = {"run_id": params["run_id"], **_param_columns(exc, params, derived)}
+            extra = score_table_columns(scores, prep.score_codes, how) if scores is not None else {}
+            table = metrics_table(columns, names, metrics, run_time, extra)
+            writer.write(table)
+            if hwriter is not None:
+                hwriter.write(histories_table(params["run_id"], hist, prep.dt * prep.hist.decimate, prep.hist_columns))
+            if ranking is not None:
+                ranking.update(table)
+            statuses.update(table.column("status").to_pylist())
+            kernel_s += float(run_time.sum())
+            steps += int(metrics[:, names.index("steps")].sum())
+            pf = [i for i, nme in enumerate(names) if nme.startswith("peak_force_f")]
+            peak_force = max(peak_force, float(metrics[:, pf].max(initial=0.0)))
+            if progress is not None:
+                progress(e, grid.size)
+    run_s = time.perf_counter() - t_run
+    summary = SweepSummary(scene.name, grid.size, out_path, hpath, statuses, compile_s, run_s, kernel_s, steps,
+                           n_threads, {"peak_force_N": peak_force})
+    if ranking is not None:
+        best = ranking.frame()
+        if scene.experiment.refine:
+            summary.refinement = refine_best(prep, best)
+            if summary.refinement is not None:
+                rf = summary.refinement
+                best = pd.concat([best, pd.DataFrame([{"criterion": "refined_combined", "error_pct": rf.error_pct,
+                                                       **rf.optimum}])], ignore_index=True)
+        summary.best = best
+        summary.best_path = sidecar_path(out_path, "best")
+        import pyarrow as pa
+
+        with AtomicParquetWriter(summary.best_path, file_metadata(scene, {"kind": "best"})) as w:
+            w.write(pa.Table.from_pandas(best, preserve_index=False))
+    return summary
+
+
+def refine_best(prep: Prepared, best: pd.DataFrame) -> Refinement | None:
+    """Continuous (k_s/k, r) search from the best grid cell, within the swept ranges."""
+    axes = dict(prep.grid.axes)
+    bounds = {n: (min(axes[n]), max(axes[n])) for n in ("ks_ratio", "r") if n in axes and len(axes[n]) > 1}
+    if not bounds:
+        return None
+    start_row = best[best.criterion == "rel_rms_combined_pct"].iloc[0]
+    base = prep.grid.chunk(int(start_row.run_id), int(start_row.run_id) + 1)
+
+    def objective(p: dict) -> float:
+        params = {k: v.copy() for k, v in base.items()}
+        for k, v in p.items():
+            params[k][:] = v
+        _, _, _, scores, _ = prep.run(params)
+        how = prep.scene.experiment.combine
+        err = score_table_columns(scores, prep.score_codes, how)["rel_rms_combined_pct"][0]
+        return float(err) if np.isfinite(err) else 1e300
+
+    start = {n: float(start_row[n]) for n in bounds}
+    return refine(objective, start, bounds, prep.scene.experiment.refine_max_evals)
+
+
+def _model_facts(prep: Prepared) -> dict:
+    model, grid, scene = prep.model, prep.grid, prep.scene
     modes = [b.modes() for b in (model.b1, model.b2)]
-    meta = file_metadata(scene, {
+    facts = {
         "kind": "runs",
-        "dt_s": dt,
+        "dt_s": prep.dt,
         "scheme": scene.integration.scheme,
         "contact_law": scene.contact.law,
         "grid_axes": {name: list(v) for name, v in grid.axes},
@@ -102,52 +224,24 @@ def run_scene(scene: Scene, out_path: str | Path | None = None, threads: int | N
             for b, md in zip((model.b1, model.b2), modes)
         ],
         "records": [{"name": r.name, "source": Path(r.source).name, "dt_s": r.dt_s, "description": r.description}
-                    for r in exc.records],
-    })
-    from .metrics_layout import metric_columns
-
-    names = metric_columns(model.floors, model.n_pairs)
-    statuses: Counter = Counter()
-    kernel_s = 0.0
-    steps = 0
-    extremes = {"peak_force_N": 0.0}
-    hpath = histories_path(out_path) if hspec.active else None
-    t_run = time.perf_counter()
-    with AtomicParquetWriter(out_path, meta) as writer, _maybe_writer(hpath, meta) as hwriter:
-        done = 0
-        for s, e in grid.chunks(chunk_runs):
-            params = grid.chunk(s, e)
-            ks, c, xi, spp, status = contact_arrays(model, scene, params, dt)
-            ex = exc.run_arrays(params)
-            runs = RunArrays(ks, c, params["gap_m"], ex["exc_kind"], ex["exc_amp"], ex["exc_omega"], ex["rec_id"],
-                             ex["nsteps"], status)
-            metrics, run_time, hist = run_chunk(sysarr, runs, (exc.rec_flat, exc.rec_off, exc.rec_len), hspec, opts,
-                                                n_threads, scene.execution.batch_runs)
-            table_params = {"run_id": params["run_id"], **_param_columns(scene, exc, params, ks)}
-            table_params["contact_damping_ratio"] = xi
-            table_params["steps_per_contact_period"] = spp
-            table = metrics_table(table_params, names, metrics, run_time)
-            writer.write(table)
-            if hwriter is not None:
-                hwriter.write(histories_table(params["run_id"], hist, dt * hspec.decimate, hcols))
-            statuses.update(table.column("status").to_pylist())
-            kernel_s += float(run_time.sum())
-            steps += int(metrics[:, names.index("steps")].sum())
-            pf = [i for i, nme in enumerate(names) if nme.startswith("peak_force_f")]
-            extremes["peak_force_N"] = max(extremes["peak_force_N"], float(metrics[:, pf].max(initial=0.0)))
-            done = e
-            if progress is not None:
-                progress(done, grid.size)
-    return SweepSummary(scene.name, grid.size, out_path, hpath, statuses, compile_s, time.perf_counter() - t_run,
-                        kernel_s, steps, n_threads, extremes)
+                    for r in prep.excitation.records],
+    }
+    if prep.score_codes:
+        x = scene.experiment
+        facts["experiment"] = {
+            "table": Path(x.table).name, "channels": x.channels, "units": x.units, "combine": x.combine,
+            "window_s": [float(prep.score.t[0]), float(prep.score.t[-1])], "samples": int(prep.score.t.size),
+            "score_columns": dict(score_columns(prep.score_codes)),
+        }
+    return facts
 
 
-def _param_columns(scene: Scene, exc: Excitation, params: dict, ks: np.ndarray) -> dict:
+def _param_columns(exc: Excitation, params: dict, derived: dict) -> dict:
     """The parameter columns of the result rows (only those that mean something for this scene)."""
     cols = {}
     if not np.all(np.isnan(params["ks_ratio"])):
         cols["ks_ratio"] = params["ks_ratio"]
-    cols["ks_N_per_m"] = ks
+    cols["ks_N_per_m"] = derived["ks_N_per_m"]
     cols["r"] = params["r"]
     cols["gap_m"] = params["gap_m"]
     if exc.kind == "harmonic":
@@ -156,6 +250,8 @@ def _param_columns(scene: Scene, exc: Excitation, params: dict, ks: np.ndarray) 
     else:
         cols["record"] = np.array([exc.record_name(p) for p in params["record"]], dtype=object)
     cols["scale"] = params["scale"]
+    cols["contact_damping_ratio"] = derived["contact_damping_ratio"]
+    cols["steps_per_contact_period"] = derived["steps_per_contact_period"]
     return cols
 
 
@@ -168,7 +264,4 @@ class _NullCtx:
 
 
 def _maybe_writer(path, meta):
-    if path is None:
-        return _NullCtx()
-    hmeta = dict(meta)
-    return AtomicParquetWriter(path, hmeta)
+    return _NullCtx() if path is None else AtomicParquetWriter(path, meta)

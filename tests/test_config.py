@@ -65,7 +65,7 @@ BAD = {
     "empty_axis": (edit(r"^r = \[0.2, .*$", "r = []"), r"\[sweep\] r = \[\]"),
     "unknown_axis": (edit(r"^r = \[0.2, .*$", "damping = [0.1]"), r"unknown key 'damping' in \[sweep\]"),
     "both_ks_forms": (edit(r"^ks_ratio = 1.0$", "ks_ratio = 1.0\nks_N_per_m = 6830.0"), r"give ks_ratio or ks_N_per_m, not both"),
-    "bad_channel": (BASE + '\nhistories = ["disp_b3f1"]\n', r"unknown channel 'disp_b3f1'"),
+    "bad_channel": (BASE + '\nhistories = ["disp_b3f1"]\n', r"channel 'disp_b3f1'.*b<building>f<floor>"),
     "floor_out_of_range": (BASE + '\nhistories = ["disp_b1f4"]\n', r"building 1 has floors 1..3"),
     "missing_record": (BASE.replace('type = "harmonic"', 'type = "record"\nrecord = "nowhere.AT2"').replace("amplitude_m = 0.002\n", "").replace("frequency_Hz = 6.0\n", ""), r"nowhere.AT2"),
     "log_range_nonpositive": (edit(r"^ks_ratio = \[0.1.*$", "ks_ratio = {start = 0, stop = 10, num = 5, spacing = 'log'}"), r"log spacing needs start and stop > 0"),

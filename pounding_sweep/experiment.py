@@ -1,0 +1,121 @@
+"""Tracked experimental displacement: read and check the table, and turn it into the samples
+the kernel scores each run against.
+
+Table format (CSV or Parquet, written by the video tracker too): a time column in seconds
+(default `t_s`), strictly increasing, and one column per tracked channel: the displacement of
+one floor relative to the shaking table, in the units the scene states ('mm' or 'm').
+Extra columns (quality flags, other floors) are ignored unless the scene maps them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .channels import floor_dof
+from .config import ExperimentConfig
+from .driver import ScoreSpec
+
+
+class ExperimentError(ValueError):
+    """A tracked-displacement table that cannot be scored against: names the file and column."""
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """Tracked displacement channels on the experiment's own time axis, in metres."""
+
+    path: str
+    time_s: np.ndarray  # experiment clock
+    channels: dict[str, np.ndarray]  # model floor code ('b1f3') -> displacement [m]
+    columns: dict[str, str]  # model floor code -> table column
+    metadata: dict
+
+    @property
+    def dt_sample(self) -> float:
+        return float(np.median(np.diff(self.time_s))) if self.time_s.size > 1 else 1.0
+
+
+def read_table(path: str | Path) -> tuple[pd.DataFrame, dict]:
+    """Read a CSV or Parquet table (and Parquet key-value metadata, decoded)."""
+    path = Path(path)
+    if not path.is_file():
+        raise ExperimentError(f"{path}: experiment table not found")
+    try:
+        if path.suffix.lower() == ".parquet":
+            import pyarrow.parquet as pq
+
+            t = pq.read_table(path)
+            md = {k.decode(errors="replace"): v.decode(errors="replace") for k, v in (t.schema.metadata or {}).items()}
+            return t.to_pandas(), md
+        return pd.read_csv(path), {}
+    except ExperimentError:
+        raise
+    except Exception as e:  # pandas/pyarrow raise many types for unreadable files
+        raise ExperimentError(f"{path}: cannot read the experiment table ({type(e).__name__}: {e})") from None
+
+
+def load_experiment(cfg: ExperimentConfig, floors: tuple[int, int]) -> Experiment:
+    """Read the table and check it: time column present, numeric, finite, strictly increasing;
+    every mapped column present, numeric and finite; every channel a model floor."""
+    df, md = read_table(cfg.table)
+    where = cfg.table
+    if cfg.time_column not in df.columns:
+        raise ExperimentError(f"{where}: no time column '{cfg.time_column}' (columns: {', '.join(map(str, df.columns))})")
+    t = _numeric(df[cfg.time_column], where, cfg.time_column)
+    if t.size < 2:
+        raise ExperimentError(f"{where}: column '{cfg.time_column}' needs at least 2 samples, has {t.size}")
+    d = np.diff(t)
+    if np.any(d <= 0):
+        k = int(np.argmax(d <= 0)) + 1
+        kind = "duplicate" if d[k - 1] == 0 else "unsorted"
+        raise ExperimentError(
+            f"{where}: column '{cfg.time_column}' must be strictly increasing: {kind} time {float(t[k])!r} at row {k + 1} "
+            f"(after {float(t[k - 1])!r})"
+        )
+    factor = 1e-3 if cfg.units == "mm" else 1.0
+    chans, cols = {}, {}
+    for col, code in cfg.channels.items():
+        if col not in df.columns:
+            raise ExperimentError(f"{where}: no column '{col}' (mapped to floor {code}); columns: {', '.join(map(str, df.columns))}")
+        floor_dof(code, floors, f"[experiment] channels.{col}")
+        chans[code] = _numeric(df[col], where, col) * factor
+        cols[code] = col
+    return Experiment(str(where), t, chans, cols, md)
+
+
+def _numeric(series: pd.Series, where: str, col: str) -> np.ndarray:
+    x = pd.to_numeric(series, errors="coerce").to_numpy(dtype=float)
+    bad = ~np.isfinite(x)
+    if bad.any():
+        k = int(np.argmax(bad))
+        raise ExperimentError(f"{where}: column '{col}' row {k + 1}: value {series.iloc[k]!r} is not a finite number")
+    return x
+
+
+def score_spec(exp: Experiment, cfg: ExperimentConfig, floors: tuple[int, int], sim_duration_s: float) -> ScoreSpec:
+    """The samples inside the scored window, on the simulation clock, as kernel arrays.
+
+    Simulation time = experiment time - time_offset_s. The window defaults to all of the
+    experiment that the simulation covers; a window outside that is an error.
+    """
+    ts = exp.time_s - cfg.time_offset_s
+    lo, hi = (0.0, sim_duration_s) if cfg.window_s is None else cfg.window_s
+    if cfg.window_s is not None and (lo < 0 or hi > sim_duration_s + 1e-9):
+        raise ExperimentError(
+            f"[experiment] window_s = [{lo}, {hi}]: outside the simulation, which covers 0 .. {sim_duration_s:.6g} s"
+        )
+    keep = (ts >= lo - 1e-12) & (ts <= hi + 1e-12) & (ts >= 0) & (ts <= sim_duration_s + 1e-12)
+    if keep.sum() < 2:
+        raise ExperimentError(
+            f"{exp.path}: its time range {exp.time_s[0]:.6g} .. {exp.time_s[-1]:.6g} s (offset {cfg.time_offset_s} s) "
+            f"does not overlap the simulation 0 .. {sim_duration_s:.6g} s within the window [{lo}, {hi}]"
+        )
+    codes = list(exp.channels)
+    x = np.ascontiguousarray(np.stack([exp.channels[c][keep] for c in codes]))
+    dof = np.array([floor_dof(c, floors, "channel") for c in codes], dtype=np.int64)
+    max_lag = int(round(cfg.max_lag_s / exp.dt_sample))
+    return ScoreSpec(np.ascontiguousarray(ts[keep]), x, dof, max_lag, exp.dt_sample)

@@ -1,0 +1,125 @@
+"""Which runs fit the experiment best: running minima over the streamed chunks, the channels'
+combined error, and an optional continuous refinement of (k_s/k, r) with scipy.optimize."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+
+from .score_kernel import SCORE_NAMES, S_REL_RMS_PCT
+
+PARAM_COLUMNS = ("run_id", "ks_ratio", "ks_N_per_m", "r", "gap_m", "amplitude_m", "frequency_Hz", "record", "scale")
+
+
+def score_columns(codes: list[str]) -> list[tuple[str, str]]:
+    """(column name, meaning) of every per-channel score, channel-major."""
+    return [(name.format(c=c), doc) for c in codes for name, doc in SCORE_NAMES]
+
+
+def combine_errors(rel_rms: np.ndarray, how: str) -> np.ndarray:
+    """Channels' eq. 20 errors (runs x channels) -> one error per run: mean, max or rms."""
+    if how == "mean":
+        return rel_rms.mean(axis=1)
+    if how == "max":
+        return rel_rms.max(axis=1)
+    return np.sqrt((rel_rms**2).mean(axis=1))
+
+
+def score_table_columns(scores: np.ndarray, codes: list[str], how: str) -> dict[str, np.ndarray]:
+    """Per-run score columns from the kernel's (runs, channels, scores) array, plus the combined error."""
+    cols = {}
+    for ci, c in enumerate(codes):
+        for si, (name, _) in enumerate(SCORE_NAMES):
+            cols[name.format(c=c)] = scores[:, ci, si]
+    cols["rel_rms_combined_pct"] = combine_errors(scores[:, :, S_REL_RMS_PCT], how)
+    return cols
+
+
+class Ranking:
+    """Best (lowest-error) run per criterion, kept across chunks without keeping the chunks."""
+
+    def __init__(self, criteria: list[str]):
+        self.criteria = criteria
+        self.best: dict[str, dict] = {}
+
+    def update(self, table: pa.Table) -> None:
+        for crit in self.criteria:
+            v = table.column(crit).to_numpy(zero_copy_only=False)
+            if np.all(np.isnan(v)):
+                continue
+            i = int(np.nanargmin(v))
+            if crit not in self.best or v[i] < self.best[crit][crit]:
+                row = {k: table.column(k)[i].as_py() for k in table.column_names if k in PARAM_COLUMNS or k == crit}
+                row["status"] = table.column("status")[i].as_py()
+                self.best[crit] = row
+
+    def frame(self) -> pd.DataFrame:
+        rows = []
+        for crit in self.criteria:
+            if crit in self.best:
+                r = dict(self.best[crit])
+                rows.append({"criterion": crit, "error_pct": r.pop(crit), **r})
+        return pd.DataFrame(rows)
+
+
+@dataclass
+class Refinement:
+    """Result of the continuous search started from the best grid cell."""
+
+    start: dict
+    start_error_pct: float
+    optimum: dict
+    error_pct: float
+    evaluations: int
+    message: str
+
+
+def refine(objective: Callable[[dict], float], start: dict, bounds: dict[str, tuple[float, float]],
+           max_evals: int) -> Refinement:
+    """Minimise objective({ks_ratio, r}) by bounded Nelder-Mead from the best grid cell.
+
+    k_s/k is searched on a log scale (the grid spans decades); the objective is not smooth
+    (impacts come and go), so a derivative-free method is used.
+    """
+    from scipy.optimize import minimize
+
+    names = list(bounds)
+    log = {n: n == "ks_ratio" for n in names}
+
+    def to_x(p):
+        return np.array([np.log10(p[n]) if log[n] else p[n] for n in names])
+
+    def from_x(x):
+        return {n: float(10 ** xi if log[n] else xi) for n, xi in zip(names, x)}
+
+    lo = np.array([np.log10(bounds[n][0]) if log[n] else bounds[n][0] for n in names])
+    hi = np.array([np.log10(bounds[n][1]) if log[n] else bounds[n][1] for n in names])
+    x0 = np.clip(to_x(start), lo, hi)
+    cache: dict[tuple, float] = {}
+
+    def f(x):
+        key = tuple(np.round(x, 12))
+        if key not in cache:
+            cache[key] = objective(from_x(np.clip(x, lo, hi)))
+        return cache[key]
+
+    e0 = f(x0)
+    # initial simplex: a quarter of each parameter's range, pointed into the box
+    span = hi - lo
+    simplex = [x0]
+    for i in range(len(names)):
+        xi = x0.copy()
+        step = 0.25 * span[i] if span[i] > 0 else 0.0
+        xi[i] = x0[i] + step if x0[i] + step <= hi[i] else x0[i] - step
+        simplex.append(xi)
+    res = minimize(f, x0, method="Nelder-Mead", bounds=list(zip(lo, hi)),
+                   options={"initial_simplex": np.array(simplex), "maxfev": max_evals, "xatol": 1e-3, "fatol": 1e-4})
+    xbest = np.clip(res.x, lo, hi)
+    ebest = f(xbest)
+    if e0 < ebest:  # never report worse than the start
+        xbest, ebest = x0, e0
+    return Refinement(from_x(x0), float(e0), from_x(xbest), float(ebest), len(cache), str(res.message))

@@ -216,3 +216,18 @@ def test_peak_memory_does_not_grow_with_runs(tmp_path):
         assert len(pd.read_parquet(tmp_path / f"m{n_ks}.parquet")) == runs
     print(f"peak RSS: 20 runs {res[20]:.1f} MiB, 20000 runs {res[20000]:.1f} MiB")
     assert res[20000] - res[20] < 40.0  # MiB: one chunk of rows, not the grid
+
+
+@pytest.mark.parametrize("name", ["synthetic_6hz.parquet", "synthetic_duzce.parquet"])
+def test_shipped_synthetic_tables_regenerate(name):
+    """The generator script reproduces the shipped tables (golden data kept honest)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("make_synthetic", SWEEPS / "experiments" / "make_synthetic.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    df, prov = mod.build(name)
+    shipped = pd.read_parquet(SWEEPS / "experiments" / name)
+    assert list(df.columns) == list(shipped.columns)
+    np.testing.assert_allclose(df.to_numpy(), shipped.to_numpy(), rtol=0, atol=1e-9)
+    assert json.loads(pq.read_schema(SWEEPS / "experiments" / name).metadata[b"provenance"])["hidden_parameters"] == prov["hidden_parameters"]

@@ -104,3 +104,33 @@ def test_separated_scene_never_touches(tmp_path):
     assert (df.filter(like="impacts_").to_numpy() == 0).all() and (df.peak_force_f3_N == 0).all()
     assert df.peak_disp_b1f3_m.nunique() == 1  # contact parameters cannot matter without contact
     assert (df.status == "ok").all()
+
+
+def test_record_axis_and_csv_record(tmp_path, shared_dir):
+    """A [sweep] record axis runs each record; a two-column CSV record gives the same run as its AT2."""
+    from pounding_sweep.records import read_at2
+
+    gm = shared_dir / "data" / "ground_motions"
+    rec = read_at2(gm / "RSN1605_DUZCE_DZC180.AT2")
+    csv = tmp_path / "dzc180.csv"
+    np.savetxt(csv, np.column_stack([rec.time_s, rec.acc_m_s2]), delimiter=",", header="t_s,acc_m_s2", comments="")
+    text = (SWEEPS / "paper_duzce.toml").read_text()
+    text = text.replace('record = "records/RSN1605_DUZCE_DZC180.AT2"', f'record = "{gm}/RSN1605_DUZCE_DZC180.AT2"')
+    text = text.replace('units = "g"\n', "").replace("[sweep]\n", f'[sweep]\nrecord = ["{gm}/RSN1605_DUZCE_DZC180.AT2", "{gm}/RSN1605_DUZCE_DZC270.AT2", "{csv}"]\n')
+    text = text.replace("ks_ratio = [0.1, 1.0, 5.0, 10.0]", "ks_ratio = [1.0]").replace("r = [0.2, 0.4, 0.6, 0.8, 1.0]", "r = [0.2]")
+    (tmp_path / "s.toml").write_text(text)
+    s = run_scene(load_scene(tmp_path / "s.toml"), out_path=tmp_path / "o.parquet")
+    df = pd.read_parquet(s.path).set_index("record")
+    assert list(df.index) == ["RSN1605_DUZCE_DZC180", "RSN1605_DUZCE_DZC270", "dzc180"]
+    assert df.loc["RSN1605_DUZCE_DZC180", "peak_disp_b1f3_m"] != df.loc["RSN1605_DUZCE_DZC270", "peak_disp_b1f3_m"]
+    assert df.loc["dzc180", "peak_disp_b1f3_m"] == pytest.approx(df.loc["RSN1605_DUZCE_DZC180", "peak_disp_b1f3_m"], rel=1e-9)
+
+
+def test_amplitude_and_frequency_axes(tmp_path):
+    text = (SWEEPS / "paper_6hz.toml").read_text().replace("duration_s = 5.0", "duration_s = 1.0")
+    text = text.replace("[sweep]\n", "[sweep]\namplitude_m = [0.001, 0.002]\nfrequency_Hz = [4.613, 6.0]\n")
+    text = text.replace("ks_ratio = [0.1, 1.0, 5.0, 10.0]", "ks_ratio = [1.0]").replace("r = [0.2, 0.4, 0.6, 0.8, 1.0]", "r = [0.4]")
+    (tmp_path / "s.toml").write_text(text)
+    df = pd.read_parquet(run_scene(load_scene(tmp_path / "s.toml"), out_path=tmp_path / "o.parquet").path)
+    assert list(zip(df.amplitude_m, df.frequency_Hz)) == [(0.001, 4.613), (0.001, 6.0), (0.002, 4.613), (0.002, 6.0)]
+    assert df.peak_disp_b1f3_m.nunique() == 4

@@ -193,6 +193,7 @@ def integrate_batch(
     Fprev = np.empty(npair)
     active = np.zeros(npair, dtype=np.bool_)
     trial = np.zeros(npair, dtype=np.bool_)
+    prev = np.zeros(npair, dtype=np.bool_)
     was_active = np.zeros(npair, dtype=np.bool_)
     in_comp = np.zeros(npair, dtype=np.bool_)
     comp_start = np.zeros(npair, dtype=np.int64)
@@ -219,6 +220,7 @@ def integrate_batch(
             out[pbase + L.PER_PAIR * j + L.PAIR_PEAK_FORCE] = 0.0
             active[j] = False
             was_active[j] = False
+            F[j] = 0.0
             in_comp[j] = False
             nphase[j] = 0
             Fprev[j] = 0.0
@@ -296,6 +298,7 @@ def integrate_batch(
                         settled = True
                         break
                     for j in range(npair):
+                        prev[j] = active[j]
                         active[j] = trial[j]
                     # a set already tried means the iteration cycles: stop early
                     mk = _mask(active, npair)
@@ -309,7 +312,7 @@ def integrate_batch(
                     # every pair the last two sets disagree on in contact, solve once more, count it
                     unsettled += 1
                     for j in range(npair):
-                        active[j] = active[j] or trial[j]
+                        active[j] = prev[j] or trial[j]
                     _contact_forces(S, z0, bb, ke, active, npair, idx, Asmall, rsmall, F)
             else:
                 # paper's scheme: contact force from the trial (F = 0) state, applied as a load
@@ -320,8 +323,8 @@ def integrate_batch(
                     if pen > 0.0:
                         vrel = b1 * z0[j] - wrel[j]
                         f = k_s * pen + cdash[run, j] * vrel
-                        if law == 1 and f < 0.0:
-                            f = 0.0
+                        if law == 1 and f <= 0.0:
+                            continue  # no tension: no contact while the element would pull
                         F[j] = f
                         active[j] = True
             # end-of-step state u = u0 - H F, then Newmark velocity and acceleration (eqs. 15-16)

@@ -1,0 +1,466 @@
+"""Slow, obviously-correct references the Numba kernel is tested against.
+
+Nothing here is fast on purpose: every step assembles and solves the full coupled system with
+NumPy, so the arithmetic can be read line by line against the equations it implements.
+
+Physics (SI; Sekerci & Damci, eqs. 1-2 written with the restoring sign, as in kernel.py):
+
+    M a + C v + K u + G F = -M 1 ag(t)                                          (eqs. 1-2)
+
+u: floor displacements relative to the table, building 1's floors then building 2's; G column j
+is g_j = e(building 1, floor j) - e(building 2, floor j), so g_j.u - d is the penetration of
+facing floor pair j for a seismic gap d. The Kelvin-Voigt force (positive in compression) is
+
+    F_j = k_s (g_j.u - d) + c_j g_j.v   while g_j.u - d > 0, else 0              (eq. 8)
+    c_j = 2 xi_s sqrt(k_s m1j m2j / (m1j + m2j))                                 (eq. 9)
+    xi_s = -ln r / sqrt(pi^2 + (ln r)^2)                                         (eq. 10)
+
+Law "classic" is eq. 8 as printed (F may be negative just before separation, the dashpot
+pulling); law "no_tension" is contact only while the penetration AND the formula are > 0.
+
+Harmonic excitation: table displacement A sin(w t), so ag(t) = -A w^2 sin(w t) and the
+structure starts at rest relative to the table (u = v = 0, a0 = -ag(0); eq. 11).
+
+Three references:
+
+* `newmark_reference(scheme="implicit")`: Newmark average acceleration (gamma = 1/2,
+  beta = 1/4; the paper's eqs. 11-16, Chopra's Table 5.4.2) on the full coupled system, the
+  contact force taken at the end of the step with an active set consistent with the end state.
+  The same discrete scheme as the kernel, but through a different linear-algebra route (one
+  full np.linalg.solve per candidate set instead of the kernel's Schur complement on the
+  pairs), so kernel and reference must agree to rounding.
+* `newmark_reference(scheme="paper")`: the paper's section-2 scheme (trial step with F = 0,
+  eq. 8 on the trial state applied as a load, step repeated once).
+* `ivp_reference`: the continuous-time problem integrated by `scipy.integrate.solve_ivp` to
+  1e-10 relative tolerance, one smooth piece per contact set, restarting at contact events
+  located by root finding. It shares no discretisation with the kernel, so the difference
+  between the two is the kernel's time-discretisation error.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from pounding_sweep.excitation import Excitation
+from pounding_sweep.model import CoupledModel
+from pounding_sweep.simulate import with_overrides
+
+LAWS = ("classic", "no_tension")
+SCHEMES = ("implicit", "paper")
+
+
+# ----------------------------------------------------------------------------- the problem
+
+
+def restitution_damping_ratio(r: float) -> float:
+    """xi_s = -ln r / sqrt(pi^2 + (ln r)^2), eq. (10), with its limits xi_s(0) = 1 and xi_s(1) = 0.
+
+    Written out again here (not imported) so the test can check the package's version against it.
+    """
+    if not 0.0 <= r <= 1.0:
+        raise ValueError(f"r must lie in [0, 1], got {r!r}")
+    if r == 0.0:
+        return 1.0  # limit of -ln r / sqrt(pi^2 + ln^2 r) as r -> 0+
+    if r == 1.0:
+        return 0.0
+    lnr = math.log(r)
+    return -lnr / math.sqrt(math.pi**2 + lnr**2)
+
+
+@dataclasses.dataclass(frozen=True)
+class Problem:
+    """Everything one run needs, resolved from a scene: matrices, contact parameters, loading."""
+
+    M: np.ndarray  # (n, n) lumped mass, eq. (3)
+    C: np.ndarray  # (n, n) Rayleigh damping, eq. (4)
+    K: np.ndarray  # (n, n) shear-frame stiffness, eq. (3)
+    G: np.ndarray  # (n, p) contact directions g_j = e(1, j) - e(2, j)
+    ks: float  # contact spring k_s [N/m]
+    c: np.ndarray  # (p,) dashpot c_j [N s/m], eq. (9)
+    gap: float  # seismic gap d [m]
+    law: str  # "classic" or "no_tension"
+    scheme: str  # "implicit" or "paper"
+    max_iter: int  # active-set solves per step before falling back (kernel: max_contact_iterations)
+    dt: float  # time step [s] (for the ivp: the output grid spacing)
+    nsteps: int
+    exc_kind: str  # "harmonic" or "record"
+    amp: float  # harmonic: table displacement amplitude A [m] (times the scene's scale)
+    omega: float  # harmonic: table circular frequency w [rad/s]
+    record: np.ndarray | None  # record: ground acceleration at t = n dt [m/s^2] (times scale)
+
+    @property
+    def n_dof(self) -> int:
+        return self.M.shape[0]
+
+    @property
+    def n_pairs(self) -> int:
+        return self.G.shape[1]
+
+    def ground_acceleration(self, step: int) -> float:
+        """ag at t = step * dt: -A w^2 sin(w t) for the harmonic table motion, else the record (0 past its end)."""
+        if self.exc_kind == "harmonic":
+            return -self.amp * self.omega**2 * math.sin(self.omega * step * self.dt)
+        return float(self.record[step]) if step < self.record.size else 0.0
+
+
+def resolve(scene, **overrides) -> Problem:
+    """The single-point problem of `scene` with `overrides` (ks_ratio, r, gap_m, dt_s, scheme, law, ...).
+
+    Structural matrices come from the package's CoupledModel (tested on their own in
+    test_structure.py); the contact parameters are recomputed here from eqs. (9)-(10).
+    """
+    s = with_overrides(scene, **overrides)
+    model = CoupledModel.from_scene(s)
+    M, C, K = model.matrices()
+    G = model.contact_matrix()
+    m1, m2 = model.pair_masses()
+    con = s.contact
+    ks = con.ks_N_per_m if con.ks_N_per_m is not None else con.ks_ratio * con.k_ref_N_per_m
+    xi = restitution_damping_ratio(con.r)
+    c = np.array([2.0 * xi * math.sqrt(ks * a * b / (a + b)) for a, b in zip(m1, m2)])  # eq. (9)
+    dt = s.integration.dt_s
+    e = s.excitation
+    if e.type == "harmonic":
+        nsteps = int(round(e.duration_s / dt))
+        amp, omega, record = e.amplitude_m * e.scale, 2.0 * math.pi * e.frequency_Hz, None
+    else:
+        # the record resampled to t = n dt by the package (linear interpolation, zero-padded),
+        # the same samples the kernel reads; the reference only integrates them differently
+        exc = Excitation.from_scene(s, dt)
+        record = e.scale * exc.rec_flat[: exc.rec_len[0]].copy()
+        nsteps, amp, omega = record.size - 1, 0.0, 0.0
+    return Problem(M, C, K, G, float(ks), c, float(con.gap_m), con.law, s.integration.scheme,
+                   s.integration.max_contact_iterations, float(dt), int(nsteps), e.type, float(amp), float(omega), record)
+
+
+# ----------------------------------------------------------------------------- Newmark
+
+
+def _solve_with_contact(P: Problem, Keff, p_hat, u_n, v_n, active):
+    """End-of-step displacement and forces with the pairs in `active` in contact (implicit scheme).
+
+    With gamma = 1/2, beta = 1/4 the end velocity is v = 2/dt (u - u_n) - v_n (Chopra Table 5.4.2;
+    paper eq. 15), so eq. (8) at the end of the step is linear in u:
+
+        F_j = k_s (g_j.u - d) + c_j g_j.v = ke_j g_j.u - b_j,
+        ke_j = k_s + 2 c_j / dt,   b_j = k_s d + c_j g_j.(2/dt u_n + v_n).
+
+    Putting F into the equation of motion at t_{n+1} (Keff u + G F = p_hat) moves ke_j g_j g_j^T
+    to the left-hand side and b_j g_j to the right, for every j in the active set.
+    """
+    ke = P.ks + 2.0 * P.c / P.dt
+    b = P.ks * P.gap + P.c * (P.G.T @ (2.0 / P.dt * u_n + v_n))
+    A = Keff.copy()
+    rhs = p_hat.copy()
+    for j in np.flatnonzero(active):
+        g = P.G[:, j]
+        A += ke[j] * np.outer(g, g)
+        rhs += b[j] * g
+    u = np.linalg.solve(A, rhs)
+    F = np.where(active, ke * (P.G.T @ u) - b, 0.0)
+    return u, F, ke, b
+
+
+def _wanted_set(P: Problem, u, ke, b) -> np.ndarray:
+    """Pairs that are in contact according to the end-of-step state u (eq. 8 and the law)."""
+    z = P.G.T @ u
+    want = z - P.gap > 0.0
+    if P.law == "no_tension":
+        want &= ke * z - b > 0.0  # the force formula must push
+    return want
+
+
+def newmark_reference(scene, cycle_fallback: str = "union", **overrides) -> dict:
+    """Newmark average acceleration on the full coupled system, plain NumPy, one solve at a time.
+
+    Returns t (steps+1,), u, v, a (steps+1, n_dof), F (steps+1, n_pairs), active (bool, like F),
+    ag (steps+1,), impacts (per pair: steps where a pair enters the active set), unsettled (steps
+    whose active set cycled) and the resolved Problem. Overrides are those of
+    `pounding_sweep.simulate.with_overrides` (ks_ratio, r, gap_m, dt_s, scheme, law, ...).
+
+    Each step (Chopra Table 5.4.2 in total rather than incremental form; paper eqs. 11-16):
+      Keff   = K + 2/dt C + 4/dt^2 M                                  (gamma = 1/2, beta = 1/4)
+      p_hat  = p_{n+1} + M (4/dt^2 u_n + 4/dt v_n + a_n) + C (2/dt u_n + v_n),  p = -M 1 ag
+      solve  Keff u_{n+1} + G F_{n+1} = p_hat
+      v_{n+1} = 2/dt (u_{n+1} - u_n) - v_n
+      a_{n+1} = 4/dt^2 (u_{n+1} - u_n) - 4/dt v_n - a_n
+
+    scheme "implicit": F_{n+1} from eq. (8) at the end of the step (see _solve_with_contact), for
+    an active set that agrees with the end state. Starting from the previous step's set, solve,
+    read off the set the solution asks for, and repeat until it stops changing. If a set comes
+    back (the iteration cycles, e.g. an impact inside the step under the classic law: with the
+    pair in, the dashpot throws it out; with it out, it penetrates) or max_iter solves pass, the
+    step takes the union of the last two sets and counts as unsettled. (cycle_fallback="last" takes
+    the last set asked for instead; a diagnostic for comparing with the kernel, not the spec.)
+
+    scheme "paper" (section 2): a trial step with F = 0; F from eq. (8) on the trial displacement
+    and velocity (no_tension: clipped at 0) is applied as a load and the step repeated once.
+    """
+    P = resolve(scene, **overrides)
+    if P.scheme not in SCHEMES or P.law not in LAWS:
+        raise ValueError(f"unknown scheme {P.scheme!r} or law {P.law!r}")
+    n, p, dt, N = P.n_dof, P.n_pairs, P.dt, P.nsteps
+    ones = np.ones(n)
+    Keff = P.K + (2.0 / dt) * P.C + (4.0 / dt**2) * P.M
+
+    t = np.arange(N + 1) * dt
+    U, V, A = np.zeros((N + 1, n)), np.zeros((N + 1, n)), np.zeros((N + 1, n))
+    F_hist, act_hist = np.zeros((N + 1, p)), np.zeros((N + 1, p), dtype=bool)
+    ag = np.array([P.ground_acceleration(k) for k in range(N + 1)])
+    A[0] = -ag[0] * ones  # eq. (11): a0 = M^-1 (p0 - C v0 - K u0) with u0 = v0 = 0, p0 = -M 1 ag(0)
+    active = np.zeros(p, dtype=bool)
+    unsettled = 0
+
+    for k in range(N):
+        u_n, v_n, a_n = U[k], V[k], A[k]
+        p_next = -(P.M @ ones) * ag[k + 1]
+        p_hat = p_next + P.M @ (4.0 / dt**2 * u_n + 4.0 / dt * v_n + a_n) + P.C @ (2.0 / dt * u_n + v_n)
+
+        if P.scheme == "implicit":
+            tried = []
+            settled = False
+            for _ in range(P.max_iter):
+                solved = active.copy()
+                tried.append(solved)
+                u, F, ke, b = _solve_with_contact(P, Keff, p_hat, u_n, v_n, solved)
+                want = _wanted_set(P, u, ke, b)
+                if np.array_equal(want, solved):
+                    settled = True
+                    break
+                if any(np.array_equal(want, s) for s in tried):
+                    break  # cycles
+                active = want
+            if not settled:
+                unsettled += 1
+                if cycle_fallback == "union":
+                    active = solved | want  # union of the last set solved and the set it asked for
+                elif cycle_fallback == "last":
+                    active = want  # diagnostic only: the set the last solve asked for (not consistent)
+                else:
+                    raise ValueError(f"cycle_fallback must be 'union' or 'last', got {cycle_fallback!r}")
+                u, F, _, _ = _solve_with_contact(P, Keff, p_hat, u_n, v_n, active)
+        else:
+            u0 = np.linalg.solve(Keff, p_hat)  # trial step, F = 0
+            z0 = P.G.T @ u0
+            v0 = 2.0 / dt * (u0 - u_n) - v_n  # trial velocity (eq. 15)
+            pen = z0 - P.gap
+            F = np.where(pen > 0.0, P.ks * pen + P.c * (P.G.T @ v0), 0.0)  # eq. (8) on the trial state
+            if P.law == "no_tension":
+                F = np.maximum(F, 0.0)
+                active = (pen > 0.0) & (F > 0.0)
+            else:
+                active = pen > 0.0
+            u = np.linalg.solve(Keff, p_hat - P.G @ F)  # the step repeated with F as a load
+
+        du = u - u_n
+        U[k + 1] = u
+        V[k + 1] = 2.0 / dt * du - v_n
+        A[k + 1] = 4.0 / dt**2 * du - 4.0 / dt * v_n - a_n
+        F_hist[k + 1] = F
+        act_hist[k + 1] = active
+
+    entered = act_hist[1:] & ~act_hist[:-1]
+    return dict(t=t, u=U, v=V, a=A, F=F_hist, active=act_hist, ag=ag,
+                impacts=entered.sum(axis=0), unsettled=unsettled, problem=P)
+
+
+# ----------------------------------------------------------------------------- continuous time
+
+
+def ivp_reference(scene, t_end=None, rtol=1e-10, atol=1e-13, method="DOP853", max_step=1e-3, dt_out=None,
+                  **overrides) -> dict:
+    """The continuous-time problem (eqs. 1-2 and 8) by solve_ivp, one smooth piece per contact set.
+
+    First-order form y = (u, v). With a fixed set A of pairs in contact, eq. (8) is linear in y:
+
+        M v' = -(K + sum_A k_s g g^T) u - (C + sum_A c_j g g^T) v + sum_A k_s d g - M 1 ag(t),
+
+    so every piece is a linear ODE with a smooth (harmonic) right-hand side, which an explicit
+    high-order method integrates to tolerance without trouble. The contact set changes only at
+    events, each the zero of one continuous function per pair:
+
+        h_j = g_j.u - d                            (classic: contact iff penetration > 0)
+        h_j = min(g_j.u - d, F_j / k_s)            (no_tension: iff penetration AND force > 0)
+
+    watched upward for pairs out of contact and downward for pairs in contact. Each event is
+    terminal: the piece ends at the root (found by solve_ivp on the dense output), the pair
+    flips, and a fresh solve_ivp starts from the event state. Nothing is ever integrated across
+    a discontinuity of the right-hand side (the dashpot force jumps at impact under the classic
+    law), which is what keeps the high order and the tight tolerance meaningful.
+
+    Method: DOP853 (explicit Runge-Kutta 8(5,3) with a 7th-order dense output). The pieces are
+    not stiff: the largest |eigenvalue| of any piece of the 6 Hz scene is 170-460 1/s (k_s/k
+    from 0.1 to 10, all pairs in contact; building 2's third mode and the contact spring on the
+    reduced floor mass), so at the steps a 1e-10 tolerance asks for (well under a millisecond)
+    an explicit method is far inside its stability region; Radau would pay a linear solve per
+    stage for stiffness the problem does not have, at a lower order (5). max_step (1 ms, under a
+    tenth of the shortest contact period, 14 ms at k_s/k = 10) keeps steps short enough that a
+    brief contact cannot hide between two event checks.
+
+    Returns t (uniform grid, spacing dt_out, default the scene's dt_s, up to t_end or the
+    scene's duration), u, v, a
+    (relative accelerations from the equation of motion), F, active on that grid, the events as
+    a list of (time, pair, "contact" | "separation"), impacts per pair and the Problem.
+    Harmonic excitation only.
+    """
+    P = resolve(scene, **overrides)
+    if P.exc_kind != "harmonic":
+        raise NotImplementedError("ivp_reference: harmonic excitation only")
+    n, p, ks, d = P.n_dof, P.n_pairs, P.ks, P.gap
+    t_end = P.nsteps * P.dt if t_end is None else float(t_end)
+    Minv = np.linalg.inv(P.M)  # diagonal (lumped masses): an exact inverse
+    drive = np.concatenate([np.zeros(n), np.ones(n) * P.amp * P.omega**2])  # -1 ag(t) = 1 A w^2 sin(w t)
+    systems: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+
+    def system(active: tuple) -> tuple[np.ndarray, np.ndarray]:
+        """y' = Asys y + f0 + drive sin(w t) for the contact set `active` (cached per set)."""
+        if active not in systems:
+            Ka, Ca, fa = P.K.copy(), P.C.copy(), np.zeros(n)
+            for j in range(p):
+                if active[j]:
+                    g = P.G[:, j]
+                    Ka += ks * np.outer(g, g)
+                    Ca += P.c[j] * np.outer(g, g)
+                    fa += ks * d * g
+            Asys = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ Ka, -Minv @ Ca]])
+            systems[active] = (Asys, np.concatenate([np.zeros(n), Minv @ fa]))
+        return systems[active]
+
+    def force(j: int, y: np.ndarray) -> np.ndarray:
+        """Eq. (8) formula for pair j (whether or not in contact); y may be (2n,) or (2n, m)."""
+        g = P.G[:, j]
+        return ks * (g @ y[:n] - d) + P.c[j] * (g @ y[n:])
+
+    def event_function(j: int):
+        def h(t, y):
+            pen = P.G[:, j] @ y[:n] - d
+            if P.law == "no_tension":
+                return min(pen, force(j, y) / ks)
+            return pen
+
+        h.terminal = True
+        return h
+
+    dt_out = P.dt if dt_out is None else float(dt_out)
+    grid = np.arange(int(math.floor(t_end / dt_out + 1e-9)) + 1) * dt_out
+    Y = np.full((grid.size, 2 * n), np.nan)
+    ACT = np.zeros((grid.size, p), dtype=bool)
+    events: list[tuple[float, int, str]] = []
+    y = np.zeros(2 * n)
+    t0 = 0.0
+    active = tuple(False for _ in range(p))
+    stalls = 0
+    while True:
+        Asys, f0 = system(active)
+        evs = []
+        for j in range(p):
+            h = event_function(j)
+            h.direction = -1.0 if active[j] else 1.0
+            evs.append(h)
+        sol = solve_ivp(lambda t, yy: Asys @ yy + f0 + drive * math.sin(P.omega * t), (t0, t_end), y,
+                        method=method, rtol=rtol, atol=atol, max_step=max_step, events=evs, dense_output=True)
+        if sol.status < 0:
+            raise RuntimeError(f"ivp_reference: solve_ivp failed at t = {sol.t[-1]}: {sol.message}")
+        t1 = sol.t[-1]
+        sel = (grid >= t0) & (grid <= t1)
+        if np.any(sel):
+            Y[sel] = sol.sol(grid[sel]).T
+            ACT[sel] = active
+        if sol.status == 0:
+            break
+        # which pair's event ended the piece (the earliest; ties are not expected)
+        hits = [(te[0], j) for j, te in enumerate(sol.t_events) if te.size]
+        te, j = min(hits)
+        y = sol.y_events[j][0].copy()
+        stalls = stalls + 1 if te - t0 < 1e-12 else 0
+        if stalls > 10:
+            raise RuntimeError(f"ivp_reference: contact set chatters at t = {te}")
+        active = tuple((not a) if i == j else a for i, a in enumerate(active))
+        events.append((float(te), j, "contact" if active[j] else "separation"))
+        t0 = te
+
+    u, v = Y[:, :n], Y[:, n:]
+    F = np.zeros((grid.size, p))
+    for j in range(p):
+        F[:, j] = np.where(ACT[:, j], force(j, Y.T), 0.0)
+    ag = -P.amp * P.omega**2 * np.sin(P.omega * grid)
+    # relative acceleration from the equation of motion, M a = -C v - K u - G F - M 1 ag
+    a = (-(v @ P.C.T) - (u @ P.K.T) - F @ P.G.T) @ Minv.T - ag[:, None]
+    impacts = np.array([sum(1 for e in events if e[1] == j and e[2] == "contact") for j in range(p)])
+    return dict(t=grid, u=u, v=v, a=a, F=F, active=ACT, ag=ag, events=events, impacts=impacts, problem=P)
+
+
+# ----------------------------------------------------------------------------- linear (no contact)
+
+
+def classical_modes(M, C, K):
+    """Undamped modes of (K, M), mass-normalised (phi^T M phi = I), and their damping ratios.
+
+    Solved through the Cholesky factor M = L L^T (a symmetric eigenproblem of L^-1 K L^-T).
+    Raises if C is not diagonal in these modes (modal superposition would then not decouple).
+    """
+    Linv = np.linalg.inv(np.linalg.cholesky(M))
+    w2, psi = np.linalg.eigh(Linv @ K @ Linv.T)
+    phi = Linv.T @ psi
+    Cm = phi.T @ C @ phi
+    off = Cm - np.diag(np.diag(Cm))
+    if np.max(np.abs(off)) > 1e-9 * np.max(np.abs(Cm)):
+        raise ValueError("damping is not classical: the modal equations would be coupled")
+    wn = np.sqrt(w2)
+    return wn, phi, np.diag(Cm) / (2.0 * wn)
+
+
+def modal_harmonic_response(M, C, K, amp, omega, t) -> np.ndarray:
+    """Exact u(t) (len(t), n) of M u'' + C u' + K u = -M 1 ag, ag = -amp omega^2 sin(omega t), from rest.
+
+    Classically damped (Rayleigh) systems decouple in the undamped modes phi_m:
+    q_m'' + 2 z_m w_m q_m' + w_m^2 q_m = -Gamma_m ag(t), Gamma_m = phi_m^T M 1 (Chopra sec. 13.1),
+    i.e. a harmonic load p0 sin(omega t) with p0 = Gamma_m amp omega^2 per unit modal mass. Each
+    mode is Chopra's harmonic solution (sec. 3.2): steady state C1 sin + D1 cos with
+    C1 = p0/w^2 (1 - b^2)/((1 - b^2)^2 + (2 z b)^2), D1 = p0/w^2 (-2 z b)/(...), b = omega / w,
+    plus the damped transient e^{-z w t}(A cos wD t + B sin wD t) fixed by q(0) = q'(0) = 0.
+    """
+    wn, phi, zeta = classical_modes(M, C, K)
+    gamma = phi.T @ M @ np.ones(M.shape[0])
+    t = np.asarray(t, dtype=float)
+    u = np.zeros((t.size, M.shape[0]))
+    for m in range(wn.size):
+        w, z = wn[m], zeta[m]
+        p0 = gamma[m] * amp * omega**2
+        b = omega / w
+        den = (1.0 - b**2) ** 2 + (2.0 * z * b) ** 2
+        c1 = p0 / w**2 * (1.0 - b**2) / den
+        d1 = p0 / w**2 * (-2.0 * z * b) / den
+        wd = w * math.sqrt(1.0 - z**2)
+        a_ = -d1  # q(0) = a_ + d1 = 0
+        b_ = (z * w * a_ - c1 * omega) / wd  # q'(0) = -z w a_ + wd b_ + c1 omega = 0
+        q = np.exp(-z * w * t) * (a_ * np.cos(wd * t) + b_ * np.sin(wd * t)) + c1 * np.sin(omega * t) + d1 * np.cos(omega * t)
+        u += np.outer(q, phi[:, m])
+    return u
+
+
+def modal_free_vibration(M, C, K, u0, v0, t) -> np.ndarray:
+    """Exact u(t) (len(t), n) of M u'' + C u' + K u = 0 from u(0) = u0, u'(0) = v0 (classical damping).
+
+    Modal initial conditions q0 = phi^T M u0, q0' = phi^T M v0 (mass-normalised phi), then per
+    mode Chopra eq. (2.2.4): q(t) = e^{-z w t} (q0 cos wD t + (q0' + z w q0) / wD sin wD t).
+    """
+    wn, phi, zeta = classical_modes(M, C, K)
+    q0, qd0 = phi.T @ M @ u0, phi.T @ M @ v0
+    t = np.asarray(t, dtype=float)
+    u = np.zeros((t.size, M.shape[0]))
+    for m in range(wn.size):
+        w, z = wn[m], zeta[m]
+        wd = w * math.sqrt(1.0 - z**2)
+        q = np.exp(-z * w * t) * (q0[m] * np.cos(wd * t) + (qd0[m] + z * w * q0[m]) / wd * np.sin(wd * t))
+        u += np.outer(q, phi[:, m])
+    return u
+
+
+def paper_scheme_reference(scene, **overrides) -> dict:
+    """newmark_reference with the paper's section-2 scheme (trial step, eq. 8 as a load, step repeated)."""
+    return newmark_reference(scene, **dict(overrides, scheme="paper"))

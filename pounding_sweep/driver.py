@@ -106,7 +106,7 @@ def run_chunk(sys: SystemArrays, runs: RunArrays, rec, hist: HistorySpec, opts: 
     def work(bounds):
         s, e = bounds
         integrate_batch(
-            s, e, sys.dt, sys.m, sys.C, sys.Kinv, sys.H, sys.S, sys.i1, sys.i2,
+            s, e, sys.dt, sys.m, sys.C, sys.K, sys.Kinv, sys.H, sys.S, sys.i1, sys.i2,
             opts.scheme, opts.law, opts.max_iter,
             runs.ks, runs.cdash, runs.gap, runs.exc_kind, runs.exc_amp, runs.exc_omega,
             runs.rec_id, runs.nsteps, runs.status_in,

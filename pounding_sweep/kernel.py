@@ -128,6 +128,7 @@ def integrate_batch(
     dt,
     m,
     C,
+    K,
     Kinv,
     H,
     S,
@@ -203,6 +204,10 @@ def integrate_batch(
     durations = np.empty((npair, L.MEDIAN_BUFFER))
     nphase = np.zeros(npair, dtype=np.int64)
     seen = np.zeros(max_iter + 1, dtype=np.int64)
+    Sprev = np.zeros(npair)  # spring and dashpot parts of F at the step start (energy bookkeeping)
+    Dprev = np.zeros(npair)
+    pen_prev = np.zeros(npair)
+    Cdu = np.empty(n)
     nm = metrics.shape[1]
     n_exp = exp_t.size
     n_exp_ch = exp_dof.size
@@ -221,6 +226,9 @@ def integrate_batch(
             active[j] = False
             was_active[j] = False
             F[j] = 0.0
+            Sprev[j] = 0.0
+            Dprev[j] = 0.0
+            pen_prev[j] = -gap[run]  # at rest the pair is `gap` apart
             in_comp[j] = False
             nphase[j] = 0
             Fprev[j] = 0.0
@@ -253,6 +261,12 @@ def integrate_batch(
                 xs[c, ke_next] = 0.0
             ke_next += 1
         unsettled = 0
+        e_in = 0.0
+        e_in_abs = 0.0
+        d_struct = 0.0
+        w_spring = 0.0
+        w_dash = 0.0
+        ag_prev = ag
         max_it_seen = 0
         steps_done = 0
         for step in range(1, nst + 1):
@@ -343,6 +357,34 @@ def integrate_batch(
             if not finite:
                 status |= L.STATUS_NONFINITE
                 break
+            # energy increments, exact for Newmark average acceleration (trapezoidal work with
+            # du = dt (v_n + v_n+1) / 2): input -du.M1 ag, structural damping du.C du / dt, and the
+            # work of the contact's spring and dashpot parts on the pair's relative displacement
+            s_in = 0.0
+            for i in range(n):
+                du = un[i] - u[i]
+                s_in += m[i] * du
+                s = 0.0
+                for k in range(n):
+                    s += C[i, k] * (un[k] - u[k])
+                Cdu[i] = s
+            de = -0.5 * (ag_prev + ag) * s_in
+            e_in += de
+            e_in_abs += abs(de)
+            s = 0.0
+            for i in range(n):
+                s += (un[i] - u[i]) * Cdu[i]
+            d_struct += s / dt
+            for j in range(npair):
+                pen = un[i1[j]] - un[i2[j]] - d
+                sp = k_s * pen if active[j] else 0.0
+                dp = F[j] - sp if active[j] else 0.0
+                w_spring += 0.5 * (Sprev[j] + sp) * (pen - pen_prev[j])
+                w_dash += 0.5 * (Dprev[j] + dp) * (pen - pen_prev[j])
+                Sprev[j] = sp
+                Dprev[j] = dp
+                pen_prev[j] = pen
+            ag_prev = ag
             t = step * dt
             # experiment samples inside (t - dt, t]: linear interpolation between the step ends
             while ke_next < n_exp and exp_t[ke_next] <= t + 1e-12 * dt:
@@ -415,6 +457,31 @@ def integrate_batch(
                 score_channel(xs[c], exp_x[c], exp_t, max_lag, exp_dt, scores[run, c])
         if unsettled > 0:
             status |= L.STATUS_UNSETTLED
+        # energy balance at the end: E_in = KE + SE + D_struct + D_contact + E_spring + residual;
+        # the residual is the spring work the discrete contact switching did not store
+        ke_end = 0.0
+        se_end = 0.0
+        for i in range(n):
+            ke_end += 0.5 * m[i] * v[i] * v[i]
+            s = 0.0
+            for k in range(n):
+                s += K[i, k] * u[k]
+            se_end += 0.5 * u[i] * s
+        e_spring = 0.0
+        for j in range(npair):
+            if active[j]:
+                e_spring += 0.5 * k_s * pen_prev[j] * pen_prev[j]
+        residual = w_spring - e_spring
+        out[rbase + L.RUN_E_IN] = e_in
+        out[rbase + L.RUN_E_IN_ABS] = e_in_abs
+        out[rbase + L.RUN_KE] = ke_end
+        out[rbase + L.RUN_SE] = se_end
+        out[rbase + L.RUN_D_STRUCT] = d_struct
+        out[rbase + L.RUN_D_CONTACT] = w_dash
+        out[rbase + L.RUN_E_SPRING] = e_spring
+        out[rbase + L.RUN_E_RESIDUAL] = residual
+        if not (abs(residual) <= L.ENERGY_TOL * e_in_abs):
+            status |= L.STATUS_ENERGY
         out[rbase + L.RUN_UNSETTLED] = unsettled
         out[rbase + L.RUN_MAX_ITER] = max_it_seen
         out[rbase + L.RUN_STEPS] = steps_done

@@ -23,18 +23,23 @@ PER_DOF = 3
 PER_PAIR = 9
 # per run
 RUN_UNSETTLED, RUN_MAX_ITER, RUN_STEPS, RUN_STATUS = range(4)
-PER_RUN = 4
+# energy balance (relative coordinates): E_in = KE + SE + D_struct + D_contact + E_spring + residual
+(RUN_E_IN, RUN_E_IN_ABS, RUN_KE, RUN_SE, RUN_D_STRUCT, RUN_D_CONTACT, RUN_E_SPRING, RUN_E_RESIDUAL) = range(4, 12)
+PER_RUN = 12
 
 # status bits (the writer turns them into words)
 STATUS_NONFINITE = 1  # NaN/inf or |u| > DIVERGED_M: integration stopped
 STATUS_UNSETTLED = 2  # the contact active set cycled in at least one step
 STATUS_UNDERRESOLVED = 4  # dt too coarse for the contact period (set before the run)
 STATUS_MEDIAN_TRUNCATED = 8  # more compressive phases than the median buffer holds
+STATUS_ENERGY = 16  # |energy residual| > ENERGY_TOL of the input work: contact switching made or lost energy
+ENERGY_TOL = 0.01
 STATUS_WORDS = {
     STATUS_NONFINITE: "diverged",
     STATUS_UNSETTLED: "contact_unsettled",
     STATUS_UNDERRESOLVED: "contact_underresolved",
     STATUS_MEDIAN_TRUNCATED: "median_truncated",
+    STATUS_ENERGY: "energy_residual",
 }
 DIVERGED_M = 1.0e3  # a displacement beyond a kilometre is a numerical blow-up, not physics
 MEDIAN_BUFFER = 4096  # compressive phases kept per pair for the median duration
@@ -78,4 +83,6 @@ def metric_columns(floors: tuple[int, int], n_pairs: int) -> list[str]:
             f"peak_force_time_f{j}_s",
         ]
     cols += ["unsettled_steps", "max_contact_iterations", "steps", "status_code"]
+    cols += ["input_energy_J", "input_work_abs_J", "kinetic_energy_end_J", "strain_energy_end_J",
+             "structural_damping_energy_J", "contact_damping_energy_J", "contact_spring_energy_end_J", "energy_residual_J"]
     return cols

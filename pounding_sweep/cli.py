@@ -23,7 +23,8 @@ def _parser() -> argparse.ArgumentParser:
         description="Run a pounding scene: every grid point of its [sweep] through the Newmark/Kelvin-Voigt "
         "kernel, one Parquet row per run (metrics with units in the column names; the scene, its hash and "
         "the package versions in the file metadata).",
-        epilog="Scene keys: python -m pounding_sweep --describe. Shipped scenes: sweeps/*.toml.",
+        epilog="Scene keys: python -m pounding_sweep --describe. Shipped scenes: sweeps/*.toml. "
+        "Figures of a result file: python -m pounding_sweep plot RESULTS.parquet",
     )
     p.add_argument("scene", nargs="?", help="scene file (TOML), e.g. sweeps/paper_6hz.toml")
     p.add_argument("--out", help="result file (default: the scene's [output] path)")
@@ -80,7 +81,30 @@ def _print_summary(s) -> None:
                   f"(grid best {rf.start_error_pct:.3f} %)")
 
 
+def plot_main(argv: list[str]) -> int:
+    """`python -m pounding_sweep plot RESULTS [--out DIR]`: the figures of a result file as PNGs."""
+    p = argparse.ArgumentParser(prog="python -m pounding_sweep plot",
+                                description="Write PNG figures of a sweep's result file: error or force heatmaps over "
+                                "(k_s/k, r), the best run's displacement and force histories over the experiment's, "
+                                "and numerical-against-experimental plots. Needs the 'plot' extra (matplotlib).")
+    p.add_argument("results", help="a result file written by a sweep (.parquet)")
+    p.add_argument("--out", help="folder for the PNGs (default: <results>_plots next to the file)")
+    args = p.parse_args(argv)
+    from .plots import plot_results
+
+    try:
+        paths = plot_results(args.results, args.out)
+    except (ConfigError, RecordError, ExperimentError, OSError, KeyError) as e:
+        print(f"error: {args.results}: cannot plot ({type(e).__name__}: {e})", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    print("\n".join(str(x) for x in paths))
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if argv and argv[0] == "plot":
+        return plot_main(argv[1:])
     args = _parser().parse_args(argv)
     if args.describe:
         print(describe())

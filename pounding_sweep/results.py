@@ -41,7 +41,15 @@ COLUMN_DOCS = {
     "unsettled_steps": "steps whose contact active set did not settle (implicit scheme) [-]",
     "max_contact_iterations": "most active-set iterations any step needed [-]",
     "steps": "time steps completed [-]",
-    "status": "'ok' or '+'-joined flags: diverged, contact_unsettled, contact_underresolved, median_truncated",
+    "status": "'ok' or '+'-joined flags: diverged, contact_unsettled, contact_underresolved, energy_residual, median_truncated",
+    "input_energy_J": "work of the table motion on the structure, relative coordinates [J]",
+    "input_work_abs_J": "sum of |input work increments|, the scale of the energy residual [J]",
+    "kinetic_energy_end_J": "kinetic energy at the end (relative velocities) [J]",
+    "strain_energy_end_J": "strain energy of the frames at the end [J]",
+    "structural_damping_energy_J": "energy dissipated by Rayleigh damping [J]",
+    "contact_damping_energy_J": "work of the contact dashpots [J]",
+    "contact_spring_energy_end_J": "energy stored in contact springs at the end [J]",
+    "energy_residual_J": "input - all of the above: contact-spring work the switching did not store (< 0: made) [J]",
     "run_time_s": "wall time of this run in the kernel [s]",
 }
 

@@ -7,7 +7,7 @@ scored as it finishes and the best runs are kept as running minima.
 
 from __future__ import annotations
 
-import dataclasses
+import contextlib
 import time
 from collections import Counter
 from dataclasses import dataclass, field
@@ -255,13 +255,5 @@ def _param_columns(exc: Excitation, params: dict, derived: dict) -> dict:
     return cols
 
 
-class _NullCtx:
-    def __enter__(self):
-        return None
-
-    def __exit__(self, *a):
-        return False
-
-
 def _maybe_writer(path, meta):
-    return _NullCtx() if path is None else AtomicParquetWriter(path, meta)
+    return contextlib.nullcontext() if path is None else AtomicParquetWriter(path, meta)

@@ -70,7 +70,9 @@ def _print_summary(s) -> None:
         rows.append(("histories", str(s.histories_path)))
     w = max(len(k) for k, _ in rows)
     print("\n".join(f"{k:<{w}}  {v}" for k, v in rows))
-    if s.best is not None:
+    if s.best is not None and s.best.empty:
+        print("\nno run could be scored against the experiment (all diverged or ended before its window)")
+    elif s.best is not None:
         print(f"\nbest runs against the experiment (lowest relative RMS error, eq. 20; {s.best_path}):")
         show = [c for c in ("criterion", "error_pct", "run_id", "ks_ratio", "r", "gap_m", "record", "status") if c in s.best]
         print(s.best[show].to_string(index=False, float_format=lambda x: f"{x:.4g}"))
@@ -122,6 +124,9 @@ def main(argv: list[str] | None = None) -> int:
         summary = run_scene(scene, out_path=args.out, threads=args.threads, progress=_Progress(not args.quiet))
     except (ConfigError, RecordError, ExperimentError) as e:
         print(f"error: {e}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except OSError as e:  # e.g. --out names a folder or an unwritable place
+        print(f"error: cannot write results: {e}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print("interrupted: no result file written", file=sys.stderr)

@@ -323,6 +323,8 @@ def _typed(value, typ, key: str):
     if typ is str:
         if not isinstance(value, str):
             raise ConfigError(f"{key} = {value!r}: expected a string")
+        if "\x00" in value:
+            raise ConfigError(f"{key} = {value!r}: contains a NUL character")
         return value
     raise TypeError(typ)  # pragma: no cover - a field type the loader does not know
 
@@ -519,7 +521,7 @@ def _check_r(r, key):
 def describe() -> str:
     """Every section and key with its meaning: the reference for writing scenes."""
     lines = []
-    for name, cls in SECTIONS.items():
+    for name, cls in {**SECTIONS, "experiment": ExperimentConfig}.items():
         lines.append(f"[{name}]  {cls.__doc__}")
         for f in dataclasses.fields(cls):
             default = "" if f.default is dataclasses.MISSING else f" (default {f.default!r})"

@@ -50,6 +50,11 @@ class Excitation:
             recs.append(rec)
             arrays.append(resample(rec, dt, e.duration_s))
         lens = np.array([a.size for a in arrays], dtype=np.int64)
+        if lens.min() < 2:
+            from .config import ConfigError
+
+            raise ConfigError(f"[excitation] the run ({paths[int(lens.argmin())]}, duration_s = {e.duration_s}, "
+                              f"length_scale = {e.length_scale}) is shorter than one step dt_s = {dt}")
         offs = np.concatenate([[0], np.cumsum(lens)[:-1]]).astype(np.int64)
         flat = np.ascontiguousarray(np.concatenate(arrays))
         return cls("record", dt, e.duration_s, tuple(recs), tuple(paths), flat, offs, lens)

@@ -76,6 +76,13 @@ def load_experiment(cfg: ExperimentConfig, floors: tuple[int, int]) -> Experimen
             f"{where}: column '{cfg.time_column}' must be strictly increasing: {kind} time {float(t[k])!r} at row {k + 1} "
             f"(after {float(t[k - 1])!r})"
         )
+    dev = np.abs(d / np.median(d) - 1.0)
+    if np.any(dev > 0.01):
+        k = int(np.argmax(dev)) + 1
+        raise ExperimentError(
+            f"{where}: column '{cfg.time_column}' is not uniformly sampled: step {float(d[k - 1]):.6g} s at row {k + 1} "
+            f"against the median {float(np.median(d)):.6g} s (resample the table to a uniform step first)"
+        )
     factor = 1e-3 if cfg.units == "mm" else 1.0
     chans, cols = {}, {}
     for col, code in cfg.channels.items():
@@ -92,11 +99,14 @@ def _numeric(series: pd.Series, where: str, col: str) -> np.ndarray:
     bad = ~np.isfinite(x)
     if bad.any():
         k = int(np.argmax(bad))
-        raise ExperimentError(f"{where}: column '{col}' row {k + 1}: value {series.iloc[k]!r} is not a finite number")
+        v = series.iloc[k]
+        v = v.item() if hasattr(v, "item") else v
+        raise ExperimentError(f"{where}: column '{col}' row {k + 1}: value {v!r} is not a finite number")
     return x
 
 
-def score_spec(exp: Experiment, cfg: ExperimentConfig, floors: tuple[int, int], sim_duration_s: float) -> ScoreSpec:
+def score_spec(exp: Experiment, cfg: ExperimentConfig, floors: tuple[int, int], sim_duration_s: float,
+               dt: float) -> ScoreSpec:
     """The samples inside the scored window, on the simulation clock, as kernel arrays.
 
     Simulation time = experiment time - time_offset_s. The window defaults to all of the
@@ -108,14 +118,16 @@ def score_spec(exp: Experiment, cfg: ExperimentConfig, floors: tuple[int, int], 
         raise ExperimentError(
             f"[experiment] window_s = [{lo}, {hi}]: outside the simulation, which covers 0 .. {sim_duration_s:.6g} s"
         )
-    keep = (ts >= lo - 1e-12) & (ts <= hi + 1e-12) & (ts >= 0) & (ts <= sim_duration_s + 1e-12)
+    tol = 1e-12 * dt  # the kernel fills samples up to t_step + 1e-12 dt: the same tolerance here
+    keep = (ts >= lo - tol) & (ts <= hi + tol) & (ts >= 0) & (ts <= sim_duration_s + tol)
     if keep.sum() < 2:
         raise ExperimentError(
             f"{exp.path}: its time range {exp.time_s[0]:.6g} .. {exp.time_s[-1]:.6g} s (offset {cfg.time_offset_s} s) "
-            f"does not overlap the simulation 0 .. {sim_duration_s:.6g} s within the window [{lo}, {hi}]"
+            f"leaves {int(keep.sum())} sample(s) (at least 2 needed) in the simulation 0 .. {sim_duration_s:.6g} s "
+            f"within the window [{lo}, {hi}]"
         )
     codes = list(exp.channels)
     x = np.ascontiguousarray(np.stack([exp.channels[c][keep] for c in codes]))
     dof = np.array([floor_dof(c, floors, "channel") for c in codes], dtype=np.int64)
-    max_lag = int(round(cfg.max_lag_s / exp.dt_sample))
+    max_lag = int(min(round(cfg.max_lag_s / exp.dt_sample), keep.sum() - 2))  # at most the window
     return ScoreSpec(np.ascontiguousarray(ts[keep]), x, dof, max_lag, exp.dt_sample)

@@ -266,6 +266,7 @@ def integrate_batch(
         d_struct = 0.0
         w_spring = 0.0
         w_dash = 0.0
+        w_release = 0.0
         ag_prev = ag
         max_it_seen = 0
         steps_done = 0
@@ -381,6 +382,10 @@ def integrate_batch(
                 dp = F[j] - sp if active[j] else 0.0
                 w_spring += 0.5 * (Sprev[j] + sp) * (pen - pen_prev[j])
                 w_dash += 0.5 * (Dprev[j] + dp) * (pen - pen_prev[j])
+                if was_active[j] and not active[j] and pen > 0.0:
+                    # released while still compressed (no-tension law): the spring's energy is
+                    # lost to the contact, a physical dissipation, not a numerical residual
+                    w_release += 0.5 * k_s * pen * pen
                 Sprev[j] = sp
                 Dprev[j] = dp
                 pen_prev[j] = pen
@@ -451,6 +456,7 @@ def integrate_batch(
             out[base + L.PAIR_MEDIAN_COMPRESSION] = np.median(durations[j, :k]) if k > 0 else 0.0
         for c in range(n_exp_ch):
             if ke_next < n_exp:  # the run stopped before the experiment's window ended
+                status |= L.STATUS_UNSCORED
                 for q in range(N_SCORES):
                     scores[run, c, q] = np.nan
             else:
@@ -471,13 +477,13 @@ def integrate_batch(
         for j in range(npair):
             if active[j]:
                 e_spring += 0.5 * k_s * pen_prev[j] * pen_prev[j]
-        residual = w_spring - e_spring
+        residual = w_spring - e_spring - w_release
         out[rbase + L.RUN_E_IN] = e_in
         out[rbase + L.RUN_E_IN_ABS] = e_in_abs
         out[rbase + L.RUN_KE] = ke_end
         out[rbase + L.RUN_SE] = se_end
         out[rbase + L.RUN_D_STRUCT] = d_struct
-        out[rbase + L.RUN_D_CONTACT] = w_dash
+        out[rbase + L.RUN_D_CONTACT] = w_dash + w_release
         out[rbase + L.RUN_E_SPRING] = e_spring
         out[rbase + L.RUN_E_RESIDUAL] = residual
         if not (abs(residual) <= L.ENERGY_TOL * e_in_abs):

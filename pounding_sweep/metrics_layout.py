@@ -34,12 +34,14 @@ STATUS_UNDERRESOLVED = 4  # dt too coarse for the contact period (set before the
 STATUS_MEDIAN_TRUNCATED = 8  # more compressive phases than the median buffer holds
 STATUS_ENERGY = 16  # |energy residual| > ENERGY_TOL of the input work: contact switching made or lost energy
 ENERGY_TOL = 0.01
+STATUS_UNSCORED = 32  # the run ended before the experiment's window did (diverged, or a shorter record)
 STATUS_WORDS = {
     STATUS_NONFINITE: "diverged",
     STATUS_UNSETTLED: "contact_unsettled",
     STATUS_UNDERRESOLVED: "contact_underresolved",
     STATUS_MEDIAN_TRUNCATED: "median_truncated",
     STATUS_ENERGY: "energy_residual",
+    STATUS_UNSCORED: "unscored",
 }
 DIVERGED_M = 1.0e3  # a displacement beyond a kilometre is a numerical blow-up, not physics
 MEDIAN_BUFFER = 4096  # compressive phases kept per pair for the median duration

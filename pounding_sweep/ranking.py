@@ -78,7 +78,7 @@ class Refinement:
     message: str
 
 
-def refine(objective: Callable[[dict], float], start: dict, bounds: dict[str, tuple[float, float]],
+def refine(objective: Callable[[dict], float], start: dict, start_error: float, bounds: dict[str, tuple[float, float]],
            max_evals: int) -> Refinement:
     """Minimise objective({ks_ratio, r}) by bounded Nelder-Mead from the best grid cell.
 
@@ -107,7 +107,8 @@ def refine(objective: Callable[[dict], float], start: dict, bounds: dict[str, tu
             cache[key] = objective(from_x(np.clip(x, lo, hi)))
         return cache[key]
 
-    e0 = f(x0)
+    # the start is the grid cell itself: its error is the grid's (no log10 round trip of k_s)
+    cache[tuple(np.round(x0, 12))] = e0 = float(start_error)
     # initial simplex: a quarter of each parameter's range, pointed into the box
     span = hi - lo
     simplex = [x0]
@@ -120,6 +121,6 @@ def refine(objective: Callable[[dict], float], start: dict, bounds: dict[str, tu
                    options={"initial_simplex": np.array(simplex), "maxfev": max_evals, "xatol": 1e-3, "fatol": 1e-4})
     xbest = np.clip(res.x, lo, hi)
     ebest = f(xbest)
-    if e0 < ebest:  # never report worse than the start
-        xbest, ebest = x0, e0
-    return Refinement(from_x(x0), float(e0), from_x(xbest), float(ebest), len(cache), str(res.message))
+    if not ebest < e0:  # never report worse than the start; report the start exactly
+        return Refinement(dict(start), e0, dict(start), e0, len(cache), str(res.message))
+    return Refinement(dict(start), e0, from_x(xbest), float(ebest), len(cache), str(res.message))

@@ -99,7 +99,7 @@ def prepare(scene: Scene) -> Prepared:
         from .experiment import load_experiment, score_spec
 
         exp = load_experiment(scene.experiment, model.floors)
-        score = score_spec(exp, scene.experiment, model.floors, exc.max_duration_s)
+        score = score_spec(exp, scene.experiment, model.floors, exc.max_duration_s, dt)
         codes = list(exp.channels)
     return Prepared(scene, model, model.system_arrays(dt), exc, Grid.from_scene(scene), opts, hspec, hcols, score, codes)
 
@@ -170,12 +170,15 @@ def run_scene(scene: Scene, out_path: str | Path | None = None, threads: int | N
                            n_threads, {"peak_force_N": peak_force})
     if ranking is not None:
         best = ranking.frame()
-        if scene.experiment.refine:
+        if best.empty:  # every run diverged or ended before the window: nothing to rank
+            best = pd.DataFrame(columns=["criterion", "error_pct", "run_id"])
+        elif scene.experiment.refine:
             summary.refinement = refine_best(prep, best)
             if summary.refinement is not None:
                 rf = summary.refinement
                 best = pd.concat([best, pd.DataFrame([{"criterion": "refined_combined", "error_pct": rf.error_pct,
                                                        **rf.optimum}])], ignore_index=True)
+        best["run_id"] = best["run_id"].astype("Int64")
         summary.best = best
         summary.best_path = sidecar_path(out_path, "best")
         import pyarrow as pa
@@ -191,7 +194,10 @@ def refine_best(prep: Prepared, best: pd.DataFrame) -> Refinement | None:
     bounds = {n: (min(axes[n]), max(axes[n])) for n in ("ks_ratio", "r") if n in axes and len(axes[n]) > 1}
     if not bounds:
         return None
-    start_row = best[best.criterion == "rel_rms_combined_pct"].iloc[0]
+    rows = best[best.criterion == "rel_rms_combined_pct"]
+    if rows.empty:
+        return None
+    start_row = rows.iloc[0]
     base = prep.grid.chunk(int(start_row.run_id), int(start_row.run_id) + 1)
 
     def objective(p: dict) -> float:
@@ -204,7 +210,7 @@ def refine_best(prep: Prepared, best: pd.DataFrame) -> Refinement | None:
         return float(err) if np.isfinite(err) else 1e300
 
     start = {n: float(start_row[n]) for n in bounds}
-    return refine(objective, start, bounds, prep.scene.experiment.refine_max_evals)
+    return refine(objective, start, float(start_row.error_pct), bounds, prep.scene.experiment.refine_max_evals)
 
 
 def _model_facts(prep: Prepared) -> dict:

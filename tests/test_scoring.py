@@ -14,7 +14,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from conftest import REPO, SWEEPS
-from pounding_sweep.config import load_scene
+from pounding_sweep.config import Axis, load_scene
 from pounding_sweep.experiment import ExperimentError, load_experiment, score_spec
 from pounding_sweep.score_kernel import lagged_correlation, peak_abs, relative_rms_error_pct, score_channel
 from pounding_sweep.simulate import simulate
@@ -151,7 +151,7 @@ def _bad(name):
         return d.drop(columns="model2_floor3_mm"), r"no column 'model2_floor3_mm'"
     if name == "no_overlap":
         d["t_s"] = d["t_s"] + 100.0
-        return d, r"does not overlap the simulation"
+        return d, r"leaves 0 sample\(s\) \(at least 2 needed\) in the simulation"
     raise KeyError(name)
 
 
@@ -231,3 +231,51 @@ def test_shipped_synthetic_tables_regenerate(name):
     assert list(df.columns) == list(shipped.columns)
     np.testing.assert_allclose(df.to_numpy(), shipped.to_numpy(), rtol=0, atol=1e-9)
     assert json.loads(pq.read_schema(SWEEPS / "experiments" / name).metadata[b"provenance"])["hidden_parameters"] == prov["hidden_parameters"]
+
+
+# ------------------------------------------------------------------ regressions from the review
+
+
+def test_window_end_matches_the_last_step(tmp_path):
+    """dt = 3e-4 s over 4.2 s ends at 4.199999999999999 s: the last sample is still filled, not NaN."""
+    s = load_scene(SWEEPS / "scored_6hz.toml")
+    s = dataclasses.replace(s, integration=dataclasses.replace(s.integration, dt_s=3e-4),
+                            excitation=dataclasses.replace(s.excitation, duration_s=4.2),
+                            experiment=dataclasses.replace(s.experiment, refine=False))
+    df = pd.read_parquet(run_scene(s, out_path=tmp_path / "o.parquet").path)
+    assert np.isfinite(df.rel_rms_combined_pct).all() and not df.status.str.contains("unscored").any()
+
+
+def test_all_runs_diverged_gives_a_summary_not_a_crash(tmp_path):
+    s = load_scene(SWEEPS / "scored_6hz.toml")
+    s = dataclasses.replace(s, integration=dataclasses.replace(s.integration, scheme="paper", dt_s=2e-3),
+                            sweep=(Axis("ks_ratio", (1000.0, 10000.0)), Axis("r", (0.2, 0.4))))
+    summary = run_scene(s, out_path=tmp_path / "o.parquet")
+    df = pd.read_parquet(summary.path)
+    assert df.status.str.contains("diverged").all() and df.status.str.contains("unscored").all()
+    assert summary.best.empty and summary.refinement is None
+
+
+def test_non_uniform_experiment_sampling_is_refused(tmp_path):
+    d = GOOD.copy()
+    d.loc[3, "t_s"] = 0.06
+    with pytest.raises(ExperimentError, match=r"not uniformly sampled: step 0.04 s at row 4"):
+        from pounding_sweep.sweep import prepare
+
+        prepare(_scene_with_table(tmp_path, d))
+
+
+def test_out_is_a_folder_exit_2(tmp_path):
+    p = subprocess.run([sys.executable, "-m", "pounding_sweep", str(SWEEPS / "paper_6hz.toml"), "--out", str(tmp_path)],
+                       capture_output=True, text=True, cwd=REPO)
+    assert p.returncode == 2 and "Traceback" not in p.stderr and "cannot write results" in p.stderr
+
+
+def test_plot_from_another_folder(tmp_path):
+    pytest.importorskip("matplotlib")
+    out = tmp_path / "rel.parquet"
+    subprocess.run([sys.executable, "-m", "pounding_sweep", "sweeps/scored_6hz.toml", "--out", str(out), "--quiet"],
+                   check=True, cwd=REPO)
+    p = subprocess.run([sys.executable, "-m", "pounding_sweep", "plot", "rel.parquet"], capture_output=True, text=True,
+                       cwd=tmp_path)
+    assert p.returncode == 0, p.stderr

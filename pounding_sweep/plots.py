@@ -64,9 +64,10 @@ def plot_results(results: str | Path, out_dir: str | Path | None = None) -> list
     top = [c for c in df.columns if c.startswith("peak_force_f")][-1]
     if grid:
         rel = [c for c in df.columns if c.startswith("rel_rms_b")]
-        maps = [(c, f"relative RMS error, eq. 20 [%]: {c[8:12]}") for c in rel] or [
-            ("peak_disp_b1f%d_m" % len([c for c in df.columns if c.startswith("peak_disp_b1f") and c.endswith("_m")]), f"{names[0]}: peak top-floor displacement [m]"),
-            (top, f"peak pounding force {top[11:-2]} [N]"),
+        top_floor_b1 = len(md["buildings"][0]["masses_kg"])
+        maps = [(c, f"relative RMS error, eq. 20 [%]: {c.removeprefix('rel_rms_').removesuffix('_pct')}") for c in rel] or [
+            (f"peak_disp_b1f{top_floor_b1}_m", f"{names[0]}: peak top-floor displacement [m]"),
+            (top, f"peak pounding force {top.removeprefix('peak_force_').removesuffix('_N')} [N]"),
         ]
         fig, axes = plt.subplots(1, len(maps), figsize=(5.5 * len(maps), 4.2), squeeze=False)
         for ax, (col, title) in zip(axes[0], maps):

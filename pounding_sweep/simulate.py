@@ -13,7 +13,6 @@ import pandas as pd
 
 from . import metrics_layout as L
 from .config import SWEEPABLE, ConfigError, Scene, validate
-from .model import CoupledModel
 from .ranking import score_table_columns
 from .results import status_words
 
@@ -58,11 +57,10 @@ def simulate(scene: Scene, channels: list[str] | None = None, decimate: int = 1,
     from .sweep import prepare
 
     s = with_overrides(scene, **overrides)
-    floors = CoupledModel.from_scene(s).floors
+    floors = (len(s.building1.masses_kg), len(s.building2.masses_kg))
     s = dataclasses.replace(s, output=dataclasses.replace(s.output, histories=tuple(channels or all_channels(floors)),
                                                           history_decimate=decimate))
-    validate(s)
-    prep = prepare(s)
+    prep = prepare(s)  # checks the channels (history_spec) and decimate
     params = prep.grid.chunk(0, 1)
     metrics, run_time, hist, scores, derived = prep.run(params)
     df = pd.DataFrame({"t_s": np.arange(hist.shape[2]) * prep.dt * decimate})

@@ -141,6 +141,8 @@ def run_scene(scene: Scene, out_path: str | Path | None = None, threads: int | N
     how = scene.experiment.combine if scene.experiment else "mean"
     meta = file_metadata(scene, _model_facts(prep))
     names = L.metric_columns(model.floors, model.n_pairs)
+    steps_col = names.index("steps")
+    force_cols = [i for i, nme in enumerate(names) if nme.startswith("peak_force_f")]
     ranking = Ranking([f"rel_rms_{c}_pct" for c in prep.score_codes] + ["rel_rms_combined_pct"]) if prep.score_codes else None
     statuses: Counter = Counter()
     kernel_s, steps, peak_force = 0.0, 0, 0.0
@@ -160,9 +162,8 @@ def run_scene(scene: Scene, out_path: str | Path | None = None, threads: int | N
                 ranking.update(table)
             statuses.update(table.column("status").to_pylist())
             kernel_s += float(run_time.sum())
-            steps += int(metrics[:, names.index("steps")].sum())
-            pf = [i for i, nme in enumerate(names) if nme.startswith("peak_force_f")]
-            peak_force = max(peak_force, float(metrics[:, pf].max(initial=0.0)))
+            steps += int(metrics[:, steps_col].sum())
+            peak_force = max(peak_force, float(metrics[:, force_cols].max(initial=0.0)))
             if progress is not None:
                 progress(e, grid.size)
     run_s = time.perf_counter() - t_run

@@ -7,14 +7,23 @@ and value, exit status 2, and no output file.
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
-import time
 
 from .config import ConfigError, describe, load_scene
 from .experiment import ExperimentError
+from .progress import Progress
 from .records import RecordError
 
 EXIT_BAD_INPUT = 2
+
+# subcommands: `python -m pounding_sweep NAME ...` -> module:function(argv) -> exit code (imported lazily,
+# so a sweep never imports OpenCV or matplotlib)
+SUBCOMMANDS = {
+    "plot": "pounding_sweep.cli:plot_main",
+    "track": "pounding_sweep.video.cli:track_main",
+    "identify": "pounding_sweep.video.cli:identify_main",
+}
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -32,27 +41,6 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress and no summary")
     p.add_argument("--describe", action="store_true", help="list every scene section and key, then exit")
     return p
-
-
-class _Progress:
-    """One status line on stderr, refreshed at most 5 times a second; silent when not a terminal."""
-
-    def __init__(self, enabled: bool):
-        self.enabled = enabled and sys.stderr.isatty()
-        self.t0 = time.perf_counter()
-        self.last = 0.0
-
-    def __call__(self, done: int, total: int) -> None:
-        now = time.perf_counter()
-        if not self.enabled or (now - self.last < 0.2 and done < total):
-            return
-        self.last = now
-        rate = done / max(now - self.t0, 1e-9)
-        eta = (total - done) / rate if rate > 0 else float("inf")
-        sys.stderr.write(f"\r  {done}/{total} runs ({100 * done / total:5.1f} %), {rate:,.0f} runs/s, ETA {eta:,.0f} s ")
-        if done >= total:
-            sys.stderr.write("\n")
-        sys.stderr.flush()
 
 
 def _print_summary(s) -> None:
@@ -105,8 +93,9 @@ def plot_main(argv: list[str]) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
-    if argv and argv[0] == "plot":
-        return plot_main(argv[1:])
+    if argv and argv[0] in SUBCOMMANDS:
+        module, func = SUBCOMMANDS[argv[0]].split(":")
+        return getattr(importlib.import_module(module), func)(argv[1:])
     args = _parser().parse_args(argv)
     if args.describe:
         print(describe())
@@ -121,7 +110,7 @@ def main(argv: list[str] | None = None) -> int:
         scene = load_scene(args.scene)
         if args.threads is not None and args.threads < 0:
             raise ConfigError(f"--threads {args.threads}: must be >= 0")
-        summary = run_scene(scene, out_path=args.out, threads=args.threads, progress=_Progress(not args.quiet))
+        summary = run_scene(scene, out_path=args.out, threads=args.threads, progress=Progress(not args.quiet))
     except (ConfigError, RecordError, ExperimentError) as e:
         print(f"error: {e}", file=sys.stderr)
         return EXIT_BAD_INPUT

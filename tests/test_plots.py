@@ -1,15 +1,33 @@
-"""`python -m pounding_sweep plot`: PNG figures of a result file."""
+"""Figures and tables of a result file: `python -m pounding_sweep plot` and pounding_sweep.plots."""
 
 from __future__ import annotations
 
 import subprocess
 import sys
 
+import numpy as np
+import pandas as pd
 import pytest
 
 from conftest import REPO, SWEEPS
 
 pytest.importorskip("matplotlib", reason="plots need the 'plot' extra (matplotlib)")
+
+from pounding_sweep import plots  # noqa: E402
+from pounding_sweep.config import load_scene  # noqa: E402
+from pounding_sweep.results import read_metadata  # noqa: E402
+
+FIGURES = {"heatmaps", "displacement_history", "pounding_force", "ssp", "error_vs_runtime"}
+
+
+@pytest.fixture(scope="module")
+def scored(tmp_path_factory):
+    """The shipped scored 6 Hz sweep (20 runs, refined), run once for this module."""
+    from pounding_sweep.sweep import run_scene
+
+    out = tmp_path_factory.mktemp("scored") / "scored.parquet"
+    run_scene(load_scene(SWEEPS / "scored_6hz.toml"), out_path=out, threads=1)
+    return out
 
 
 def test_plot_command_writes_pngs(tmp_path):
@@ -21,7 +39,7 @@ def test_plot_command_writes_pngs(tmp_path):
                        capture_output=True, text=True, cwd=REPO)
     assert p.returncode == 0, p.stderr
     names = {line.rsplit("/", 1)[-1] for line in p.stdout.split()}
-    assert names == {"heatmaps.png", "displacement_history.png", "pounding_force.png", "ssp.png"}
+    assert names == {f"{n}.png" for n in FIGURES}
     for n in names:
         data = (tmp_path / "png" / n).read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10_000
@@ -31,3 +49,98 @@ def test_plot_of_a_missing_file_is_a_clear_error(tmp_path):
     p = subprocess.run([sys.executable, "-m", "pounding_sweep", "plot", str(tmp_path / "nope.parquet")],
                        capture_output=True, text=True, cwd=REPO)
     assert p.returncode == 2 and "nope.parquet" in p.stderr and "Traceback" not in p.stderr
+
+
+def test_error_tables_are_the_result_rows(scored):
+    df = pd.read_parquet(scored)
+    assert plots.score_codes(df) == ["b1f3", "b2f3"]
+    for code in ("b1f3", "b2f3"):
+        t = plots.error_table(df, code)
+        assert list(t.index) == [0.1, 1.0, 5.0, 10.0] and list(t.columns) == [0.2, 0.4, 0.6, 0.8, 1.0]
+        for _, row in df.iterrows():
+            assert t.loc[row.ks_ratio, row.r] == row[f"rel_rms_{code}_pct"]
+
+
+def test_peak_difference_table_is_table_4(scored):
+    df, md = pd.read_parquet(scored), read_metadata(scored)
+    peaks = plots.experiment_peaks(plots.scene_of(scored), md)
+    t4 = plots.peak_difference_table(df, md, peaks)
+    assert list(t4.index) == [0.1, 1.0, 5.0, 10.0]
+    assert t4.shape == (4, 2 * 5 * 2)  # 2 channels x 5 r x (Disp., Diff.)
+    head1 = [h for h in t4.columns.levels[0] if h.startswith("Model-1, floor 3")][0]
+    pe, te = peaks["b1f3"]
+    assert f"{pe * 1e3:.2f} mm at {te:.2f} s" in head1
+    row = df[(df.ks_ratio == 5.0) & (df.r == 0.4)].iloc[0]
+    disp = t4.loc[5.0, (head1, "r = 0.4", "Disp. [mm]")]
+    diff = t4.loc[5.0, (head1, "r = 0.4", "Diff. [%]")]
+    assert disp == pytest.approx(row.peak_num_b1f3_m * 1e3)
+    assert diff == pytest.approx((pe - row.peak_num_b1f3_m) / pe * 100)  # Table 4's sign: experiment - numerical
+    # without the experiment, the headers recover its peak from the columns
+    head = plots.peak_difference_table(df, md).columns.levels[0]
+    assert any(f"experiment {pe * 1e3:.2f} mm" in h for h in head)
+    sub = plots.peak_difference_table(df, md, peaks, r_values=[0.2, 0.4, 0.6], ks_values=[1, 5, 10])
+    assert sub.shape == (3, 2 * 3 * 2)
+
+
+def test_heatmap_marks_the_best_cell_and_flagged_runs(scored):
+    from matplotlib.patches import Rectangle
+
+    df, md = pd.read_parquet(scored), read_metadata(scored)
+    fig = plots.heatmap_figure(df, md, pd.read_parquet(scored.with_name("scored.best.parquet")))
+    axes = [ax for ax in fig.axes if ax.get_label() != "<colorbar>"]
+    assert [ax.get_title() for ax in axes] == ["Model-1, floor 3", "Model-2, floor 3"]
+    for ax, code in zip(axes, ("b1f3", "b2f3")):
+        best = df.loc[df[f"rel_rms_{code}_pct"].idxmin()]
+        (box,) = [p for p in ax.patches if isinstance(p, Rectangle)]
+        i, j = [0.1, 1.0, 5.0, 10.0].index(best.ks_ratio), [0.2, 0.4, 0.6, 0.8, 1.0].index(best.r)
+        assert box.get_xy() == (j - 0.5, i - 0.5)
+        texts = [t.get_text() for t in ax.texts]
+        assert len(texts) == 20
+        assert sum(t.endswith("*") for t in texts) == int((df.status != "ok").sum())
+    assert "refined optimum" in fig.get_supxlabel() if hasattr(fig, "get_supxlabel") else True
+
+
+def test_accuracy_ladder_converges_and_checks_its_steps():
+    scene = load_scene(SWEEPS / "scored_6hz.toml")
+    t = plots.accuracy_ladder(scene, dts=[4e-4, 2e-4, 1e-4], schemes=("implicit",), ref_dt=2.5e-5, duration_s=1.0,
+                              repeats=1, ks_ratio=1.0, r=0.4)
+    assert list(t.columns[:6]) == ["scheme", "dt_s", "steps", "run_time_s", "rel_rms_pct", "status"]
+    assert list(t.dt_s) == [4e-4, 2e-4, 1e-4] and list(t.steps) == [2500, 5000, 10000]
+    assert np.all(np.diff(t.rel_rms_pct) < 0) and t.rel_rms_pct.iloc[-1] < 1.0
+    assert (t.run_time_s > 0).all() and (t.ref_dt_s == 2.5e-5).all()
+    with pytest.raises(ValueError, match="does not divide"):
+        plots.accuracy_ladder(scene, dts=[4e-4, 3e-4], ref_dt=1e-4, duration_s=0.2, repeats=1)
+    with pytest.raises(ValueError, match="ref_dt"):
+        plots.accuracy_ladder(scene, dts=[4e-4, 2e-4], ref_dt=2e-4, duration_s=0.2, repeats=1)
+
+
+def test_error_vs_runtime_from_a_csv(tmp_path):
+    csv = tmp_path / "accuracy.csv"
+    pd.DataFrame({"scheme": ["implicit"] * 3 + ["paper"] * 3, "dt_s": [4e-4, 2e-4, 1e-4] * 2,
+                  "run_time_s": [1e-3, 2e-3, 4e-3, 0.8e-3, 1.6e-3, 3.2e-3],
+                  "rel_rms_pct": [1.0, 0.3, 0.08, 2.0, 0.7, np.nan], "extra": 0}).to_csv(csv, index=False)
+    t = plots.read_accuracy_table(csv)
+    fig = plots.error_vs_runtime_figure(t, "test")
+    ax_dt, ax_t = fig.axes
+    assert [len(line.get_xdata()) for line in ax_t.lines] == [3, 2]  # the NaN error is left out, and said so
+    assert "paper dt = 0.0001 s" in fig.get_supxlabel()
+    assert ax_dt.get_xscale() == ax_t.get_yscale() == "log"
+    assert "[s]" in ax_dt.get_xlabel() and "[ms]" in ax_t.get_xlabel() and "[%]" in ax_t.get_ylabel()
+    pd.DataFrame({"scheme": ["implicit"], "dt": [1e-4]}).to_csv(tmp_path / "bad.csv", index=False)
+    with pytest.raises(ValueError, match="missing dt_s, run_time_s, rel_rms_pct"):
+        plots.read_accuracy_table(tmp_path / "bad.csv")
+
+
+def test_figures_carry_units_and_legends(scored):
+    figs = plots.figures(scored, accuracy=pd.DataFrame({"scheme": ["implicit", "implicit"], "dt_s": [2e-4, 1e-4],
+                                                         "run_time_s": [1e-3, 2e-3], "rel_rms_pct": [0.3, 0.1]}))
+    assert set(figs) == FIGURES
+    for name, fig in figs.items():
+        for ax in fig.axes:
+            if ax.get_label() == "<colorbar>":
+                assert "[" in ax.get_ylabel(), name
+                continue
+            assert "[" in ax.get_xlabel() and "[" in ax.get_ylabel(), (name, ax.get_xlabel(), ax.get_ylabel())
+    disp = figs["displacement_history"]
+    assert [t.get_text() for t in disp.legends[0].get_texts()][:2] == ["numerical", "experiment (tracked, 100 samples/s)"]
+    assert "eq. 20 error" in disp.axes[0].get_title(loc="left")

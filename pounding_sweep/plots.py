@@ -211,38 +211,48 @@ def experiment_peaks(scene, md: dict) -> dict[str, tuple[float, float]]:
 
 
 def peak_difference_table(df: pd.DataFrame, md: dict, peaks: dict | None = None, r_values=None,
-                          ks_values=None) -> pd.DataFrame:
+                          ks_values=None, layout: str = "long") -> pd.DataFrame:
     """The paper's Table 4: numerical peak displacement [mm] and its difference from the experimental
-    peak, (experimental - numerical) / experimental [%], per channel, r and k_s/k (rows).
+    peak, (experimental - numerical) / experimental [%] (negative: the model overshoots), per channel.
 
+    layout 'long': rows (k_s/k, r, then any other swept axis), columns (channel, Disp./Diff.):
+    readable for any grid; 'paper': rows k_s/k, columns (channel, r, Disp./Diff.), as printed.
     `peaks` (from `experiment_peaks`) adds the experimental peak's time to the headers; without it
     the experimental peak is recovered from the columns. `r_values` / `ks_values` pick a subset.
     """
     codes = score_codes(df)
     if not codes:
         raise ValueError("peak_difference_table: the result file was not scored against an experiment")
+    if layout not in ("long", "paper"):
+        raise ValueError(f"peak_difference_table: layout {layout!r}: use 'long' or 'paper'")
+    keep = np.ones(len(df), bool)
+    if r_values is not None:
+        keep &= np.isclose(df.r.to_numpy(float)[:, None], np.asarray(r_values, float)[None, :]).any(axis=1)
+    if ks_values is not None:
+        keep &= np.isclose(df.ks_ratio.to_numpy(float)[:, None], np.asarray(ks_values, float)[None, :]).any(axis=1)
+    d = df[keep]
     cols = {}
     for code in codes:
-        pn = df[f"peak_num_{code}_m"] * 1e3
-        diff = df[f"peak_diff_{code}_pct"]
+        pn = d[f"peak_num_{code}_m"] * 1e3
+        diff = d[f"peak_diff_{code}_pct"]
         if peaks and code in peaks:
             pe, te = peaks[code]
             head = f"{channel_label(code, md)} (experiment {pe * 1e3:.2f} mm at {te:.2f} s)"
         else:
-            est = (pn / (1 - diff / 100)).replace([np.inf, -np.inf], np.nan).median()
-            head = f"{channel_label(code, md)} (experiment {est:.2f} mm)"
-        d = df.assign(_pn=pn, _diff=diff)
-        disp, dif = _grid_pivot(d, "_pn"), _grid_pivot(d, "_diff")
-        for r in disp.columns:
-            if r_values is not None and not np.any(np.isclose(r, r_values)):
-                continue
-            cols[(head, f"r = {r:g}", "Disp. [mm]")] = disp[r]
-            cols[(head, f"r = {r:g}", "Diff. [%]")] = dif[r]
-    out = pd.DataFrame(cols)
+            est = (df[f"peak_num_{code}_m"] * 1e3 / (1 - df[f"peak_diff_{code}_pct"] / 100))
+            head = f"{channel_label(code, md)} (experiment {est.replace([np.inf, -np.inf], np.nan).median():.2f} mm)"
+        cols[(head, "Disp. [mm]")] = pn.to_numpy()
+        cols[(head, "Diff. [%]")] = diff.to_numpy()
+    axes = ["ks_ratio", "r"] + [a for a in _other_axes(md) if a in d]
+    out = pd.DataFrame(cols, index=pd.MultiIndex.from_frame(d[axes])).sort_index()
     out.columns = pd.MultiIndex.from_tuples(out.columns)
-    out.index.name = "k_s/k"
-    if ks_values is not None:
-        out = out[np.isclose(out.index.to_numpy(float)[:, None], np.asarray(ks_values, float)[None, :]).any(axis=1)]
+    out.index.names = ["k_s/k", "r"] + axes[2:]
+    if layout == "paper":
+        heads = list(dict.fromkeys(h for h, _ in out.columns))
+        out = out.unstack("r")
+        order = sorted(out.columns, key=lambda c: (heads.index(c[0]), c[2], c[1] != "Disp. [mm]"))
+        out = out[order]
+        out.columns = pd.MultiIndex.from_tuples([(h, f"r = {r:g}", q) for h, q, r in order])
     return out
 
 

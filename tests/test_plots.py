@@ -65,21 +65,23 @@ def test_peak_difference_table_is_table_4(scored):
     df, md = pd.read_parquet(scored), read_metadata(scored)
     peaks = plots.experiment_peaks(plots.scene_of(scored), md)
     t4 = plots.peak_difference_table(df, md, peaks)
-    assert list(t4.index) == [0.1, 1.0, 5.0, 10.0]
-    assert t4.shape == (4, 2 * 5 * 2)  # 2 channels x 5 r x (Disp., Diff.)
-    head1 = [h for h in t4.columns.levels[0] if h.startswith("Model-1, floor 3")][0]
+    assert t4.shape == (20, 2 * 2) and t4.index.names == ["k_s/k", "r"]  # (k_s/k, r) x 2 channels x (Disp., Diff.)
+    assert list(t4.index.get_level_values(0).unique()) == [0.1, 1.0, 5.0, 10.0]
+    head1 = t4.columns[0][0]
     pe, te = peaks["b1f3"]
-    assert f"{pe * 1e3:.2f} mm at {te:.2f} s" in head1
+    assert head1.startswith("Model-1, floor 3") and f"{pe * 1e3:.2f} mm at {te:.2f} s" in head1
     row = df[(df.ks_ratio == 5.0) & (df.r == 0.4)].iloc[0]
-    disp = t4.loc[5.0, (head1, "r = 0.4", "Disp. [mm]")]
-    diff = t4.loc[5.0, (head1, "r = 0.4", "Diff. [%]")]
-    assert disp == pytest.approx(row.peak_num_b1f3_m * 1e3)
-    assert diff == pytest.approx((pe - row.peak_num_b1f3_m) / pe * 100)  # Table 4's sign: experiment - numerical
+    assert t4.loc[(5.0, 0.4), (head1, "Disp. [mm]")] == pytest.approx(row.peak_num_b1f3_m * 1e3)
+    # Table 4's sign: (experiment - numerical) / experiment
+    assert t4.loc[(5.0, 0.4), (head1, "Diff. [%]")] == pytest.approx((pe - row.peak_num_b1f3_m) / pe * 100)
     # without the experiment, the headers recover its peak from the columns
-    head = plots.peak_difference_table(df, md).columns.levels[0]
-    assert any(f"experiment {pe * 1e3:.2f} mm" in h for h in head)
-    sub = plots.peak_difference_table(df, md, peaks, r_values=[0.2, 0.4, 0.6], ks_values=[1, 5, 10])
-    assert sub.shape == (3, 2 * 3 * 2)
+    assert f"experiment {pe * 1e3:.2f} mm)" in plots.peak_difference_table(df, md).columns[0][0]
+    # the paper's layout and subset: rows k_s/k in {1, 5, 10}, per channel r in {0.2, 0.4, 0.6} x (Disp., Diff.)
+    paper = plots.peak_difference_table(df, md, peaks, r_values=[0.2, 0.4, 0.6], ks_values=[1, 5, 10], layout="paper")
+    assert list(paper.index) == [1.0, 5.0, 10.0] and paper.shape == (3, 2 * 3 * 2)
+    assert list(paper.columns[:3]) == [(head1, "r = 0.2", "Disp. [mm]"), (head1, "r = 0.2", "Diff. [%]"),
+                                       (head1, "r = 0.4", "Disp. [mm]")]
+    assert paper.loc[5.0, (head1, "r = 0.4", "Disp. [mm]")] == t4.loc[(5.0, 0.4), (head1, "Disp. [mm]")]
 
 
 def test_heatmap_marks_the_best_cell_and_flagged_runs(scored):
@@ -97,7 +99,7 @@ def test_heatmap_marks_the_best_cell_and_flagged_runs(scored):
         texts = [t.get_text() for t in ax.texts]
         assert len(texts) == 20
         assert sum(t.endswith("*") for t in texts) == int((df.status != "ok").sum())
-    assert "refined optimum" in fig.get_supxlabel() if hasattr(fig, "get_supxlabel") else True
+    assert "refined optimum k_s/k = " in fig.get_supxlabel()
 
 
 def test_accuracy_ladder_converges_and_checks_its_steps():

@@ -45,6 +45,9 @@ VIDEO_SUFFIXES = {".mkv", ".avi", ".mp4", ".mov", ".m4v", ".webm", ".mpg", ".mpe
 
 def cv2_module():
     """Import OpenCV quietly (its own log lines would break the one-line error contract)."""
+    # FFmpeg's own log lines ("EBML header parsing failed", ...) would break the one-line error
+    # contract: quiet (AV_LOG_QUIET = -8) unless the user asked otherwise; read when FFmpeg starts
+    os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
     try:
         import cv2
     except ImportError as e:  # pragma: no cover - cv2 is in the test extra

@@ -115,6 +115,29 @@ def motion_from_history(hist, table: Callable[[np.ndarray], np.ndarray] | None =
     return motion
 
 
+def table_from_ground_acceleration(t_s: np.ndarray, acc_m_s2: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+    """Table displacement [mm] from the ground acceleration of a run that starts at rest
+    (twice the cumulative trapezoid), as a function of time."""
+    from scipy.integrate import cumulative_trapezoid
+
+    v = cumulative_trapezoid(acc_m_s2, t_s, initial=0.0)
+    x = cumulative_trapezoid(v, t_s, initial=0.0) * 1e3
+    return lambda t: np.interp(np.asarray(t, dtype=float), t_s, x)
+
+
+def write_pulse_record(path: str | Path, peak_m_s2: float = 3.0, frequency_Hz: float = 10.0, dt_s: float = 1e-3) -> Path:
+    """A ground-acceleration record of one full sine cycle (a knock: the table ends at rest, shifted by
+    peak / (2 pi f^2)), as the two-column CSV the scenes read; runs padded with zeros give free vibration."""
+    t = np.arange(0.0, 1.0 / frequency_Hz + dt_s / 2, dt_s)
+    a = peak_m_s2 * np.sin(2 * np.pi * frequency_Hz * t)
+    a[-1] = 0.0
+    t = np.append(t, t[-1] + dt_s)
+    a = np.append(a, 0.0)
+    path = Path(path)
+    np.savetxt(path, np.column_stack([t, a]), delimiter=",", header="time_s,acc_m_s2", comments="", fmt="%.9g")
+    return path
+
+
 # ----------------------------------------------------------------------------- options and truth
 
 
@@ -146,6 +169,7 @@ class RenderOptions:
     codec: str = "FFV1"
     seed: int = 0
     peaks: dict = field(default_factory=dict)  # marker name -> its own peak (e.g. one dim LED)
+    hidden: tuple = ()  # (marker, frames) pairs: the marker is not drawn in those frames (occlusion)
 
 
 @dataclass(frozen=True)
@@ -233,14 +257,18 @@ def render_video(path: str | Path, layout: Layout, motion: Motion, n_frames: int
             on[r.frames] = True
         refl.append((layout.index(r.marker), np.asarray(r.offset_px, float), r.brightness, on))
     peaks = np.array([opts.peaks.get(n, opts.peak) for n in layout.names], dtype=float)
+    shown = np.ones((n_frames, len(layout.names)), bool)
+    for name, frames_ in opts.hidden:
+        shown[frames_, layout.index(name)] = False
 
     frames = []
     for k in range(n_frames):
         img = np.zeros((h, w))
         for j in range(ns):
             for i in range(len(layout.names)):
-                x, y = img_pos[k, j, i]
-                _spot(img, x, y, opts.sigma_px, peaks[i] / ns)
+                if shown[k, i]:
+                    x, y = img_pos[k, j, i]
+                    _spot(img, x, y, opts.sigma_px, peaks[i] / ns)
             for i, off, b, on in refl:
                 if on[k]:
                     x, y = img_pos[k, j, i] + off

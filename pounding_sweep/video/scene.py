@@ -183,7 +183,7 @@ def parse_video_section(table: dict, base_dir: Path) -> VideoSpec:
         others = [m for m in markers if m not in refs and floor_code(m) is None]
         if others:
             raise _err("markers", list(markers), f"automatic layout needs floor names (b1f3 or model1_floor3_mm), not '{others[0]}': "
-                       "give first-frame positions instead, markers = {{name = [x, y], ...}}")
+                       "give first-frame positions instead, markers = {name = [x, y], ...}")
         codes = [floor_code(m) for m in markers if m not in refs]
         if len(set(codes)) != len(codes):
             raise _err("markers", list(markers), "two markers name the same floor")

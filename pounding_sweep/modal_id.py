@@ -1,0 +1,294 @@
+"""Modal identification from displacement records (tracked floors, or any): spectra, peak
+frequencies, damping by half-power bandwidth and by logarithmic decrement, mode-shape ratios.
+
+The paper (Sekerci & Damci, sec. 3) found the models' frequencies and mode shapes from the
+tracked pixel histories by FFT, and checked f1 by FFT before each test. Methods and references:
+
+- Amplitude spectrum: FFT of the mean-removed record, Hann window by default, zero-padded so that
+  peaks can be read between bins; power spectral density: Welch's averaged periodograms (Welch,
+  IEEE Trans. Audio Electroacoust. 15 (1967) 70; scipy.signal.welch).
+- Peak frequency: the largest bin refined by a parabola through the log-magnitudes of it and its
+  two neighbours (quadratic interpolation of spectral peaks; J. O. Smith, Spectral Audio Signal
+  Processing, W3K 2011, "Quadratic Interpolation of Spectral Peaks").
+- Half-power bandwidth: zeta = (f_b - f_a) / (2 f_n), f_a and f_b where the amplitude falls to
+  peak / sqrt(2) (Chopra, Dynamics of Structures, sec. 3.2.5, eq. 3.2.20). On a free-vibration
+  record it needs the record to have decayed (the transform of a decaying sinusoid is the
+  frequency response's shape) and a rectangular window (a Hann window widens the peak); below
+  about 2 % damping its error grows quickly.
+- Logarithmic decrement: delta = (1/j) ln(u_i / u_{i+j}) over successive positive peaks of free
+  vibration, zeta = delta / sqrt(4 pi^2 + delta^2) (Chopra sec. 2.2.4, eqs. 2.2.3-2.2.4); here the
+  slope of a least-squares line through ln(peak) against peak number, after an optional
+  zero-phase band-pass around the mode (scipy.signal.sosfiltfilt) so that higher modes do not
+  disturb the peaks.
+- Mode-shape ratios: at an identified frequency f, the ratio of each channel's Fourier
+  coefficient (the windowed record's DTFT evaluated at exactly f) to the reference channel's,
+  signed by their phase (peak picking, the basic frequency-domain method; Bendat & Piersol,
+  Engineering Applications of Correlation and Spectral Analysis, 2nd ed., Wiley 1993). Compared
+  with a model's modes through the MAC (Allemang & Brown, Proc. 1st IMAC, 1982).
+
+NumPy and SciPy only (no OpenCV).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.signal
+
+
+@dataclass(frozen=True)
+class Spectrum:
+    frequency_Hz: np.ndarray
+    values: np.ndarray  # amplitude (same units as the record) or PSD (units^2 / Hz)
+    kind: str  # 'amplitude' or 'psd'
+    resolution_Hz: float  # 1 / record length (fft) or fs / nperseg (welch): what the data resolve
+
+
+def _as_record(x, fs) -> np.ndarray:
+    x = np.asarray(x, dtype=float)
+    if x.ndim != 1 or x.size < 8:
+        raise ValueError(f"a record needs at least 8 samples in one dimension, got shape {x.shape}")
+    if not np.all(np.isfinite(x)):
+        raise ValueError("the record holds non-finite values")
+    if not (np.isfinite(fs) and fs > 0):
+        raise ValueError(f"sampling rate must be > 0, got {fs!r}")
+    return x - x.mean()
+
+
+def amplitude_spectrum(x, fs: float, window: str = "hann", pad: int = 8) -> Spectrum:
+    """One-sided amplitude spectrum of a record (a sinusoid of amplitude A reads about A at its
+    frequency for any window), zero-padded to `pad` times the next power of two."""
+    x = _as_record(x, fs)
+    n = x.size
+    w = scipy.signal.get_window(window, n, fftbins=False) if window not in ("boxcar", "rect", None) else np.ones(n)
+    nfft = int(2 ** np.ceil(np.log2(n))) * max(int(pad), 1)
+    x = x - (w * x).sum() / w.sum()  # no window-weighted mean: no peak at 0 Hz leaking into the lowest bins
+    X = np.fft.rfft(x * w, nfft)
+    amp = 2.0 * np.abs(X) / w.sum()
+    return Spectrum(np.fft.rfftfreq(nfft, 1.0 / fs), amp, "amplitude", fs / n)
+
+
+def welch_psd(x, fs: float, nperseg: int | None = None) -> Spectrum:
+    """Power spectral density by Welch's method (Hann segments, 50 % overlap)."""
+    x = _as_record(x, fs)
+    nper = min(nperseg or max(x.size // 4, 8), x.size)
+    f, p = scipy.signal.welch(x, fs=fs, nperseg=nper)
+    return Spectrum(f, p, "psd", fs / nper)
+
+
+def spectrum(x, fs: float, method: str = "fft", **kw) -> Spectrum:
+    if method == "fft":
+        return amplitude_spectrum(x, fs, **kw)
+    if method == "welch":
+        return welch_psd(x, fs, **kw)
+    raise ValueError(f"spectrum method must be 'fft' or 'welch', got {method!r}")
+
+
+def refine_peak(f: np.ndarray, v: np.ndarray, i: int) -> tuple[float, float]:
+    """Frequency and height of the peak at bin i, by a parabola through log(v) at i-1, i, i+1."""
+    if i <= 0 or i >= v.size - 1 or min(v[i - 1], v[i], v[i + 1]) <= 0:
+        return float(f[i]), float(v[i])
+    a, b, c = np.log(v[i - 1]), np.log(v[i]), np.log(v[i + 1])
+    den = a - 2 * b + c
+    p = 0.5 * (a - c) / den if den < 0 else 0.0
+    p = float(np.clip(p, -0.5, 0.5))
+    df = f[1] - f[0]
+    return float(f[i] + p * df), float(np.exp(b - 0.25 * (a - c) * p))
+
+
+@dataclass(frozen=True)
+class Peak:
+    frequency_Hz: float
+    height: float
+    bin: int
+
+
+def find_peaks(s: Spectrum, n: int = 3, fmin: float = 0.0, fmax: float | None = None,
+               min_relative_height: float = 0.002) -> list[Peak]:
+    """The `n` most prominent spectral peaks in [fmin, fmax], in ascending frequency, each refined
+    between bins; peaks lower than `min_relative_height` times the highest are ignored, and so are
+    peaks closer than 4 resolutions (the Hann main lobe and its first side lobes) to a higher one; below twice the resolution nothing
+    is a peak (a record cannot resolve a period longer than half its length)."""
+    f, v = s.frequency_Hz, s.values
+    fmax = f[-1] if fmax is None else fmax
+    band = (f >= max(fmin, 2.0 * s.resolution_Hz)) & (f <= fmax)
+    if not band.any():
+        return []
+    top = v[band].max()
+    if top <= 0:
+        return []
+    df = f[1] - f[0]
+    idx, props = scipy.signal.find_peaks(np.where(band, v, 0.0), height=min_relative_height * top, prominence=0.0,
+                                         distance=max(1, int(round(4 * s.resolution_Hz / df))))
+    order = idx[np.argsort(-props["prominences"])][:n]
+    return sorted((Peak(*refine_peak(f, v, int(i)), int(i)) for i in order), key=lambda p: p.frequency_Hz)
+
+
+def half_power_damping(s: Spectrum, f_peak: float) -> float:
+    """Damping ratio from the half-power bandwidth around the peak nearest f_peak (Chopra eq. 3.2.20).
+
+    Amplitude spectra are cut at peak / sqrt(2), PSDs at peak / 2; the crossings are interpolated
+    linearly between bins. NaN if the band is not closed on both sides."""
+    f, v = s.frequency_Hz, s.values
+    i = int(np.argmin(np.abs(f - f_peak)))
+    lo, hi = max(i - 3, 1), min(i + 4, v.size - 1)
+    i = lo + int(np.argmax(v[lo:hi]))
+    fp, vp = refine_peak(f, v, i)
+    level = vp / (np.sqrt(2.0) if s.kind == "amplitude" else 2.0)
+    a = i
+    while a > 0 and v[a] > level:
+        a -= 1
+    b = i
+    while b < v.size - 1 and v[b] > level:
+        b += 1
+    if v[a] > level or v[b] > level or a == i or b == i:
+        return float("nan")
+    fa = f[a] + (level - v[a]) * (f[a + 1] - f[a]) / (v[a + 1] - v[a])
+    fb = f[b - 1] + (level - v[b - 1]) * (f[b] - f[b - 1]) / (v[b] - v[b - 1])
+    return float((fb - fa) / (2.0 * fp))
+
+
+@dataclass(frozen=True)
+class LogDecrement:
+    damping_ratio: float
+    delta: float  # logarithmic decrement per cycle
+    frequency_Hz: float  # damped frequency from the mean peak spacing
+    peak_times_s: np.ndarray
+    peak_values: np.ndarray
+    cycles: int
+
+
+def log_decrement(x, fs: float, band_Hz: tuple[float, float] | None = None, start_s: float = 0.0,
+                  min_relative_peak: float = 0.05, skip_cycles: int = 1) -> LogDecrement:
+    """Damping of a free-vibration record from the decay of its positive peaks (Chopra sec. 2.2.4).
+
+    band_Hz: zero-phase Butterworth band-pass first (isolate one mode); start_s: where free vibration
+    begins; peaks below `min_relative_peak` of the first one used (noise) and the first and last
+    `skip_cycles` (filter transients) are left out."""
+    x = _as_record(x, fs)
+    if band_Hz is not None:
+        lo, hi = band_Hz
+        if not 0 < lo < hi < fs / 2:
+            raise ValueError(f"band_Hz must satisfy 0 < low < high < fs/2 = {fs / 2}, got {band_Hz}")
+        sos = scipy.signal.butter(4, [lo, hi], btype="bandpass", fs=fs, output="sos")
+        x = scipy.signal.sosfiltfilt(sos, x)
+    t = np.arange(x.size) / fs
+    xs = x[t >= start_s]
+    ts = t[t >= start_s]
+    # the dominant period from the zero-crossing spacing bounds the peak search
+    up = np.nonzero((xs[:-1] <= 0) & (xs[1:] > 0))[0]
+    if up.size < 3:
+        raise ValueError("fewer than 3 cycles of free vibration in the record")
+    period = np.median(np.diff(up)) / fs
+    idx, _ = scipy.signal.find_peaks(xs, distance=max(1, int(0.6 * period * fs)), height=0.0)
+    idx = idx[skip_cycles:len(idx) - skip_cycles] if len(idx) > 2 * skip_cycles + 2 else idx
+    tp, vp = [], []
+    for i in idx:
+        if 0 < i < xs.size - 1:
+            a, b, c = xs[i - 1], xs[i], xs[i + 1]
+            den = a - 2 * b + c
+            p = 0.5 * (a - c) / den if den < 0 else 0.0
+            tp.append(ts[i] + p / fs)
+            vp.append(b - 0.25 * (a - c) * p)
+    tp, vp = np.asarray(tp), np.asarray(vp)
+    if vp.size:
+        keep = vp > min_relative_peak * vp[0]
+        cut = int(np.argmin(keep)) if not keep.all() else vp.size
+        tp, vp = tp[:cut], vp[:cut]
+    if vp.size < 3:
+        raise ValueError(f"need at least 3 decaying peaks above the noise, found {vp.size}")
+    k = np.arange(vp.size)
+    slope = np.polyfit(k, np.log(vp), 1)[0]
+    delta = -float(slope)
+    fd = (vp.size - 1) / (tp[-1] - tp[0])
+    return LogDecrement(float(delta / np.sqrt(4 * np.pi**2 + delta**2)), delta, float(fd), tp, vp, int(vp.size - 1))
+
+
+def fourier_coefficients(X, fs: float, f: float, window: str = "hann") -> np.ndarray:
+    """DTFT of each column of X (samples x channels, mean removed, windowed) at frequency f."""
+    X = np.asarray(X, dtype=float)
+    if X.ndim == 1:
+        X = X[:, None]
+    X = X - X.mean(axis=0)
+    n = X.shape[0]
+    w = scipy.signal.get_window(window, n, fftbins=False) if window not in ("boxcar", "rect", None) else np.ones(n)
+    X = X - (w @ X) / w.sum()
+    e = np.exp(-2j * np.pi * f * np.arange(n) / fs)
+    return (w * e) @ X
+
+
+def mode_shape_ratios(X, fs: float, f: float, reference: int = -1) -> tuple[np.ndarray, np.ndarray]:
+    """(signed real ratios, complex ratios) of every channel to `reference` at frequency f: the
+    operational deflection shape at a resonance peak, i.e. the mode shape when modes are well
+    separated and lightly damped. A ratio's sign is + when in phase with the reference."""
+    c = fourier_coefficients(X, fs, f)
+    ref = c[reference]
+    if abs(ref) == 0:
+        raise ValueError(f"the reference channel has no response at {f:.4g} Hz")
+    r = c / ref
+    return np.abs(r) * np.sign(np.cos(np.angle(r))), r
+
+
+def mac(phi_a, phi_b) -> float:
+    """Modal Assurance Criterion |a^H b|^2 / ((a^H a)(b^H b)), 1 for proportional shapes."""
+    a, b = np.asarray(phi_a), np.asarray(phi_b)
+    return float(np.abs(np.vdot(a, b)) ** 2 / (np.vdot(a, a).real * np.vdot(b, b).real))
+
+
+@dataclass(frozen=True)
+class Mode:
+    frequency_Hz: float
+    damping_half_power: float  # NaN when the band is not resolved
+    damping_log_decrement: float | None  # free vibration only
+    shape: dict  # channel -> signed ratio to the reference channel
+
+
+@dataclass(frozen=True)
+class ModalResult:
+    channels: tuple[str, ...]
+    fs: float
+    reference: str
+    modes: tuple[Mode, ...]
+    spectrum: Spectrum  # sum of the channels' amplitude spectra, each normalised to its own peak
+    notes: tuple[str, ...] = field(default_factory=tuple)
+
+
+def identify(X, fs: float, channels, n_modes: int = 3, fmin: float = 0.0, fmax: float | None = None,
+             free_vibration: bool = False, reference: int = -1, start_s: float = 0.0) -> ModalResult:
+    """Frequencies, damping and shape ratios of up to `n_modes` modes of one structure from its
+    floors' records (columns of X; the reference channel is usually the top floor).
+
+    Peaks are picked on the sum of the channels' normalised Hann spectra (a mode strong at any floor
+    counts); half-power damping on the reference channel's rectangular-window spectrum; with
+    free_vibration, also the logarithmic decrement of each mode after a band-pass of +/- 25 % around it."""
+    X = np.asarray(X, dtype=float)
+    if X.ndim == 1:
+        X = X[:, None]
+    channels = tuple(channels)
+    if X.shape[1] != len(channels):
+        raise ValueError(f"{X.shape[1]} columns but {len(channels)} channel names")
+    t = np.arange(X.shape[0]) / fs
+    Xs = X[t >= start_s]
+    specs = [amplitude_spectrum(Xs[:, j], fs) for j in range(Xs.shape[1])]
+    tot = sum(s.values / max(s.values[1:].max(), 1e-300) for s in specs)
+    sumspec = Spectrum(specs[0].frequency_Hz, tot, "amplitude", specs[0].resolution_Hz)
+    peaks = find_peaks(sumspec, n_modes, fmin, fmax)
+    rect = amplitude_spectrum(Xs[:, reference], fs, window="boxcar")
+    notes = []
+    modes = []
+    for p in peaks:
+        zhp = half_power_damping(rect, p.frequency_Hz)
+        if np.isfinite(zhp) and 2 * zhp * p.frequency_Hz < 2 * rect.resolution_Hz:
+            notes.append(f"{p.frequency_Hz:.3f} Hz: half-power band {2 * zhp * p.frequency_Hz:.3g} Hz is not wider than "
+                         f"twice the resolution {rect.resolution_Hz:.3g} Hz (record too short): damping unreliable")
+        zld = None
+        if free_vibration:
+            hi = min(1.25 * p.frequency_Hz, 0.49 * fs)
+            try:
+                zld = log_decrement(Xs[:, reference], fs, band_Hz=(0.75 * p.frequency_Hz, hi)).damping_ratio
+            except ValueError as e:
+                notes.append(f"{p.frequency_Hz:.3f} Hz: no logarithmic decrement ({e})")
+        ratios, _ = mode_shape_ratios(Xs, fs, p.frequency_Hz, reference)
+        modes.append(Mode(p.frequency_Hz, zhp, zld, dict(zip(channels, ratios.tolist()))))
+    return ModalResult(channels, float(fs), channels[reference], tuple(modes), sumspec, tuple(notes))

@@ -84,7 +84,8 @@ class IntegrationConfig:
     """Time integration: Newmark average acceleration (gamma = 1/2, beta = 1/4)."""
 
     dt_s: float = _f("time step [s]", 1e-4)
-    scheme: str = _f("'implicit' (contact in the step, active set) or 'paper' (trial force as load, sec. 2)", "implicit")
+    scheme: str = _f("'implicit' (contact in the step, active set), 'event' (steps split at contact switches: second order) "
+                     "or 'paper' (trial force as load, sec. 2)", "event")
     max_contact_iterations: int = _f("active-set iterations per step before a step counts as unsettled", 16)
     min_steps_per_contact_period: float = _f("flag runs with fewer steps per contact period 2 pi sqrt(m_eff/k_s)", 20.0)
 

@@ -19,6 +19,15 @@ ke = k_s + 2 c / dt, b = k_s d + c (2/dt g.u_n + g.v_n) (from F = k_s(g.u - d) +
 Scheme "paper" (section 2 of the paper): a trial step with F = 0; where a pair penetrates, F from
 eq. (8) on the trial displacement and velocity is applied as a load and the step repeated once.
 This is explicit in the contact force and loses stability when k_s dt^2 / m_eff is large.
+
+Scheme "event": the step is first taken with the contact set of its start. Where a pair's state at
+the end disagrees with that set (an impact, a separation, or under the no-tension law the force
+reaching zero), the crossing is located on the step's cubic Hermite interpolant of the penetration
+(exact here: Newmark average acceleration moves quadratically inside a step), the step is split
+there, the set switched, the acceleration restored from equilibrium (the Kelvin-Voigt force jumps
+by c v_rel at an impact) and the rest of the step integrated with the new set (Newmark with the
+sub-step length, a fresh n x n solve). Every piece is smooth, so the scheme stays second order across
+impacts (Wriggers, Computational Contact Mechanics, 2006, sec. 9.5 on event-driven integration).
 """
 
 from __future__ import annotations
@@ -37,7 +46,14 @@ from .score_kernel import N_SCORES, score_channel
 
 SCHEME_IMPLICIT = 0
 SCHEME_PAPER = 1
-SCHEMES = {"implicit": SCHEME_IMPLICIT, "paper": SCHEME_PAPER}
+SCHEME_EVENT = 2
+SCHEMES = {"implicit": SCHEME_IMPLICIT, "paper": SCHEME_PAPER, "event": SCHEME_EVENT}
+MAX_EVENTS = 16  # contact switches located inside one step before the step is taken as it is (flagged)
+EVENT_MIN_FRACTION = 1e-9  # a sub-step shorter than this fraction of dt is not integrated (rounding)
+# energy accumulator shared with _switch: spring energy lost when a no-tension contact lets go while
+# compressed (less what it stores again when it re-engages overlapped)
+EN_W_RELEASE = 0
+EN_N = 1
 
 EXC_HARMONIC = 0  # table displacement amp * sin(omega t): ground acceleration -amp omega^2 sin(omega t)
 EXC_RECORD = 1  # ground acceleration amp * record[step] (record resampled to dt beforehand)
@@ -197,7 +213,7 @@ def integrate_batch(
     prev = np.zeros(npair, dtype=np.bool_)
     was_active = np.zeros(npair, dtype=np.bool_)
     in_comp = np.zeros(npair, dtype=np.bool_)
-    comp_start = np.zeros(npair, dtype=np.int64)
+    comp_acc = np.zeros(npair)  # duration of the compressive phase in progress
     idx = np.empty(npair, dtype=np.int64)
     Asmall = np.empty((npair, npair))
     rsmall = np.empty(npair)
@@ -208,6 +224,12 @@ def integrate_batch(
     Dprev = np.zeros(npair)
     pen_prev = np.zeros(npair)
     Cdu = np.empty(n)
+    ustep = np.empty(n)  # state at the step start (experiment sampling)
+    just = np.zeros(npair, dtype=np.bool_)  # pairs switched at the event just handled
+    thetas = np.empty(npair)
+    Amat = np.empty((n, n))
+    rvec = np.empty(n)
+    en = np.zeros(EN_N)  # energy accumulators (EN_*)
     nm = metrics.shape[1]
     n_exp = exp_t.size
     n_exp_ch = exp_dof.size
@@ -230,6 +252,7 @@ def integrate_batch(
             Dprev[j] = 0.0
             pen_prev[j] = -gap[run]  # at rest the pair is `gap` apart
             in_comp[j] = False
+            comp_acc[j] = 0.0
             nphase[j] = 0
             Fprev[j] = 0.0
         status = status_in[run]
@@ -266,12 +289,14 @@ def integrate_batch(
         d_struct = 0.0
         w_spring = 0.0
         w_dash = 0.0
-        w_release = 0.0
+        en[EN_W_RELEASE] = 0.0  # also changed by _switch
         ag_prev = ag
         max_it_seen = 0
         steps_done = 0
         for step in range(1, nst + 1):
             ag = ground_acceleration(kind, amp, om, rec_flat, roff, rlen, step, dt)
+            for i in range(n):
+                ustep[i] = u[i]
             # Newmark effective load without contact (Chopra Table 5.4.2; paper eq. 13)
             for i in range(n):
                 w[i] = b1 * u[i] + v[i]
@@ -329,7 +354,7 @@ def integrate_batch(
                     for j in range(npair):
                         active[j] = prev[j] or trial[j]
                     _contact_forces(S, z0, bb, ke, active, npair, idx, Asmall, rsmall, F)
-            else:
+            elif scheme == SCHEME_PAPER:
                 # paper's scheme: contact force from the trial (F = 0) state, applied as a load
                 for j in range(npair):
                     F[j] = 0.0
@@ -342,53 +367,142 @@ def integrate_batch(
                             continue  # no tension: no contact while the element would pull
                         F[j] = f
                         active[j] = True
+            else:
+                # event scheme: the whole step with the contact set of its start; a pair whose state
+                # disagrees with that set at the end is an event inside the step, handled below
+                _contact_forces(S, z0, bb, ke, active, npair, idx, Asmall, rsmall, F)
             # end-of-step state u = u0 - H F, then Newmark velocity and acceleration (eqs. 15-16)
             for i in range(n):
                 s = u0[i]
                 for j in range(npair):
                     s -= H[i, j] * F[j]
                 un[i] = s
-            finite = True
             for i in range(n):
                 du = un[i] - u[i]
                 vn[i] = b1 * du - v[i]
                 an[i] = a1 * du - a2 * v[i] - a[i]
-                if not (abs(un[i]) < L.DIVERGED_M) or not (abs(an[i]) < 1e300):
-                    finite = False
+            h = dt  # what is left of the step
+            t_s = (step - 1) * dt
+            ag_s = ag_prev
+            n_ev = 0
+            for j in range(npair):
+                just[j] = False
+            while True:  # the step, or its pieces between contact events (event scheme)
+                finite = True
+                for i in range(n):
+                    if not (abs(un[i]) < L.DIVERGED_M) or not (abs(an[i]) < 1e300):
+                        finite = False
+                if not finite:
+                    break
+                hs = h  # the piece to accept now
+                ag_e = ag
+                last = True
+                if scheme == SCHEME_EVENT:
+                    # a pair whose end state contradicts the set means an event inside the piece
+                    contradicts = False
+                    for j in range(npair):
+                        pe = un[i1[j]] - un[i2[j]] - d
+                        if law == 1 and pe > 0.0:
+                            pe = min(pe, pe + (cdash[run, j] / k_s) * (vn[i1[j]] - vn[i2[j]]))
+                        tol = _switch_tolerance(un[i1[j]], un[i2[j]])
+                        if (pe < -tol) if active[j] else (pe > tol):
+                            contradicts = True
+                    if contradicts:
+                        theta = _first_event(h, u, v, un, vn, active, just, law, k_s, cdash[run], d, i1, i2,
+                                             npair, thetas, trial)
+                        if theta <= 1.0 and n_ev >= MAX_EVENTS:
+                            unsettled += 1  # events chatter: keep the last trial, say so
+                        elif theta <= 1.0:
+                            n_ev += 1
+                            last = False
+                            hs = _locate_event(theta, h, EVENT_MIN_FRACTION * dt, ag_s, ag, kind == EXC_HARMONIC,
+                                               amp, om, t_s, u, v, a, m, C, K, i1, i2, active, just, law, k_s,
+                                               cdash[run], d, Amat, rvec, un, vn, an, F, thetas, trial)
+                            if hs <= EVENT_MIN_FRACTION * dt:
+                                hs = 0.0  # switch at the start of what is left
+                            elif h - hs <= EVENT_MIN_FRACTION * dt:
+                                hs = h
+                            ag_e = _ag_inside(hs, h, ag_s, ag, kind == EXC_HARMONIC, amp, om, t_s)
+                            for i in range(n):
+                                if not (abs(un[i]) < L.DIVERGED_M) or not (abs(an[i]) < 1e300):
+                                    finite = False
+                            if not finite:
+                                break
+                if hs > 0.0:
+                    # accept the piece [t_s, t_s + hs]: energy increments, exact for Newmark average
+                    # acceleration (trapezoidal work with du = hs (v_n + v_n+1) / 2): input -du.M1 ag,
+                    # structural damping du.C du / hs, the work of the contact's spring and dashpot
+                    # parts on the pair's relative displacement; then the contact metrics
+                    t_e = t_s + hs
+                    s_in = 0.0
+                    for i in range(n):
+                        s_in += m[i] * (un[i] - u[i])
+                        s = 0.0
+                        for k in range(n):
+                            s += C[i, k] * (un[k] - u[k])
+                        Cdu[i] = s
+                    de = -0.5 * (ag_s + ag_e) * s_in
+                    e_in += de
+                    e_in_abs += abs(de)
+                    s = 0.0
+                    for i in range(n):
+                        s += (un[i] - u[i]) * Cdu[i]
+                    d_struct += s / hs
+                    for j in range(npair):
+                        pen = un[i1[j]] - un[i2[j]] - d
+                        sp = k_s * pen if active[j] else 0.0
+                        dp = F[j] - sp if active[j] else 0.0
+                        w_spring += 0.5 * (Sprev[j] + sp) * (pen - pen_prev[j])
+                        w_dash += 0.5 * (Dprev[j] + dp) * (pen - pen_prev[j])
+                        if was_active[j] and not active[j] and pen > 0.0:
+                            # released while still compressed (no-tension law): the spring's energy is
+                            # lost to the contact, a physical dissipation, not a numerical residual
+                            en[EN_W_RELEASE] += 0.5 * k_s * pen * pen
+                        Sprev[j] = sp
+                        Dprev[j] = dp
+                        pen_prev[j] = pen
+                        base = pbase + L.PER_PAIR * j
+                        f = F[j]
+                        if active[j]:
+                            if not was_active[j]:
+                                out[base + L.PAIR_IMPACTS] += 1.0
+                            out[base + L.PAIR_CONTACT_TIME] += hs
+                            if pen > out[base + L.PAIR_MAX_PENETRATION]:
+                                out[base + L.PAIR_MAX_PENETRATION] = pen
+                            if f > out[base + L.PAIR_PEAK_FORCE]:
+                                out[base + L.PAIR_PEAK_FORCE] = f
+                                out[base + L.PAIR_PEAK_FORCE_TIME] = t_e
+                            if f < out[base + L.PAIR_MIN_FORCE]:
+                                out[base + L.PAIR_MIN_FORCE] = f
+                        comp = active[j] and f > 0.0
+                        if comp:
+                            out[base + L.PAIR_COMPRESSION_TIME] += hs
+                            comp_acc[j] = comp_acc[j] + hs if in_comp[j] else hs
+                        elif in_comp[j]:
+                            _end_phase(durations, nphase, j, comp_acc[j])
+                        in_comp[j] = comp
+                        was_active[j] = active[j]
+                    for i in range(n):
+                        u[i] = un[i]
+                        v[i] = vn[i]
+                        a[i] = an[i]
+                if last:
+                    h = 0.0
+                    break
+                t_s += hs
+                h -= hs
+                ag_s = ag_e
+                _switch(trial, t_s, ag_s, n, npair, m, C, K, i1, i2, k_s, cdash[run], d, u, v, a, F, active,
+                        was_active, just, Sprev, Dprev, en, out, pbase)
+                if h <= 0.0:
+                    break
+                _fixed_set_step(h, ag, u, v, a, m, C, K, i1, i2, active, k_s, cdash[run], d, Amat, rvec,
+                                un, vn, an, F)
+            if n_ev > max_it_seen and scheme == SCHEME_EVENT:
+                max_it_seen = n_ev
             if not finite:
                 status |= L.STATUS_NONFINITE
                 break
-            # energy increments, exact for Newmark average acceleration (trapezoidal work with
-            # du = dt (v_n + v_n+1) / 2): input -du.M1 ag, structural damping du.C du / dt, and the
-            # work of the contact's spring and dashpot parts on the pair's relative displacement
-            s_in = 0.0
-            for i in range(n):
-                du = un[i] - u[i]
-                s_in += m[i] * du
-                s = 0.0
-                for k in range(n):
-                    s += C[i, k] * (un[k] - u[k])
-                Cdu[i] = s
-            de = -0.5 * (ag_prev + ag) * s_in
-            e_in += de
-            e_in_abs += abs(de)
-            s = 0.0
-            for i in range(n):
-                s += (un[i] - u[i]) * Cdu[i]
-            d_struct += s / dt
-            for j in range(npair):
-                pen = un[i1[j]] - un[i2[j]] - d
-                sp = k_s * pen if active[j] else 0.0
-                dp = F[j] - sp if active[j] else 0.0
-                w_spring += 0.5 * (Sprev[j] + sp) * (pen - pen_prev[j])
-                w_dash += 0.5 * (Dprev[j] + dp) * (pen - pen_prev[j])
-                if was_active[j] and not active[j] and pen > 0.0:
-                    # released while still compressed (no-tension law): the spring's energy is
-                    # lost to the contact, a physical dissipation, not a numerical residual
-                    w_release += 0.5 * k_s * pen * pen
-                Sprev[j] = sp
-                Dprev[j] = dp
-                pen_prev[j] = pen
             ag_prev = ag
             t = step * dt
             # experiment samples inside (t - dt, t]: linear interpolation between the step ends
@@ -396,14 +510,10 @@ def integrate_batch(
                 theta = (exp_t[ke_next] - (t - dt)) / dt
                 for c in range(n_exp_ch):
                     q = exp_dof[c]
-                    xs[c, ke_next] = u[q] + theta * (un[q] - u[q])
+                    xs[c, ke_next] = ustep[q] + theta * (u[q] - ustep[q])
                 ke_next += 1
-            for i in range(n):
-                u[i] = un[i]
-                v[i] = vn[i]
-                a[i] = an[i]
             steps_done = step
-            # metrics, per floor
+            # metrics, per floor, at the step ends
             for i in range(n):
                 base = L.PER_DOF * i
                 ad = abs(u[i])
@@ -413,31 +523,6 @@ def integrate_batch(
                 aa = abs(a[i] + ag)
                 if aa > out[base + L.DOF_PEAK_ABS_ACC]:
                     out[base + L.DOF_PEAK_ABS_ACC] = aa
-            # metrics, per pair
-            for j in range(npair):
-                base = pbase + L.PER_PAIR * j
-                f = F[j]
-                if active[j]:
-                    if not was_active[j]:
-                        out[base + L.PAIR_IMPACTS] += 1.0
-                    out[base + L.PAIR_CONTACT_TIME] += dt
-                    pen = u[i1[j]] - u[i2[j]] - d
-                    if pen > out[base + L.PAIR_MAX_PENETRATION]:
-                        out[base + L.PAIR_MAX_PENETRATION] = pen
-                    if f > out[base + L.PAIR_PEAK_FORCE]:
-                        out[base + L.PAIR_PEAK_FORCE] = f
-                        out[base + L.PAIR_PEAK_FORCE_TIME] = t
-                    if f < out[base + L.PAIR_MIN_FORCE]:
-                        out[base + L.PAIR_MIN_FORCE] = f
-                comp = active[j] and f > 0.0
-                if comp:
-                    out[base + L.PAIR_COMPRESSION_TIME] += dt
-                    if not in_comp[j]:
-                        comp_start[j] = step
-                elif in_comp[j]:
-                    _end_phase(durations, nphase, j, (step - comp_start[j]) * dt)
-                in_comp[j] = comp
-                was_active[j] = active[j]
             if keep_hist and step % decimate == 0:
                 col = step // decimate
                 if col < hist.shape[2]:
@@ -446,7 +531,7 @@ def integrate_batch(
         # close phases still open at the end
         for j in range(npair):
             if in_comp[j]:
-                _end_phase(durations, nphase, j, (steps_done + 1 - comp_start[j]) * dt)
+                _end_phase(durations, nphase, j, comp_acc[j])
             base = pbase + L.PER_PAIR * j
             k = nphase[j]
             out[base + L.PAIR_COMPRESSION_PHASES] = k
@@ -477,13 +562,13 @@ def integrate_batch(
         for j in range(npair):
             if active[j]:
                 e_spring += 0.5 * k_s * pen_prev[j] * pen_prev[j]
-        residual = w_spring - e_spring - w_release
+        residual = w_spring - e_spring - en[EN_W_RELEASE]
         out[rbase + L.RUN_E_IN] = e_in
         out[rbase + L.RUN_E_IN_ABS] = e_in_abs
         out[rbase + L.RUN_KE] = ke_end
         out[rbase + L.RUN_SE] = se_end
         out[rbase + L.RUN_D_STRUCT] = d_struct
-        out[rbase + L.RUN_D_CONTACT] = w_dash + w_release
+        out[rbase + L.RUN_D_CONTACT] = w_dash + en[EN_W_RELEASE]
         out[rbase + L.RUN_E_SPRING] = e_spring
         out[rbase + L.RUN_E_RESIDUAL] = residual
         if not (abs(residual) <= L.ENERGY_TOL * e_in_abs):
@@ -493,6 +578,261 @@ def integrate_batch(
         out[rbase + L.RUN_STEPS] = steps_done
         out[rbase + L.RUN_STATUS] = status
         run_time[run] = _clock() - t_start
+
+
+@njit_kernel
+def ground_acceleration_at(amp, omega, t):
+    """Harmonic ground acceleration [m/s^2] at any time t (event sub-steps)."""
+    return -amp * omega * omega * np.sin(omega * t)
+
+
+@njit_kernel
+def _fixed_set_step(h, ag, u, v, a, m, C, K, i1, i2, active, k_s, c, d, A, r, un, vn, an, F):
+    """One Newmark average-acceleration step of length h with the pairs in `active` in contact.
+
+    (K + 2/h C + 4/h^2 M + sum_A ke g g^T) u_n+1 = p_hat + sum_A b g, with ke = k_s + 2 c / h and
+    b = k_s d + c (2/h g.u_n + g.v_n) from F = k_s (g.u_n+1 - d) + c g.v_n+1 (eq. 8) and eq. 15."""
+    n = m.shape[0]
+    q1 = 4.0 / (h * h)
+    q2 = 4.0 / h
+    q3 = 2.0 / h
+    for i in range(n):
+        s = -m[i] * ag + m[i] * (q1 * u[i] + q2 * v[i] + a[i])
+        for k in range(n):
+            A[i, k] = K[i, k] + q3 * C[i, k]
+            s += C[i, k] * (q3 * u[k] + v[k])
+        A[i, i] += q1 * m[i]
+        r[i] = s
+    for j in range(i1.shape[0]):
+        if active[j]:
+            p, q = i1[j], i2[j]
+            kej = k_s + q3 * c[j]
+            bj = k_s * d + c[j] * (q3 * (u[p] - u[q]) + v[p] - v[q])
+            A[p, p] += kej
+            A[q, q] += kej
+            A[p, q] -= kej
+            A[q, p] -= kej
+            r[p] += bj
+            r[q] -= bj
+    _solve_spd(A, r, n)
+    for i in range(n):
+        un[i] = r[i]
+        vn[i] = q3 * (un[i] - u[i]) - v[i]
+    for j in range(i1.shape[0]):
+        F[j] = 0.0
+        if active[j]:
+            p, q = i1[j], i2[j]
+            F[j] = k_s * (un[p] - un[q] - d) + c[j] * (vn[p] - vn[q])
+    # the end acceleration from equilibrium, equal to Newmark's 4/h^2 du - 4/h v - a in exact
+    # arithmetic but free of its 1/h^2 rounding amplification on short sub-steps
+    _equilibrium_acceleration(ag, m, C, K, i1, i2, un, vn, F, an)
+
+
+@njit_kernel
+def _want_contact(p0, p1, m0, m1, tau, h, law, k_s, c):
+    """Contact indicator at fraction tau of the step (> 0: the pair should be in contact), from the
+    cubic Hermite interpolant of the penetration (p0, p1; end slopes m0, m1 = v_rel h)."""
+    t2 = tau * tau
+    t3 = t2 * tau
+    p = (2 * t3 - 3 * t2 + 1) * p0 + (t3 - 2 * t2 + tau) * m0 + (-2 * t3 + 3 * t2) * p1 + (t3 - t2) * m1
+    if law == 0:
+        return p
+    dp = (6 * t2 - 6 * tau) * p0 + (3 * t2 - 4 * tau + 1) * m0 + (-6 * t2 + 6 * tau) * p1 + (3 * t2 - 2 * tau) * m1
+    f = p + (c / k_s) * dp / h  # no tension: in contact while penetrating and pushing (F / k_s, metres)
+    return min(p, f)
+
+
+@njit_kernel
+def _switch_tolerance(up, uq):
+    """Penetration [m] below which a contact switch is rounding, not motion: a femtometre, or 1e-12 of
+    the floors' displacement. Without it a pair resting exactly at zero penetration (gap 0 at rest)
+    would switch back and forth on rounding noise."""
+    return 1e-15 + 1e-12 * (abs(up) + abs(uq))
+
+
+@njit_kernel
+def _first_event(h, u, v, un, vn, active, just, law, k_s, c, d, i1, i2, npair, thetas, switch):
+    """Fraction of the step (0..1] at which the first pair leaves its contact state, or 2.0 if none
+    does; marks in `switch` the pairs whose switch falls there (bisection on the indicator)."""
+    first = 2.0
+    for j in range(npair):
+        thetas[j] = 2.0
+        p, q = i1[j], i2[j]
+        p0 = u[p] - u[q] - d
+        p1 = un[p] - un[q] - d
+        m0 = (v[p] - v[q]) * h
+        m1 = (vn[p] - vn[q]) * h
+        sign = -1.0 if active[j] else 1.0  # phi > 0: the state contradicts the set
+        if sign * _want_contact(p0, p1, m0, m1, 1.0, h, law, k_s, c[j]) <= _switch_tolerance(un[p], un[q]):
+            continue
+        if not just[j] and sign * _want_contact(p0, p1, m0, m1, 0.0, h, law, k_s, c[j]) >= 0.0:
+            thetas[j] = 0.0  # already contradicts at the start
+        else:
+            lo, hi = 0.0, 1.0
+            for _ in range(60):
+                mid = 0.5 * (lo + hi)
+                if sign * _want_contact(p0, p1, m0, m1, mid, h, law, k_s, c[j]) >= 0.0:
+                    hi = mid
+                else:
+                    lo = mid
+            thetas[j] = hi
+        if thetas[j] < first:
+            first = thetas[j]
+    for j in range(npair):
+        switch[j] = thetas[j] <= first + 1e-9
+    return first
+
+
+@njit_kernel
+def _ag_inside(hs, h, ag_s, ag_e, harmonic, amp, om, t_s):
+    """Ground acceleration hs into the rest (length h) of a step: exact for harmonic motion, linear
+    between the record's samples otherwise."""
+    if harmonic:
+        return ground_acceleration_at(amp, om, t_s + hs)
+    return ag_s + (ag_e - ag_s) * (hs / h)
+
+
+@njit_kernel
+def _indicator(j, u, v, active, law, k_s, c, d, i1, i2):
+    """The contact indicator of pair j in the state (u, v), signed so that >= 0 contradicts `active`."""
+    p, q = i1[j], i2[j]
+    pen = u[p] - u[q] - d
+    want = pen
+    if law == 1:
+        want = min(pen, pen + (c[j] / k_s) * (v[p] - v[q]))
+    return -want if active[j] else want
+
+
+@njit_kernel
+def _locate_event(theta, h, hmin, ag_s, ag_e, harmonic, amp, om, t_s, u, v, a, m, C, K, i1, i2, active, just, law,
+                  k_s, c, d, A, r, un, vn, an, F, thetas, switch):
+    """Length hs (0 <= hs <= h) of the sub-step that ends where the first pair switches.
+
+    The interpolant's estimate (theta) starts a safeguarded false-position search (Illinois) on
+    the indicator after a real Newmark sub-step of length hs, so the switch happens where the
+    discrete motion crosses (penetration 0, or no-tension force 0) and the contact springs store or
+    return no energy there. A pair that crosses earlier inside the accepted sub-step takes over.
+    Leaves the sub-step's end state in un, vn, an, F and the pairs to switch in `switch`; 0 (switch at
+    the start) when the crossing is closer than hmin."""
+    npair = i1.shape[0]
+    if theta * h < hmin:
+        return 0.0
+    target = 0
+    for j in range(npair):
+        if thetas[j] < thetas[target]:
+            target = j
+    hi = h
+    f_hi = _indicator(target, un, vn, active, law, k_s, c, d, i1, i2)  # the trial over h contradicts
+    for _ in range(npair + 1):
+        lo = 0.0
+        f_lo = min(_indicator(target, u, v, active, law, k_s, c, d, i1, i2), -1e-300)  # agrees at the start
+        if theta * hi < hmin:
+            return 0.0  # a sub-step this short only amplifies rounding (the solve scales as 1/h^2)
+        hs = min(max(theta * hi, hmin), hi)
+        side = 0
+        scale = 0.0
+        pp, qq = i1[target], i2[target]
+        for _it in range(100):
+            _fixed_set_step(hs, _ag_inside(hs, h, ag_s, ag_e, harmonic, amp, om, t_s), u, v, a, m, C, K, i1, i2,
+                            active, k_s, c, d, A, r, un, vn, an, F)
+            h_eval = hs
+            phi = _indicator(target, un, vn, active, law, k_s, c, d, i1, i2)
+            scale = max(scale, abs(un[pp] - un[qq] - d) + abs(u[pp] - u[qq] - d))
+            if phi >= 0.0:
+                hi, f_hi = hs, phi
+                if side == 1:
+                    f_lo *= 0.5  # Illinois: the same end twice, halve the other's weight
+                side = 1
+            else:
+                lo, f_lo = hs, phi
+                if side == -1:
+                    f_hi *= 0.5
+                side = -1
+            if abs(phi) <= 1e-13 * scale or hi - lo <= 1e-13 * h or (hs <= hmin and phi >= 0.0):
+                break
+            hs = hi - f_hi * (hi - lo) / (f_hi - f_lo)
+            if not (lo < hs < hi):
+                hs = 0.5 * (lo + hi)
+            hs = max(hs, hmin)
+        hs = h_eval  # the sub-step whose end state is in un, vn, an, F
+        # does another pair switch inside this sub-step, before it ends?
+        _first_event(hs, u, v, un, vn, active, just, law, k_s, c, d, i1, i2, npair, thetas, switch)
+        earlier = -1
+        for j in range(npair):
+            if j != target and thetas[j] < 1.0 - 1e-9 and (earlier < 0 or thetas[j] < thetas[earlier]):
+                earlier = j
+        if earlier < 0:
+            break
+        target = earlier
+        theta = thetas[earlier]
+        f_hi = _indicator(target, un, vn, active, law, k_s, c, d, i1, i2)
+        hi = hs
+    for j in range(npair):
+        switch[j] = j == target or thetas[j] <= 1.0  # the target, and pairs crossing with it
+    return hs
+
+
+@njit_kernel
+def _force_extremes(out, base, f, t):
+    if f > out[base + L.PAIR_PEAK_FORCE]:
+        out[base + L.PAIR_PEAK_FORCE] = f
+        out[base + L.PAIR_PEAK_FORCE_TIME] = t
+    if f < out[base + L.PAIR_MIN_FORCE]:
+        out[base + L.PAIR_MIN_FORCE] = f
+
+
+@njit_kernel
+def _switch(switch, t, ag, n, npair, m, C, K, i1, i2, k_s, c, d, u, v, a, F, active, was_active, just,
+            Sprev, Dprev, en, out, pbase):
+    """Switch the contact state of the pairs in `switch` at an event (time t); restore the
+    acceleration from equilibrium, M a = -M 1 ag - C v - K u - G F (eqs. 1-2), since the
+    Kelvin-Voigt force jumps there (by c v_rel at an impact)."""
+    for j in range(npair):
+        just[j] = switch[j]
+        if not switch[j]:
+            continue
+        p, q = i1[j], i2[j]
+        pen = u[p] - u[q] - d
+        base = pbase + L.PER_PAIR * j
+        if active[j]:
+            active[j] = False
+            if pen > 0.0:
+                en[EN_W_RELEASE] += 0.5 * k_s * pen * pen
+            F[j] = 0.0
+            Sprev[j] = 0.0
+            Dprev[j] = 0.0
+        else:
+            active[j] = True
+            if pen > 0.0:
+                # a no-tension contact re-engaging while still overlapped (its force is zero here):
+                # the spring energy booked as lost at its release is stored again
+                en[EN_W_RELEASE] -= 0.5 * k_s * pen * pen
+            out[base + L.PAIR_IMPACTS] += 1.0
+            F[j] = k_s * pen + c[j] * (v[p] - v[q])
+            Sprev[j] = k_s * pen
+            Dprev[j] = F[j] - Sprev[j]
+            _force_extremes(out, base, F[j], t)
+        was_active[j] = active[j]
+    for j in range(npair):  # every force from the Kelvin-Voigt law at this instant (eq. 8)
+        p, q = i1[j], i2[j]
+        F[j] = k_s * (u[p] - u[q] - d) + c[j] * (v[p] - v[q]) if active[j] else 0.0
+    _equilibrium_acceleration(ag, m, C, K, i1, i2, u, v, F, a)
+
+
+@njit_kernel
+def _equilibrium_acceleration(ag, m, C, K, i1, i2, u, v, F, a):
+    """a = M^-1 (-M 1 ag - C v - K u - G F), the equations of motion (eqs. 1-2, restoring sign)."""
+    n = m.shape[0]
+    for i in range(n):
+        s = -m[i] * ag
+        for k in range(n):
+            s -= C[i, k] * v[k] + K[i, k] * u[k]
+        a[i] = s
+    for j in range(i1.shape[0]):
+        a[i1[j]] -= F[j]
+        a[i2[j]] += F[j]
+    for i in range(n):
+        a[i] /= m[i]
 
 
 @njit_kernel

@@ -31,6 +31,9 @@ Three references:
   pairs), so kernel and reference must agree to rounding.
 * `newmark_reference(scheme="paper")`: the paper's section-2 scheme (trial step with F = 0,
   eq. 8 on the trial state applied as a load, step repeated once).
+* `newmark_reference(scheme="event")`: Newmark with each step split where a pair switches: the
+  switch instants found by scipy's brentq on the sub-step map (the kernel uses an interpolant
+  estimate and false position), every sub-step a full np.linalg.solve.
 * `ivp_reference`: the continuous-time problem integrated by `scipy.integrate.solve_ivp` to
   1e-10 relative tolerance, one smooth piece per contact set, restarting at contact events
   located by root finding. It shares no discretisation with the kernel, so the difference
@@ -50,7 +53,7 @@ from pounding_sweep.model import CoupledModel
 from pounding_sweep.simulate import with_overrides
 
 LAWS = ("classic", "no_tension")
-SCHEMES = ("implicit", "paper")
+SCHEMES = ("implicit", "paper", "event")
 
 
 # ----------------------------------------------------------------------------- the problem
@@ -214,6 +217,8 @@ def newmark_reference(scene, cycle_fallback: str = "union", **overrides) -> dict
     A[0] = -ag[0] * ones  # eq. (11): a0 = M^-1 (p0 - C v0 - K u0) with u0 = v0 = 0, p0 = -M 1 ag(0)
     active = np.zeros(p, dtype=bool)
     unsettled = 0
+    # event scheme: entries, contact time and force extremes over every sub-step and switch
+    stats = dict(impacts=np.zeros(p, dtype=int), contact_time=np.zeros(p), peak_force=np.zeros(p))
 
     for k in range(N):
         u_n, v_n, a_n = U[k], V[k], A[k]
@@ -243,6 +248,13 @@ def newmark_reference(scene, cycle_fallback: str = "union", **overrides) -> dict
                 else:
                     raise ValueError(f"cycle_fallback must be 'union' or 'last', got {cycle_fallback!r}")
                 u, F, _, _ = _solve_with_contact(P, Keff, p_hat, u_n, v_n, active)
+        elif P.scheme == "event":
+            u, v, a, F, active, n_unsettled = _event_step(P, k, u_n, v_n, a_n, active, ag, stats)
+            unsettled += n_unsettled
+            U[k + 1], V[k + 1], A[k + 1] = u, v, a
+            F_hist[k + 1] = F
+            act_hist[k + 1] = active
+            continue
         else:
             u0 = np.linalg.solve(Keff, p_hat)  # trial step, F = 0
             z0 = P.G.T @ u0
@@ -264,8 +276,106 @@ def newmark_reference(scene, cycle_fallback: str = "union", **overrides) -> dict
         act_hist[k + 1] = active
 
     entered = act_hist[1:] & ~act_hist[:-1]
-    return dict(t=t, u=U, v=V, a=A, F=F_hist, active=act_hist, ag=ag,
-                impacts=entered.sum(axis=0), unsettled=unsettled, problem=P)
+    if P.scheme == "event":
+        impacts, contact_time, peak = stats["impacts"], stats["contact_time"], stats["peak_force"]
+    else:
+        impacts, contact_time = entered.sum(axis=0), dt * act_hist[1:].sum(axis=0)
+        peak = np.maximum(F_hist.max(axis=0), 0.0)
+    return dict(t=t, u=U, v=V, a=A, F=F_hist, active=act_hist, ag=ag, impacts=impacts, contact_time=contact_time,
+                peak_force=peak, unsettled=unsettled, problem=P)
+
+
+def _substep(P: Problem, h: float, ag_end: float, u, v, a, active):
+    """Newmark average acceleration over h with the pairs in `active` in contact; the end state
+    (u, v, a, F). As _solve_with_contact with h for dt; a from the equations of motion."""
+    ones = np.ones(P.n_dof)
+    Keff = P.K + (2.0 / h) * P.C + (4.0 / h**2) * P.M
+    p_hat = -(P.M @ ones) * ag_end + P.M @ (4.0 / h**2 * u + 4.0 / h * v + a) + P.C @ (2.0 / h * u + v)
+    ke = P.ks + 2.0 * P.c / h
+    b = P.ks * P.gap + P.c * (P.G.T @ (2.0 / h * u + v))
+    A = Keff.copy()
+    rhs = p_hat.copy()
+    for j in np.flatnonzero(active):
+        A += ke[j] * np.outer(P.G[:, j], P.G[:, j])
+        rhs += b[j] * P.G[:, j]
+    u1 = np.linalg.solve(A, rhs)
+    v1 = 2.0 / h * (u1 - u) - v
+    F = np.where(active, P.ks * (P.G.T @ u1 - P.gap) + P.c * (P.G.T @ v1), 0.0)
+    return u1, v1, _acceleration(P, ag_end, u1, v1, F), F
+
+
+def _acceleration(P: Problem, ag, u, v, F):
+    """a from the equations of motion, M a = -M 1 ag - C v - K u - G F (eqs. 1-2)."""
+    return np.linalg.solve(P.M, -(P.M @ np.ones(P.n_dof)) * ag - P.C @ v - P.K @ u - P.G @ F)
+
+
+def _contradiction(P: Problem, u, v, active) -> np.ndarray:
+    """Per pair, > 0 where the state (u, v) contradicts the contact set: penetration (and, no-tension,
+    the Kelvin-Voigt force over k_s) positive for a pair out of contact, not positive for one in."""
+    pen = P.G.T @ u - P.gap
+    want = pen if P.law == "classic" else np.minimum(pen, pen + P.c / P.ks * (P.G.T @ v))
+    return np.where(active, -want, want)
+
+
+def _tolerance(P: Problem, u) -> np.ndarray:
+    """Contact switches smaller than this are rounding (the kernel's _switch_tolerance)."""
+    return 1e-15 + 1e-12 * (np.abs(P.G).T @ np.abs(u))
+
+
+def _event_step(P: Problem, k: int, u, v, a, active, ag, stats, max_events: int = 16):
+    """One step of the event scheme from t_k: integrate with the current set; where the end
+    contradicts it, find the first switch instant by brentq on the sub-step map, take the sub-step,
+    switch (force from eq. 8 at that instant, a from equilibrium), and go on with what is left."""
+    from scipy.optimize import brentq
+
+    dt = P.dt
+    t0 = k * dt
+
+    def ag_at(s):  # ground acceleration s into the step: exact (harmonic) or linear between samples
+        if P.exc_kind == "harmonic":
+            return -P.amp * P.omega**2 * math.sin(P.omega * (t0 + s))
+        return ag[k] + (ag[k + 1] - ag[k]) * s / dt
+
+    active = active.copy()
+    s0, unsettled, events = 0.0, 0, 0
+    while True:
+        h = dt - s0
+        end = _substep(P, h, ag_at(dt), u, v, a, active)
+        bad = _contradiction(P, end[0], end[1], active) > _tolerance(P, end[0])
+        if not bad.any() or events >= max_events:
+            unsettled += int(bad.any())
+            break
+        events += 1
+        times = np.full(P.n_pairs, np.inf)
+        for j in np.flatnonzero(bad):
+            def phi(s, j=j):
+                e = _substep(P, s, ag_at(s0 + s), u, v, a, active)
+                return _contradiction(P, e[0], e[1], active)[j]
+            lo = 1e-9 * dt
+            if h <= lo or phi(lo) >= 0.0:
+                times[j] = 0.0
+            else:
+                times[j] = brentq(phi, lo, h, xtol=1e-15 * dt, rtol=4 * np.finfo(float).eps, maxiter=200)
+        s = times.min()
+        if s > 1e-9 * dt:
+            if dt - (s0 + s) <= 1e-9 * dt:
+                s = h
+            u, v, a, F = _substep(P, s, ag_at(s0 + s), u, v, a, active)
+            stats["contact_time"] += np.where(active, s, 0.0)
+            stats["peak_force"] = np.maximum(stats["peak_force"], np.where(active, F, 0.0))
+            s0 += s
+        switch = times <= s * (1 + 1e-9) + 1e-12 * dt
+        stats["impacts"] += switch & ~active
+        active = active ^ switch
+        F = np.where(active, P.ks * (P.G.T @ u - P.gap) + P.c * (P.G.T @ v), 0.0)
+        stats["peak_force"] = np.maximum(stats["peak_force"], np.where(active, F, 0.0))
+        a = _acceleration(P, ag_at(s0), u, v, F)
+        if dt - s0 <= 1e-9 * dt:
+            return u, v, a, F, active, unsettled
+    u, v, a, F = end
+    stats["contact_time"] += np.where(active, h, 0.0)
+    stats["peak_force"] = np.maximum(stats["peak_force"], np.where(active, F, 0.0))
+    return u, v, a, F, active, unsettled
 
 
 # ----------------------------------------------------------------------------- continuous time

@@ -45,7 +45,8 @@ def test_6hz_peak_force_and_contact_duration_match_the_references(six_hz):
     assert 0.020 <= row.median_compression_phase_f3_s <= 0.025
     assert row.impacts_f3 > 20  # it pounds about once per cycle over 5 s at 6 Hz
     assert row.min_force_f3_N < 0  # the classic law pulls briefly before separation
-    assert (df.loc[df.index.get_level_values("r") == 1.0].min_force_f3_N == 0).all()  # no dashpot at r = 1
+    el = df.loc[df.index.get_level_values("r") == 1.0]  # no dashpot at r = 1: no pull, up to rounding
+    assert (el.min_force_f3_N >= -1e-12 * el.peak_force_f3_N).all()
 
 
 def test_metadata_is_self_describing(six_hz):
@@ -56,7 +57,7 @@ def test_metadata_is_self_describing(six_hz):
     assert raw[b"scene_toml"].decode() == (SWEEPS / "paper_6hz.toml").read_text()
     assert raw[b"config_hash"].decode() == md["config_hash"] == load_scene(SWEEPS / "paper_6hz.toml").config_hash()
     assert md["buildings"][0]["frequencies_Hz"][0] == pytest.approx(4.248, abs=1e-3)
-    assert md["dt_s"] == 1e-4 and md["scheme"] == "implicit"
+    assert md["dt_s"] == 1e-4 and md["scheme"] == "event"
     assert "peak_force_f*_N" in md["columns"]
     names = pq.read_schema(out).names
     for col in ("peak_disp_b1f3_m", "peak_abs_acc_b2f3_m_s2", "peak_force_f3_N", "contact_time_f1_s", "status", "run_time_s"):

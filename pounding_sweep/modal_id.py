@@ -165,8 +165,10 @@ def log_decrement(x, fs: float, band_Hz: tuple[float, float] | None = None, star
 
     band_Hz: zero-phase Butterworth band-pass first (isolate one mode); start_s: where free vibration
     begins; peaks below `min_relative_peak` of the first one used (noise) and the first and last
-    `skip_cycles` (filter transients) are left out."""
+    `skip_cycles` (filter transients) are left out. The equilibrium is the mean of the record's last
+    quarter (not of the whole record: the mean of a decaying oscillation is not its centre)."""
     x = _as_record(x, fs)
+    x = x - x[-max(x.size // 4, 1):].mean()
     if band_Hz is not None:
         lo, hi = band_Hz
         if not 0 < lo < hi < fs / 2:
@@ -218,11 +220,11 @@ def fourier_coefficients(X, fs: float, f: float, window: str = "hann") -> np.nda
     return (w * e) @ X
 
 
-def mode_shape_ratios(X, fs: float, f: float, reference: int = -1) -> tuple[np.ndarray, np.ndarray]:
+def mode_shape_ratios(X, fs: float, f: float, reference: int = -1, window: str = "hann") -> tuple[np.ndarray, np.ndarray]:
     """(signed real ratios, complex ratios) of every channel to `reference` at frequency f: the
     operational deflection shape at a resonance peak, i.e. the mode shape when modes are well
     separated and lightly damped. A ratio's sign is + when in phase with the reference."""
-    c = fourier_coefficients(X, fs, f)
+    c = fourier_coefficients(X, fs, f, window)
     ref = c[reference]
     if abs(ref) == 0:
         raise ValueError(f"the reference channel has no response at {f:.4g} Hz")
@@ -259,8 +261,8 @@ def identify(X, fs: float, channels, n_modes: int = 3, fmin: float = 0.0, fmax: 
     """Frequencies, damping and shape ratios of up to `n_modes` modes of one structure from its
     floors' records (columns of X; the reference channel is usually the top floor).
 
-    Peaks are picked on the sum of the channels' normalised Hann spectra (a mode strong at any floor
-    counts); half-power damping on the reference channel's rectangular-window spectrum; with
+    Peaks are picked on the sum of the channels' normalised spectra (a mode strong at any floor
+    counts; Hann window, or none for a free vibration, which has decayed by the end); half-power damping on the reference channel's rectangular-window spectrum; with
     free_vibration, also the logarithmic decrement of each mode after a band-pass of +/- 25 % around it."""
     X = np.asarray(X, dtype=float)
     if X.ndim == 1:
@@ -270,7 +272,10 @@ def identify(X, fs: float, channels, n_modes: int = 3, fmin: float = 0.0, fmax: 
         raise ValueError(f"{X.shape[1]} columns but {len(channels)} channel names")
     t = np.arange(X.shape[0]) / fs
     Xs = X[t >= start_s]
-    specs = [amplitude_spectrum(Xs[:, j], fs) for j in range(Xs.shape[1])]
+    # a free vibration has decayed by the record's end: no window needed (a Hann window would
+    # weight its start, where a fast-decaying mode lives, almost to zero and bias its peak)
+    win = "boxcar" if free_vibration else "hann"
+    specs = [amplitude_spectrum(Xs[:, j], fs, window=win) for j in range(Xs.shape[1])]
     tot = sum(s.values / max(s.values[1:].max(), 1e-300) for s in specs)
     sumspec = Spectrum(specs[0].frequency_Hz, tot, "amplitude", specs[0].resolution_Hz)
     peaks = find_peaks(sumspec, n_modes, fmin, fmax)
@@ -289,6 +294,6 @@ def identify(X, fs: float, channels, n_modes: int = 3, fmin: float = 0.0, fmax: 
                 zld = log_decrement(Xs[:, reference], fs, band_Hz=(0.75 * p.frequency_Hz, hi)).damping_ratio
             except ValueError as e:
                 notes.append(f"{p.frequency_Hz:.3f} Hz: no logarithmic decrement ({e})")
-        ratios, _ = mode_shape_ratios(Xs, fs, p.frequency_Hz, reference)
+        ratios, _ = mode_shape_ratios(Xs, fs, p.frequency_Hz, reference, window=win)
         modes.append(Mode(p.frequency_Hz, zhp, zld, dict(zip(channels, ratios.tolist()))))
     return ModalResult(channels, float(fs), channels[reference], tuple(modes), sumspec, tuple(notes))

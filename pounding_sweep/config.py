@@ -30,6 +30,8 @@ def _f(doc: str, default=dataclasses.MISSING, **kw):
     return field(default=default, metadata={"doc": doc}, **kw)
 
 
+EXECUTORS = ("local", "dask")
+
 # ----------------------------------------------------------------------------- sections
 
 
@@ -105,8 +107,13 @@ class OutputConfig:
 class ExecutionConfig:
     """How the grid is run on this machine."""
 
-    threads: int = _f("worker threads (0: all cores)", 0)
+    threads: int = _f("worker threads of the local executor (0: all cores)", 0)
     batch_runs: int = _f("runs handed to a thread at a time (0: automatic)", 0)
+    executor: str = _f("'local' (threads in this process) or 'dask' (Dask distributed: a LocalCluster, or the "
+                       "scheduler at dask_address)", "local")
+    dask_address: str = _f("scheduler address, e.g. 'tcp://10.0.0.5:8786' (empty: start a LocalCluster here)", "")
+    dask_workers: int = _f("worker processes of the LocalCluster, one thread each (0: all cores)", 0)
+    chunk_runs: int = _f("runs per result part (Parquet file) and per task", 4096)
 
 
 @dataclass(frozen=True)
@@ -152,10 +159,14 @@ class Scene:
     experiment: ExperimentConfig | None = None
 
     def canonical(self) -> dict:
-        """Resolved scene as plain data (what the hash covers), with record file digests."""
+        """Resolved scene as plain data (what the hash covers), with record file digests. How and
+        where it runs ([execution], the output path) is left out: it does not change a result, so a
+        sweep can be resumed on another executor or after its folder moved."""
         d = dataclasses.asdict(self)
         d.pop("source")
         d.pop("toml_text")
+        d.pop("execution")
+        d["output"].pop("path")
         d["sweep"] = [{"name": a.name, "values": list(a.values)} for a in self.sweep]
         files = sorted(({self.excitation.record} | set(_axis_values(self, "record"))) - {None})
         if self.experiment is not None:
@@ -483,6 +494,12 @@ def validate(s: Scene) -> None:
         raise ConfigError(f"[execution] threads = {s.execution.threads}: must be >= 0")
     if s.execution.batch_runs < 0:
         raise ConfigError(f"[execution] batch_runs = {s.execution.batch_runs}: must be >= 0")
+    if s.execution.executor not in EXECUTORS:
+        raise ConfigError(f"[execution] executor = {s.execution.executor!r}: expected one of {list(EXECUTORS)}")
+    if s.execution.dask_workers < 0:
+        raise ConfigError(f"[execution] dask_workers = {s.execution.dask_workers}: must be >= 0")
+    if s.execution.chunk_runs < 1:
+        raise ConfigError(f"[execution] chunk_runs = {s.execution.chunk_runs}: must be >= 1")
     if s.experiment is not None:
         _validate_experiment(s)
     n = 1

@@ -24,7 +24,7 @@ import numpy as np
 import pandas as pd
 
 from .config import scene_from_dict, validate
-from .results import read_metadata, sidecar_path
+from .results import read_metadata, read_schema, sidecar_path
 
 DPI = 120
 #: columns an error-against-run-time table needs (one row per scheme and dt); `accuracy_ladder` writes them
@@ -60,7 +60,7 @@ def scene_of(results: str | Path):
     md = read_metadata(results)
     import pyarrow.parquet as pq
 
-    toml = pq.read_schema(results).metadata[b"scene_toml"].decode()
+    toml = read_schema(results).metadata[b"scene_toml"].decode()
     src = Path(md["scene_file"])
     return scene_from_dict(tomllib.loads(toml), base_dir=src.resolve().parent, source=str(src), toml_text=toml)
 

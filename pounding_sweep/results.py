@@ -1,5 +1,10 @@
 """Parquet output: one row per run, units in column names, the scene and versions in the
-file metadata, written to a temporary name and renamed only when complete."""
+file metadata, written to a temporary name and renamed only when complete.
+
+A sweep's result is a Parquet dataset: a folder of parts `part-00000.parquet`, ... (one per chunk
+of the grid, in run_id order), which pandas, pyarrow, polars and DuckDB read as one table, plus
+`_sweep.json` (the config hash, package version and chunking, for resuming). Names starting with
+'_' or '.' (the manifest, parts being written) are skipped by those readers."""
 
 from __future__ import annotations
 
@@ -109,9 +114,70 @@ def file_metadata(scene, extra: dict) -> dict[bytes, bytes]:
 
 
 def read_metadata(path: str | Path) -> dict:
-    """The pounding_sweep metadata of a result file, as a dict."""
-    md = pq.read_schema(path).metadata or {}
-    return json.loads(md[META_KEY])
+    """The pounding_sweep metadata of a result file or dataset folder, as a dict."""
+    return json.loads(read_schema(path).metadata[META_KEY])
+
+
+def read_schema(path: str | Path) -> pa.Schema:
+    """Schema (with the key-value metadata) of a result file, or of a dataset folder's first part."""
+    p = Path(path)
+    if p.is_dir():
+        parts = part_files(p)
+        if not parts:
+            raise FileNotFoundError(f"{p}: no result parts (part-*.parquet) in this folder")
+        p = parts[0]
+    schema = pq.read_schema(p)
+    if not schema.metadata or META_KEY not in schema.metadata:
+        raise KeyError(f"{p}: not a pounding_sweep result (no '{META_KEY.decode()}' metadata)")
+    return schema
+
+
+# ----------------------------------------------------------------------------- dataset parts
+
+PART_NAME = "part-{:05d}.parquet"
+MANIFEST = "_sweep.json"
+
+
+def part_files(folder: str | Path) -> list[Path]:
+    """The finished parts of a dataset folder, in order."""
+    return sorted(Path(folder).glob("part-*.parquet"))
+
+
+def part_index(path: Path) -> int:
+    return int(path.name[len("part-"): -len(".parquet")])
+
+
+def write_part(folder: Path, index: int, table: pa.Table, metadata: dict[bytes, bytes]) -> Path:
+    """Write one part atomically: `.part-N.parquet.tmp` (hidden from readers), then rename."""
+    folder.mkdir(parents=True, exist_ok=True)
+    final = folder / PART_NAME.format(index)
+    tmp = folder / f".{final.name}.tmp"
+    try:
+        pq.write_table(table.replace_schema_metadata(metadata), tmp, compression="zstd")
+        os.replace(tmp, final)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return final
+
+
+def read_manifest(folder: Path) -> dict | None:
+    try:
+        return json.loads((Path(folder) / MANIFEST).read_text())
+    except FileNotFoundError:
+        return None
+
+
+def write_manifest(folder: Path, manifest: dict) -> None:
+    folder.mkdir(parents=True, exist_ok=True)
+    tmp = folder / f".{MANIFEST}.tmp"
+    tmp.write_text(json.dumps(manifest, indent=1, sort_keys=True))
+    os.replace(tmp, folder / MANIFEST)
+
+
+def remove_stale_temporaries(folder: Path) -> None:
+    """Parts a killed sweep left half-written (never renamed)."""
+    for t in Path(folder).glob(".part-*.tmp"):
+        t.unlink(missing_ok=True)
 
 
 class AtomicParquetWriter:

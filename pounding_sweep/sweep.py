@@ -1,13 +1,13 @@
 """Orchestration of one scene: config -> model -> excitation -> kernel -> metrics -> Parquet.
 
-The grid is run chunk by chunk: each chunk's rows are written as soon as they are done, so
-memory follows the chunk, not the grid. When the scene has an [experiment], every run is
+The grid is run chunk by chunk (by an executor: local threads or Dask); each chunk's rows are
+written as their own Parquet part as soon as they are done, so memory follows the chunk, not the
+grid, and an interrupted sweep resumes where it stopped. When the scene has an [experiment], every run is
 scored as it finishes and the best runs are kept as running minima.
 """
 
 from __future__ import annotations
 
-import contextlib
 import time
 from collections import Counter
 from dataclasses import dataclass, field
@@ -16,6 +16,7 @@ from typing import Callable
 
 import numpy as np
 import pandas as pd
+import pyarrow.parquet as pq
 
 from . import metrics_layout as L
 from .channels import parse_channel
@@ -27,11 +28,13 @@ from .grid import Grid
 from .kernel import SCHEMES
 from .model import CoupledModel, SystemArrays
 from .ranking import Ranking, Refinement, refine, score_columns, score_table_columns
-from .results import (AtomicParquetWriter, file_metadata, histories_path, histories_table, metrics_table,
-                      sidecar_path)
+from . import __version__
+from .config import ConfigError
+from .results import (MANIFEST, PART_NAME, AtomicParquetWriter, file_metadata, histories_path, histories_table,
+                      metrics_table, part_files, part_index, read_manifest, remove_stale_temporaries, sidecar_path,
+                      write_manifest, write_part)
 
 HISTORY_CHUNK_BYTES = 256 * 2**20
-CHUNK_RUNS = 4096
 
 
 @dataclass
@@ -52,6 +55,9 @@ class SweepSummary:
     best: pd.DataFrame | None = None
     best_path: Path | None = None
     refinement: Refinement | None = None
+    parts: int = 0
+    resumed_parts: int = 0
+    executor: str = "local"
 
 
 @dataclass(frozen=True)
@@ -124,51 +130,69 @@ def history_spec(scene: Scene, floors: tuple[int, int]) -> tuple[HistorySpec, li
     return spec, [p[2] for p in parsed]
 
 
+class OutputError(ConfigError):
+    """The output folder holds results this sweep must not mix with or overwrite unasked."""
+
+
 def run_scene(scene: Scene, out_path: str | Path | None = None, threads: int | None = None,
-              progress: Callable[[int, int], None] | None = None) -> SweepSummary:
-    """Run every grid point of the scene and write the result table(s); return a summary."""
+              progress: Callable[[int, int], None] | None = None, executor=None,
+              overwrite: bool = False) -> SweepSummary:
+    """Run every grid point of the scene into a Parquet dataset folder (one part per chunk); return
+    a summary. Parts already in the folder from an interrupted run of the same scene (same config
+    hash and package version) are kept and skipped; other results there are refused unless
+    `overwrite`. `executor`: one from executors.make_executor (default: the scene's [execution])."""
+    from .executors import make_executor
+
     out_path = Path(out_path or scene.output.path)
     prep = prepare(scene)
     grid, model, exc = prep.grid, prep.model, prep.excitation
-    n_threads = resolve_threads(threads if threads is not None else scene.execution.threads)
-    compile_s = compile_kernel(prep.sysarr, prep.opts)
-
+    ex = scene.execution
+    chunk_runs = ex.chunk_runs
     if prep.hist.active:
         per_run = prep.hist.kinds.size * (int(exc.max_steps) // prep.hist.decimate + 1) * 8
-        chunk_runs = max(1, min(CHUNK_RUNS, HISTORY_CHUNK_BYTES // per_run))
-    else:
-        chunk_runs = CHUNK_RUNS
+        chunk_runs = max(1, min(chunk_runs, HISTORY_CHUNK_BYTES // per_run))
+    chunks = [(i, s, e) for i, (s, e) in enumerate(grid.chunks(chunk_runs))]
+    manifest = {"config_hash": scene.config_hash(), "version": __version__, "scene": scene.name,
+                "grid_size": grid.size, "chunk_runs": chunk_runs, "parts": len(chunks)}
+    hpath = histories_path(out_path) if prep.hist.active else None
+    done = _claim_output(out_path, hpath, manifest, overwrite)
+    todo = [c for c in chunks if c[0] not in done]
+
     how = scene.experiment.combine if scene.experiment else "mean"
     meta = file_metadata(scene, _model_facts(prep))
     names = L.metric_columns(model.floors, model.n_pairs)
-    steps_col = names.index("steps")
-    force_cols = [i for i, nme in enumerate(names) if nme.startswith("peak_force_f")]
     ranking = Ranking([f"rel_rms_{c}_pct" for c in prep.score_codes] + ["rel_rms_combined_pct"]) if prep.score_codes else None
-    statuses: Counter = Counter()
-    kernel_s, steps, peak_force = 0.0, 0, 0.0
-    hpath = histories_path(out_path) if prep.hist.active else None
+    tally = _Tally(ranking)
+    for i in sorted(done):
+        tally.add(pq.read_table(out_path / PART_NAME.format(i)))
+    if progress is not None and done:
+        progress(tally.runs, grid.size)
+
+    exe = executor or make_executor(ex.executor, threads if threads is not None else ex.threads, ex.dask_address,
+                                    ex.dask_workers)
+    compile_s = compile_kernel(prep.sysarr, prep.opts)  # here too: refinement and the summary's figure
     t_run = time.perf_counter()
-    with AtomicParquetWriter(out_path, meta) as writer, _maybe_writer(hpath, meta) as hwriter:
-        for s, e in grid.chunks(chunk_runs):
-            params = grid.chunk(s, e)
-            metrics, run_time, hist, scores, derived = prep.run(params, n_threads, scene.execution.batch_runs)
-            columns = {"run_id": params["run_id"], **_param_columns(exc, params, derived)}
-            extra = score_table_columns(scores, prep.score_codes, how) if scores is not None else {}
-            table = metrics_table(columns, names, metrics, run_time, extra)
-            writer.write(table)
-            if hwriter is not None:
-                hwriter.write(histories_table(params["run_id"], hist, prep.dt * prep.hist.decimate, prep.hist_columns))
-            if ranking is not None:
-                ranking.update(table)
-            statuses.update(table.column("status").to_pylist())
-            kernel_s += float(run_time.sum())
-            steps += int(metrics[:, steps_col].sum())
-            peak_force = max(peak_force, float(metrics[:, force_cols].max(initial=0.0)))
+    try:
+        for res in exe.map(prep, todo):
+            columns = {"run_id": res.params["run_id"], **_param_columns(exc, res.params, res.derived)}
+            extra = score_table_columns(res.scores, prep.score_codes, how) if res.scores is not None else {}
+            table = metrics_table(columns, names, res.metrics, res.run_time, extra)
+            if not (out_path / MANIFEST).exists():
+                write_manifest(out_path, manifest)
+            if hpath is not None:  # histories first: a finished main part implies its histories exist
+                write_part(hpath, res.index, histories_table(res.params["run_id"], res.hist,
+                                                             prep.dt * prep.hist.decimate, prep.hist_columns), meta)
+            write_part(out_path, res.index, table, meta)
+            tally.add(table)
             if progress is not None:
-                progress(e, grid.size)
+                progress(tally.runs, grid.size)
+    finally:
+        if executor is None:
+            exe.close()
     run_s = time.perf_counter() - t_run
-    summary = SweepSummary(scene.name, grid.size, out_path, hpath, statuses, compile_s, run_s, kernel_s, steps,
-                           n_threads, {"peak_force_N": peak_force})
+    summary = SweepSummary(scene.name, grid.size, out_path, hpath, tally.statuses, compile_s, run_s, tally.kernel_s,
+                           tally.steps, exe.workers, {"peak_force_N": tally.peak_force}, parts=len(chunks),
+                           resumed_parts=len(done), executor=exe.name)
     if ranking is not None:
         best = ranking.frame()
         if best.empty:  # every run diverged or ended before the window: nothing to rank
@@ -187,6 +211,61 @@ def run_scene(scene: Scene, out_path: str | Path | None = None, threads: int | N
         with AtomicParquetWriter(summary.best_path, file_metadata(scene, {"kind": "best"})) as w:
             w.write(pa.Table.from_pandas(best, preserve_index=False))
     return summary
+
+
+class _Tally:
+    """Counts, timings, extremes and the ranking over the parts of a sweep (new or resumed)."""
+
+    def __init__(self, ranking: Ranking | None):
+        self.ranking = ranking
+        self.statuses: Counter = Counter()
+        self.runs = 0
+        self.steps = 0
+        self.kernel_s = 0.0
+        self.peak_force = 0.0
+
+    def add(self, table) -> None:
+        self.runs += table.num_rows
+        self.statuses.update(table.column("status").to_pylist())
+        self.steps += int(np.nansum(table.column("steps").to_numpy()))
+        self.kernel_s += float(np.nansum(table.column("run_time_s").to_numpy()))
+        for name in table.column_names:
+            if name.startswith("peak_force_f"):
+                self.peak_force = max(self.peak_force, float(np.nanmax(table.column(name).to_numpy(), initial=0.0)))
+        if self.ranking is not None:
+            self.ranking.update(table)
+
+
+def _claim_output(out: Path, hpath: Path | None, manifest: dict, overwrite: bool) -> set[int]:
+    """Indexes of the parts already finished for this very sweep; refuse anything else in `out`."""
+    if out.is_file():
+        if not overwrite:
+            raise OutputError(f"{out} is a file (an older single-file result?): give another --out, or --overwrite")
+        out.unlink()
+    if not out.exists():
+        return set()
+    old = read_manifest(out)
+    if overwrite:
+        for folder in (out, hpath):
+            if folder is not None and folder.is_dir():
+                for f in part_files(folder) + [folder / MANIFEST]:
+                    f.unlink(missing_ok=True)
+        sidecar_path(out, "best").unlink(missing_ok=True)
+        return set()
+    if old is None:
+        if any(out.iterdir()):
+            raise OutputError(f"{out} exists and is not a pounding_sweep result folder (no {MANIFEST}): "
+                              "give another --out")
+        return set()
+    same = {k: old.get(k) == v for k, v in manifest.items() if k != "scene"}
+    if not all(same.values()):
+        what = ", ".join(f"{k} {old.get(k)!r} here vs {manifest[k]!r} now" for k, ok in same.items() if not ok)
+        raise OutputError(f"{out} holds results of a different sweep ({what}); resuming would mix them: "
+                          "give another --out, or --overwrite to replace them")
+    remove_stale_temporaries(out)
+    if hpath is not None and hpath.is_dir():
+        remove_stale_temporaries(hpath)
+    return {part_index(p) for p in part_files(out) if part_index(p) < manifest["parts"]}
 
 
 def refine_best(prep: Prepared, best: pd.DataFrame) -> Refinement | None:
@@ -260,7 +339,3 @@ def _param_columns(exc: Excitation, params: dict, derived: dict) -> dict:
     cols["contact_damping_ratio"] = derived["contact_damping_ratio"]
     cols["steps_per_contact_period"] = derived["steps_per_contact_period"]
     return cols
-
-
-def _maybe_writer(path, meta):
-    return contextlib.nullcontext() if path is None else AtomicParquetWriter(path, meta)

@@ -265,10 +265,14 @@ def test_non_uniform_experiment_sampling_is_refused(tmp_path):
         prepare(_scene_with_table(tmp_path, d))
 
 
-def test_out_is_a_folder_exit_2(tmp_path):
+def test_out_is_a_foreign_folder_exit_2(tmp_path):
+    """--out naming a folder that holds something else: refused, nothing written into it."""
+    (tmp_path / "notes.txt").write_text("mine")
     p = subprocess.run([sys.executable, "-m", "pounding_sweep", str(SWEEPS / "paper_6hz.toml"), "--out", str(tmp_path)],
                        capture_output=True, text=True, cwd=REPO)
-    assert p.returncode == 2 and "Traceback" not in p.stderr and "cannot write results" in p.stderr
+    assert p.returncode == 2 and "Traceback" not in p.stderr
+    assert "is not a pounding_sweep result folder" in p.stderr and str(tmp_path) in p.stderr
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["notes.txt"]
 
 
 def test_plot_from_another_folder(tmp_path):

@@ -243,3 +243,16 @@ def test_import_and_a_sweep_never_import_opencv():
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO)
     assert p.returncode == 0, p.stderr
     assert p.stdout.strip() == "False"
+
+
+def test_progress_is_called_with_done_and_total_and_fps_can_be_overridden(video):
+    calls = []
+    spec = VideoSpec(path=str(video.path), markers=tuple(NAMES.split(",")), references=("table_left", "table_right"),
+                     mm_per_px=5.0, fps=50.0)
+    from pounding_sweep.video.tracker import track_video
+
+    res = track_video(spec, progress=lambda done, total: calls.append((done, total)))
+    assert calls[0][0] == 1 and calls[-1] == (80, 80) and len(calls) >= 80
+    assert all(total >= done for done, total in calls)
+    assert res.fps == 50.0 and res.t_s[1] == pytest.approx(0.02)
+    assert res.provenance["container_fps"] == 100.0

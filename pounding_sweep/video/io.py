@@ -183,9 +183,12 @@ def write_video(path: str | Path, frames, fps: float, codec: str = "FFV1", color
         writer.write(first)
         for f in it:
             writer.write(f)
-    finally:
         writer.release()
-    os.replace(tmp, path)
+        os.replace(tmp, path)
+    except BaseException:
+        writer.release()
+        tmp.unlink(missing_ok=True)
+        raise
     return path
 
 

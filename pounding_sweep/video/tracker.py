@@ -479,6 +479,12 @@ class Tracker:
         mode = s.transform if len(ref_idx) >= 2 else "translation"
         zc = Zr - Zr.mean(axis=1, keepdims=True)
         wc = W - W.mean()
+        if mode != "translation":
+            spread = np.sqrt((np.abs(zc) ** 2).sum(axis=1))
+            if spread.min() < 1.0:
+                k = int(np.argmin(spread))
+                raise VideoError(self.path, f"the references {', '.join(s.references)} are less than 1 px apart in frame "
+                                 f"{k + s.start_frame}: they cannot give the camera's rotation", f"{spread[k]:.3g} px")
         if mode == "translation":
             a = np.ones(nf, complex)
         else:

@@ -32,6 +32,14 @@ frames) with `scipy.optimize.linear_sum_assignment` (Kuhn-Munkres; Crouse, IEEE 
 - shape: the core's area exceeds `area_factor` times the marker's usual area, or its principal
   axes ratio exceeds `max_elongation` (a reflection or blur merged into the core) -> flagged.
 
+OpenCV functions used (OpenCV docs, imgproc "Image Filtering", "Miscellaneous Image
+Transformations" and "Structural Analysis and Shape Descriptors"): `medianBlur` (the paper's median
+filter), `threshold`, `findContours` (outer contours: each bright area's bounding box; labelling the
+whole frame with `connectedComponentsWithStats` costs 10x more at 640 x 480, so that is done inside
+each box), `connectedComponentsWithStats` (cores and their areas) and `moments` (m00, m10, m01 and
+the central second moments of the weighted core; centroid m10/m00, m01/m00, pixel centres at
+integer coordinates, the renderer's convention).
+
 Interpolated gaps (cubic spline through the measured frames) may be at most `max_gap_frames`
 long; a longer one is an error. Displacement relative to the table: per frame, the least-squares
 similarity (2 or more references; rotation, scale, translation: Umeyama, IEEE PAMI 13 (1991)
@@ -47,6 +55,8 @@ import dataclasses
 import hashlib
 import json
 import os
+import queue
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -573,6 +583,57 @@ def track_frames(frames, spec: VideoSpec, fps: float, path: str = "<frames>", pr
     return tr.finish()
 
 
+def prefetch(frames, depth: int = 16):
+    """Yield from `frames` while a thread decodes ahead (OpenCV releases the GIL while decoding, so
+    decoding and tracking overlap on two cores). Errors of the decoder are raised here, and the
+    thread is stopped and joined before this generator ends, however it ends."""
+    q: queue.Queue = queue.Queue(maxsize=depth)
+    stop = threading.Event()
+    done = object()
+    errors: list[BaseException] = []
+
+    def run():
+        try:
+            for f in frames:
+                while not stop.is_set():
+                    try:
+                        q.put(f, timeout=0.05)
+                        break
+                    except queue.Full:
+                        continue
+                if stop.is_set():
+                    return
+        except BaseException as e:  # handed to the consumer
+            errors.append(e)
+        finally:
+            while True:
+                try:
+                    q.put(done, timeout=0.05)
+                    return
+                except queue.Full:
+                    if stop.is_set():
+                        return
+
+    th = threading.Thread(target=run, name="video-decode", daemon=True)
+    th.start()
+    try:
+        while True:
+            f = q.get()
+            if f is done:
+                break
+            yield f
+    finally:
+        stop.set()
+        while th.is_alive():
+            try:
+                q.get(timeout=0.05)
+            except queue.Empty:
+                pass
+        th.join()
+    if errors:
+        raise errors[0]
+
+
 def track_video(spec: VideoSpec, progress=None) -> TrackResult:
     """Open, read (frames counted by reading) and track the video of `spec`."""
     import pounding_sweep
@@ -594,7 +655,7 @@ def track_video(spec: VideoSpec, progress=None) -> TrackResult:
             hint = min(hint, spec.max_frames) if hint else spec.max_frames
         tr = Tracker(spec, info.fps, info.path)
         n = 0
-        for f in frames():
+        for f in prefetch(frames()):
             tr.process(f)
             n += 1
             if progress is not None:

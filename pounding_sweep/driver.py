@@ -1,13 +1,21 @@
 """Run a chunk of grid points through the kernel on a pool of threads.
 
-The kernel releases the GIL, so threads run side by side; runs are handed out in small
-batches from a shared queue, so a thread that draws runs with many impacts does not hold the
-others up (static splitting, as numba's prange does, would). Each run writes only its own
-rows: no shared reductions, results identical whatever the thread count.
+Two kernels compute the same metric rows: the lane kernel (kernel_lanes.integrate_lanes, 16 runs
+side by side in SIMD lanes, the scalar kernel's arithmetic per run) takes every chunk it is
+eligible for (kernel_lanes.lanes_ineligible_reason: metrics only, implicit scheme, the two
+shear-frame structure); the scalar kernel (kernel.integrate_batch) takes the others (histories,
+scoring, the paper's scheme) and reruns any run that diverged in a lane.
+
+The kernels release the GIL, so threads run side by side; work is handed out in small pieces
+(a group of 16 runs, or a small batch of runs) from a shared queue, so a thread that draws runs
+with many impacts does not hold the others up (static splitting, as numba's prange does, would).
+Each run writes only its own row: no shared reductions, results identical whatever the thread
+count, lane or group a run lands in.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -17,6 +25,7 @@ import numpy as np
 
 from . import metrics_layout as L
 from .kernel import integrate_batch
+from .kernel_lanes import LANES, excitation_profiles, integrate_lanes, lanes_ineligible_reason, size_tuples
 from .model import SystemArrays
 from .score_kernel import N_SCORES
 
@@ -87,9 +96,28 @@ def resolve_threads(threads: int) -> int:
     return threads if threads > 0 else (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
 
 
+def kernel_for(sys: SystemArrays, hist: HistorySpec, opts: KernelOptions, score: ScoreSpec | None = None) -> str:
+    """'lanes' or 'scalar': the kernel run_chunk uses for such a chunk."""
+    return "lanes" if lanes_ineligible_reason(sys, hist, opts, score) is None else "scalar"
+
+
+#: set to "scalar" to force the scalar kernel everywhere (benchmarks and tests compare the two)
+FORCE_KERNEL: str | None = None
+
+
 def run_chunk(sys: SystemArrays, runs: RunArrays, rec, hist: HistorySpec, opts: KernelOptions,
               threads: int = 1, batch_runs: int = 0, score: ScoreSpec | None = None):
     """Integrate every run of the chunk; return (metrics, run_time_s, histories or None, scores or None)."""
+    score = score or ScoreSpec.none()
+    if FORCE_KERNEL != "scalar" and runs.n > 0 and kernel_for(sys, hist, opts, score) == "lanes":
+        metrics, run_time = run_chunk_lanes(sys, runs, rec, opts, threads)
+        return metrics, run_time, None, None
+    return run_chunk_scalar(sys, runs, rec, hist, opts, threads, batch_runs, score)
+
+
+def run_chunk_scalar(sys: SystemArrays, runs: RunArrays, rec, hist: HistorySpec, opts: KernelOptions,
+                     threads: int = 1, batch_runs: int = 0, score: ScoreSpec | None = None):
+    """run_chunk on the scalar kernel (every option supported)."""
     score = score or ScoreSpec.none()
     n = runs.n
     n_metrics = L.n_metrics(sys.m.size, sys.i1.size)
@@ -129,12 +157,62 @@ def run_chunk(sys: SystemArrays, runs: RunArrays, rec, hist: HistorySpec, opts: 
     return metrics, run_time, (hist_arr if hist.active else None), (scores if score.active else None)
 
 
-def compile_kernel(sys: SystemArrays, opts: KernelOptions) -> float:
-    """Compile (or load from cache) the kernel on a one-step run; return the seconds it took."""
+def run_chunk_lanes(sys: SystemArrays, runs: RunArrays, rec, opts: KernelOptions, threads: int = 1):
+    """run_chunk on the lane kernel (the caller checked eligibility): (metrics, run_time_s).
+
+    Runs are grouped by length, then by excitation profile, so a group's lanes end together and
+    share their ground motion; groups go to the threads one at a time. A run's time is its group's
+    time shared among the group's runs. Runs that diverged in a lane are rerun by the scalar kernel.
+    """
+    n = runs.n
+    n_metrics = L.n_metrics(sys.m.size, sys.i1.size)
+    metrics = np.zeros((n, n_metrics))
+    run_time = np.zeros(n)
+    redo = np.zeros(n, np.int64)
+    coef, pid, prof = excitation_profiles(runs, rec, sys.dt)
+    order = np.lexsort((pid, runs.nsteps)).astype(np.int64)
+    nt, n1t = size_tuples(sys)
+    n_groups = -(-n // LANES)
+
+    def work(g):
+        t0 = time.perf_counter()
+        integrate_lanes(order, g, g + 1, sys.dt, opts.law, opts.max_iter, nt, n1t,
+                        sys.m, sys.C, sys.K, sys.Kinv, sys.H, sys.S, runs.ks, runs.cdash, runs.gap, runs.status_in, runs.nsteps,
+                        coef, pid, prof, metrics, redo)
+        members = order[g * LANES:(g + 1) * LANES]
+        run_time[members] = (time.perf_counter() - t0) / members.size
+
+    threads = max(1, min(threads, n_groups))
+    if threads == 1:
+        for g in range(n_groups):
+            work(g)
+    else:
+        with ThreadPoolExecutor(max_workers=threads) as pool:
+            list(pool.map(work, range(n_groups)))
+    again = np.flatnonzero(redo)
+    if again.size:
+        sub = RunArrays(*(np.ascontiguousarray(getattr(runs, f.name)[again]) for f in dataclasses.fields(RunArrays)))
+        m2, t2, _, _ = run_chunk_scalar(sys, sub, rec, HistorySpec.none(), opts, threads)
+        metrics[again] = m2
+        run_time[again] = t2
+    return metrics, run_time
+
+
+def compile_kernel(sys: SystemArrays, opts: KernelOptions, hist: HistorySpec | None = None,
+                   score: ScoreSpec | None = None) -> float:
+    """Compile (or load from cache) the kernel(s) a sweep of this system will use, on one-step runs;
+    return the seconds it took. With `hist` and `score` given: the kernel run_chunk picks for them;
+    without: the lane kernel where the system and options allow it, and the scalar kernel (which
+    chunks with histories or scoring, and diverged runs, use) in any case."""
     t0 = time.perf_counter()
     p = sys.i1.size
     runs = RunArrays(np.ones(1), np.zeros((1, p)), np.zeros(1), np.zeros(1, np.int64), np.zeros(1),
                      np.ones(1), np.zeros(1, np.int64), np.ones(1, np.int64), np.zeros(1, np.int64))
     rec = (np.zeros(1), np.zeros(1, np.int64), np.zeros(1, np.int64))
-    run_chunk(sys, runs, rec, HistorySpec.none(), opts)
+    none = HistorySpec.none()
+    lanes_ok = lanes_ineligible_reason(sys, hist or none, opts, score) is None
+    if lanes_ok:
+        run_chunk_lanes(sys, runs, rec, opts)
+    if hist is None or not lanes_ok:
+        run_chunk_scalar(sys, runs, rec, hist or none, opts, score=score)
     return time.perf_counter() - t0

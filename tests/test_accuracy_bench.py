@@ -1,0 +1,104 @@
+"""The accuracy benchmark and the stability map on small cases: their references and invariants
+(issue 5). Correctness only: run times are measured by the scripts, never asserted here."""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from conftest import REPO
+
+sys.path.insert(0, str(REPO / "benchmarks"))
+
+import bench_accuracy as ba  # noqa: E402
+import stability_map as sm  # noqa: E402
+
+
+def _quiet(*_):
+    pass
+
+
+def test_continuous_reference_is_ivp_reference_on_harmonic_motion():
+    """The benchmark's reference (records too) is tests/reference.py's ivp_reference on a harmonic scene,
+    and is converged: 10x tighter tolerances move it by far less than the errors it measures."""
+    scene = ba.base_scene("paper_6hz", 0.3)
+    ref = ba.continuous_reference(scene, ks_ratio=10.0, r=0.4)
+    same = ba.check_against_ivp_reference(scene, ref, ks_ratio=10.0, r=0.4)
+    check = ba.reference_self_check(scene, ref, ks_ratio=10.0, r=0.4)
+    assert ref.impacts.sum() > 3 and np.all(np.isfinite(ref.top))
+    assert same["same_impacts"] and same["rel_rms_pct"] < 1e-8
+    assert check["same_events"] and check["rel_rms_pct"] < 1e-8 and check["peak_force_pct"] < 1e-7
+    # the peak force includes the instants of impact and is refined on the dense output: not below any sample
+    assert ref.peak_force[2] > 0 and ref.peak_disp[2] >= np.abs(ref.top[:, 0]).max()
+
+
+def test_accuracy_quick_ladder_6hz(tmp_path):
+    """bench_accuracy's quick mode on the 6 Hz scene (k_s/k = 10, 0.5 s, dt 1e-3 .. 1e-4 s): finite errors,
+    the event scheme second order and below the other two at every resolved dt, the Richardson extrapolation
+    closer to the reference than the finest run, a CSV the plots module reads and its PNG."""
+    from pounding_sweep.plots import read_accuracy_table
+
+    out = ba.run_scene_ladder("paper_6hz", quick=True, ks_ratio=10.0, r=None, repeats=1, out_dir=tmp_path, log=_quiet)
+    df = out["table"]
+    assert set(df.scheme) == {"event", "implicit", "paper"} and len(df) == 12
+    assert np.isfinite(df.rel_rms_pct).all() and (df.rel_rms_pct > 0).all()
+    order, lo, hi, n = out["orders"]["event"]
+    assert order > 1.8 and n >= 2
+    ev = df[df.scheme == "event"].set_index("dt_s")
+    for other in ("implicit", "paper"):
+        o = df[df.scheme == other].set_index("dt_s")
+        assert (ev.rel_rms_pct[ev.index <= 2.5e-4] < o.rel_rms_pct[o.index <= 2.5e-4]).all()
+    assert (ev.impacts_f3[ev.index <= 5e-4] == ev.ref_impacts_f3[ev.index <= 5e-4]).all()
+    assert out["richardson"]["richardson_err_pct"] < 0.2 * out["richardson"]["event_err_pct"]
+    table = read_accuracy_table(out["csv"])
+    assert {"scheme", "dt_s", "steps", "run_time_s", "rel_rms_pct", "status"} <= set(table.columns)
+    assert out["png"].is_file()
+
+
+def test_event_scheme_second_order_on_the_record():
+    """The Duzce record (first 1 s, k_s/k = 10): the event scheme converges at second order to the
+    record reference (solve_ivp restarted at every record sample)."""
+    scene = ba.base_scene("paper_duzce", 1.0)
+    ov = {"ks_ratio": 10.0, "r": 0.2}
+    ref = ba.continuous_reference(scene, **ov)
+    assert ref.impacts.sum() > 3
+    df = ba.ladder(scene, ref, dts=(5e-4, 2.5e-4, 1e-4), schemes=("event",), repeats=1, log=_quiet, **ov)
+    assert np.isfinite(df.rel_rms_pct).all()
+    order = ba.observed_order(df, "event")[0]
+    assert order > 1.8, df[["dt_s", "rel_rms_pct"]]
+
+
+def test_equal_time_ratio_interpolates_in_log_log():
+    """The equal-run-time comparison: the slow scheme's curve interpolated at the fast run's time, none
+    outside its range, diverged points left out."""
+    df = pd.DataFrame({"scheme": ["event"] * 2 + ["paper"] * 3, "dt_s": [1e-3, 1e-4, 1e-2, 1e-3, 1e-4],
+                       "run_time_s": [2.0, 20.0, 0.5, 1.0, 10.0], "rel_rms_pct": [1e-2, 1e-4, np.nan, 1.0, 0.1]})
+    r = ba.equal_time_ratios(df).set_index("dt_s")
+    assert r.loc[1e-3, "paper_at_same_time_pct"] == pytest.approx(10 ** (-np.log10(2.0)))  # 1 % at 1 s, 0.1 % at 10 s
+    assert r.loc[1e-3, "ratio"] == pytest.approx(50.0)
+    assert np.isnan(r.loc[1e-4, "ratio"])  # 20 s lies beyond the paper scheme's 10 s
+
+
+def test_stability_quick_map_invariants(tmp_path):
+    """stability_map's quick mode (6 Hz, 0.2 s, k_s/k 1e-2/1/1e4, r 0/1, 10 mm, dt 1e-4 and 5e-3 s, both laws,
+    every scheme): the default (event) scheme never diverges, never turns non-finite and makes no energy;
+    the under-resolved flag is set exactly where dt exceeds 1/20 of the contact period; the paper scheme's
+    blow-up at k_s/k = 1e4, dt = 5e-3 s is caught and flagged; the map's files are written."""
+    assert sm.main(["--quick", "--out-dir", str(tmp_path)]) == 0
+    df = sm.classify(pd.read_parquet(tmp_path / "stability_map_quick.parquet"))
+    assert len(df) == 72
+    ev = df[df.scheme == "event"]
+    assert not ev.diverged.any() and not ev.nonfinite.any()
+    assert not ev.energy_made.any() and not ev.energy_flag.any()
+    assert ev.balance_gap.abs().max() < 1e-8
+    assert (ev.underresolved == (ev.steps_per_contact_period < 20)).all()
+    assert (df.underresolved == (df.steps_per_contact_period < 20)).all()
+    stiff = df[(df.scheme == "paper") & (df.ks_ratio == 1e4) & (df.dt_s == 5e-3)]
+    assert stiff.diverged.all() and (stiff.category == "diverged").all()
+    assert not df[(df.scheme == "paper") & (df.dt_s == 1e-4)].diverged.any()
+    b = sm.paper_boundary(df).set_index("ks_ratio")
+    assert b.loc[1e4, "smallest_dt_diverged_s"] == 5e-3 and np.isnan(b.loc[1.0, "smallest_dt_diverged_s"])
+    assert (tmp_path / "stability_map_quick.png").is_file() and (tmp_path / "stability_map_quick_summary.csv").is_file()

@@ -4,8 +4,9 @@ frequencies, damping by half-power bandwidth and by logarithmic decrement, mode-
 The paper (Sekerci & Damci, sec. 3) found the models' frequencies and mode shapes from the
 tracked pixel histories by FFT, and checked f1 by FFT before each test. Methods and references:
 
-- Amplitude spectrum: FFT of the mean-removed record, Hann window by default, zero-padded so that
-  peaks can be read between bins; power spectral density: Welch's averaged periodograms (Welch,
+- Amplitude spectrum: FFT of the mean-removed record, Hann window by default (for free vibration:
+  flat, then a cosine taper over the last half, which keeps the start where the response lives and
+  removes the cut at the end), zero-padded so that peaks can be read between bins; power spectral density: Welch's averaged periodograms (Welch,
   IEEE Trans. Audio Electroacoust. 15 (1967) 70; scipy.signal.welch).
 - Peak frequency: the largest bin refined by a parabola through the log-magnitudes of it and its
   two neighbours (quadratic interpolation of spectral peaks; J. O. Smith, Spectral Audio Signal
@@ -56,12 +57,26 @@ def _as_record(x, fs) -> np.ndarray:
     return x - x.mean()
 
 
+def _window(name, n: int) -> np.ndarray:
+    """'hann', 'boxcar' (none), 'decay' (flat, then a cosine taper over the last half: for free
+    vibration, which starts at full amplitude and should not be cut off at the end), or any
+    scipy.signal.get_window name."""
+    if name in ("boxcar", "rect", None):
+        return np.ones(n)
+    if name == "decay":
+        w = np.ones(n)
+        m = n // 2
+        w[n - m:] = 0.5 * (1 + np.cos(np.pi * np.arange(1, m + 1) / m))
+        return w
+    return scipy.signal.get_window(name, n, fftbins=False)
+
+
 def amplitude_spectrum(x, fs: float, window: str = "hann", pad: int = 8) -> Spectrum:
     """One-sided amplitude spectrum of a record (a sinusoid of amplitude A reads about A at its
     frequency for any window), zero-padded to `pad` times the next power of two."""
     x = _as_record(x, fs)
     n = x.size
-    w = scipy.signal.get_window(window, n, fftbins=False) if window not in ("boxcar", "rect", None) else np.ones(n)
+    w = _window(window, n)
     nfft = int(2 ** np.ceil(np.log2(n))) * max(int(pad), 1)
     x = x - (w * x).sum() / w.sum()  # no window-weighted mean: no peak at 0 Hz leaking into the lowest bins
     X = np.fft.rfft(x * w, nfft)
@@ -105,11 +120,14 @@ class Peak:
 
 
 def find_peaks(s: Spectrum, n: int = 3, fmin: float = 0.0, fmax: float | None = None,
-               min_relative_height: float = 0.002) -> list[Peak]:
+               min_relative_height: float = 0.002, min_snr: float = 4.0) -> list[Peak]:
     """The `n` most prominent spectral peaks in [fmin, fmax], in ascending frequency, each refined
     between bins; peaks lower than `min_relative_height` times the highest are ignored, and so are
     peaks closer than 4 resolutions (the Hann main lobe and its first side lobes) to a higher one; below twice the resolution nothing
-    is a peak (a record cannot resolve a period longer than half its length)."""
+    is a peak (a record cannot resolve a period longer than half its length). Peaks that rise less
+    than `min_snr` times the spectrum's median in the band (its noise floor: peaks of a noise
+    spectrum rarely reach 3 times it) above their surroundings (scipy's prominence) are noise or
+    bumps on a stronger mode's flank, not modes."""
     f, v = s.frequency_Hz, s.values
     fmax = f[-1] if fmax is None else fmax
     band = (f >= max(fmin, 2.0 * s.resolution_Hz)) & (f <= fmax)
@@ -119,7 +137,8 @@ def find_peaks(s: Spectrum, n: int = 3, fmin: float = 0.0, fmax: float | None = 
     if top <= 0:
         return []
     df = f[1] - f[0]
-    idx, props = scipy.signal.find_peaks(np.where(band, v, 0.0), height=min_relative_height * top, prominence=0.0,
+    floor = min_snr * float(np.median(v[band]))
+    idx, props = scipy.signal.find_peaks(np.where(band, v, 0.0), height=min_relative_height * top, prominence=floor,
                                          distance=max(1, int(round(4 * s.resolution_Hz / df))))
     order = idx[np.argsort(-props["prominences"])][:n]
     return sorted((Peak(*refine_peak(f, v, int(i)), int(i)) for i in order), key=lambda p: p.frequency_Hz)
@@ -214,7 +233,7 @@ def fourier_coefficients(X, fs: float, f: float, window: str = "hann") -> np.nda
         X = X[:, None]
     X = X - X.mean(axis=0)
     n = X.shape[0]
-    w = scipy.signal.get_window(window, n, fftbins=False) if window not in ("boxcar", "rect", None) else np.ones(n)
+    w = _window(window, n)
     X = X - (w @ X) / w.sum()
     e = np.exp(-2j * np.pi * f * np.arange(n) / fs)
     return (w * e) @ X
@@ -262,7 +281,7 @@ def identify(X, fs: float, channels, n_modes: int = 3, fmin: float = 0.0, fmax: 
     floors' records (columns of X; the reference channel is usually the top floor).
 
     Peaks are picked on the sum of the channels' normalised spectra (a mode strong at any floor
-    counts; Hann window, or none for a free vibration, which has decayed by the end); half-power damping on the reference channel's rectangular-window spectrum; with
+    counts; Hann window, or for a free vibration one that only tapers its end); half-power damping on the reference channel's rectangular-window spectrum; with
     free_vibration, also the logarithmic decrement of each mode after a band-pass of +/- 25 % around it."""
     X = np.asarray(X, dtype=float)
     if X.ndim == 1:
@@ -272,9 +291,10 @@ def identify(X, fs: float, channels, n_modes: int = 3, fmin: float = 0.0, fmax: 
         raise ValueError(f"{X.shape[1]} columns but {len(channels)} channel names")
     t = np.arange(X.shape[0]) / fs
     Xs = X[t >= start_s]
-    # a free vibration has decayed by the record's end: no window needed (a Hann window would
-    # weight its start, where a fast-decaying mode lives, almost to zero and bias its peak)
-    win = "boxcar" if free_vibration else "hann"
+    # a free vibration lives at the record's start: a Hann window would weight it almost to zero and
+    # bias a fast-decaying mode's peak; no window leaves the side lobes of a slow mode cut off at the
+    # end (spurious peaks): keep the start, taper the end
+    win = "decay" if free_vibration else "hann"
     specs = [amplitude_spectrum(Xs[:, j], fs, window=win) for j in range(Xs.shape[1])]
     tot = sum(s.values / max(s.values[1:].max(), 1e-300) for s in specs)
     sumspec = Spectrum(specs[0].frequency_Hz, tot, "amplitude", specs[0].resolution_Hz)

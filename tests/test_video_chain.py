@@ -82,6 +82,11 @@ def test_first_frequency_from_a_rendered_free_vibration_video_within_half_a_perc
         assert got == pytest.approx(phi, abs=0.03)
         # damping by logarithmic decrement: the model's 1.05 % / 1.07 %, within a quarter
         assert r.modes[0].damping_log_decrement == pytest.approx(frame.modes().damping_ratio[0], rel=0.25)
+        # asked for three modes, it reports only peaks above the tracking noise, each a model mode
+        r3 = identify(X, res.fps, names, n_modes=3, free_vibration=True, start_s=0.2)
+        assert len(r3.modes) >= 1
+        for m in r3.modes:
+            assert np.min(np.abs(frame.modes().frequency_Hz / m.frequency_Hz - 1)) < 0.01, m.frequency_Hz
 
 
 def test_model_update_from_the_video_recovers_the_true_stiffness(free_vibration):

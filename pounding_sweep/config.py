@@ -85,11 +85,26 @@ class ExcitationConfig:
 class IntegrationConfig:
     """Time integration: Newmark average acceleration (gamma = 1/2, beta = 1/4)."""
 
-    dt_s: float = _f("time step [s]", 1e-4)
+    dt_s: float | str = _f("time step [s], or 'auto': per run, halved from dt_max_s until the run's result changes "
+                           "by less than dt_tolerance (step doubling with a Richardson estimate)", 1e-4)
+    dt_tolerance: float = _f("dt_s = 'auto': relative error allowed in the scored errors (fractions of the "
+                             "experiment's RMS) and peaks, or without an experiment in the peak displacements and forces",
+                             1e-3)
+    dt_max_s: float = _f("dt_s = 'auto': the coarsest step tried [s]", 2e-3)
+    dt_min_s: float = _f("dt_s = 'auto': the finest step tried [s]; runs above the tolerance there are flagged", 1e-6)
     scheme: str = _f("'implicit' (contact in the step, active set), 'event' (steps split at contact switches: second order) "
                      "or 'paper' (trial force as load, sec. 2)", "event")
     max_contact_iterations: int = _f("active-set iterations per step before a step counts as unsettled", 16)
     min_steps_per_contact_period: float = _f("flag runs with fewer steps per contact period 2 pi sqrt(m_eff/k_s)", 20.0)
+
+    @property
+    def auto(self) -> bool:
+        return self.dt_s == "auto"
+
+    @property
+    def first_dt_s(self) -> float:
+        """The fixed dt, or with 'auto' the coarsest one tried."""
+        return self.dt_max_s if self.auto else self.dt_s
 
 
 @dataclass(frozen=True)
@@ -302,6 +317,8 @@ def _coerce(value, hint, key: str):
     origin = typing.get_origin(hint)
     if origin in (typing.Union, types.UnionType):
         args = [a for a in typing.get_args(hint) if a is not type(None)]
+        if isinstance(value, str) and str in args:  # float | str: a word goes to str, the rest to the number
+            return _coerce(value, str, key)
         return _coerce(value, args[0], key)
     if origin is tuple:
         item = typing.get_args(hint)[0]
@@ -477,14 +494,25 @@ def validate(s: Scene) -> None:
     if e.format not in ("auto", "at2", "csv"):
         raise ConfigError(f"[excitation] format = {e.format!r}: expected 'auto', 'at2' or 'csv'")
     i = s.integration
-    _positive(i.dt_s, "[integration] dt_s")
+    if isinstance(i.dt_s, str):
+        if i.dt_s != "auto":
+            raise ConfigError(f"[integration] dt_s = {i.dt_s!r}: expected a time step in seconds or 'auto'")
+        _positive(i.dt_tolerance, "[integration] dt_tolerance")
+        _positive(i.dt_min_s, "[integration] dt_min_s")
+        if not i.dt_max_s > i.dt_min_s:
+            raise ConfigError(f"[integration] dt_max_s = {i.dt_max_s!r}: must be larger than dt_min_s = {i.dt_min_s!r}")
+        if s.output.histories:
+            raise ConfigError("[output] histories need one time step for all runs: give [integration] dt_s a number "
+                              "(not 'auto'), e.g. the dt_s an 'auto' sweep chose")
+    else:
+        _positive(i.dt_s, "[integration] dt_s")
     if i.scheme not in SCHEMES:
         raise ConfigError(f"[integration] scheme = {i.scheme!r}: expected one of {sorted(SCHEMES)}")
     _positive(i.max_contact_iterations, "[integration] max_contact_iterations")
     if i.min_steps_per_contact_period < 0:
         raise ConfigError(f"[integration] min_steps_per_contact_period = {i.min_steps_per_contact_period!r}: must be >= 0")
-    if e.type == "harmonic" and e.duration_s is not None and i.dt_s >= e.duration_s:
-        raise ConfigError(f"[integration] dt_s = {i.dt_s!r}: must be shorter than [excitation] duration_s = {e.duration_s!r}")
+    if e.type == "harmonic" and e.duration_s is not None and i.first_dt_s >= e.duration_s:
+        raise ConfigError(f"[integration] dt_s = {i.first_dt_s!r}: must be shorter than [excitation] duration_s = {e.duration_s!r}")
     _positive(s.output.history_decimate, "[output] history_decimate")
     from .channels import parse_channel
 

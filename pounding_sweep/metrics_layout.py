@@ -35,6 +35,7 @@ STATUS_MEDIAN_TRUNCATED = 8  # more compressive phases than the median buffer ho
 STATUS_ENERGY = 16  # |energy residual| > ENERGY_TOL of the input work: contact switching made or lost energy
 ENERGY_TOL = 0.01
 STATUS_UNSCORED = 32  # the run ended before the experiment's window did (diverged, or a shorter record)
+STATUS_DT_UNCONVERGED = 64  # dt = "auto": the tolerance was not met at dt_min (the finest result is kept)
 STATUS_WORDS = {
     STATUS_NONFINITE: "diverged",
     STATUS_UNSETTLED: "contact_unsettled",
@@ -42,6 +43,7 @@ STATUS_WORDS = {
     STATUS_MEDIAN_TRUNCATED: "median_truncated",
     STATUS_ENERGY: "energy_residual",
     STATUS_UNSCORED: "unscored",
+    STATUS_DT_UNCONVERGED: "dt_tolerance_not_met",
 }
 DIVERGED_M = 1.0e3  # a displacement beyond a kilometre is a numerical blow-up, not physics
 MEDIAN_BUFFER = 4096  # compressive phases kept per pair for the median duration

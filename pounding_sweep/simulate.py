@@ -57,6 +57,12 @@ def simulate(scene: Scene, channels: list[str] | None = None, decimate: int = 1,
     from .sweep import prepare
 
     s = with_overrides(scene, **overrides)
+    auto = None
+    if s.integration.auto:  # choose dt on the metrics, then keep the histories at that dt
+        s = dataclasses.replace(s, output=dataclasses.replace(s.output, histories=()))
+        _, _, _, _, derived = prepare(s).run(prepare(s).grid.chunk(0, 1))
+        auto = {"dt_s": float(derived["dt_s"][0]), "dt_error_estimate": float(derived["dt_error_estimate"][0])}
+        s = with_overrides(s, dt_s=auto["dt_s"])
     floors = (len(s.building1.masses_kg), len(s.building2.masses_kg))
     s = dataclasses.replace(s, output=dataclasses.replace(s.output, histories=tuple(channels or all_channels(floors)),
                                                           history_decimate=decimate))
@@ -71,6 +77,8 @@ def simulate(scene: Scene, channels: list[str] | None = None, decimate: int = 1,
     m["status"] = status_words(metrics[:1, names.index("status_code")])[0]
     m["ks_N_per_m"] = float(derived["ks_N_per_m"][0])
     m["run_time_s"] = float(run_time[0])
+    if auto is not None:
+        m.update(auto)
     if scores is not None:
         how = s.experiment.combine
         m.update({k: float(v[0]) for k, v in score_table_columns(scores, prep.score_codes, how).items()})

@@ -74,6 +74,7 @@ class Prepared:
     hist_columns: list[str]
     score: ScoreSpec
     score_codes: list[str]
+    auto: object | None = None  # autodt.AutoDt when dt_s = 'auto'
 
     @property
     def dt(self) -> float:
@@ -81,6 +82,8 @@ class Prepared:
 
     def run(self, params: dict[str, np.ndarray], threads: int = 1, batch_runs: int = 0):
         """Integrate the runs described by `params` (as Grid.chunk gives them)."""
+        if self.auto is not None:
+            return self.auto.run(params, threads, batch_runs)
         ks, c, xi, spp, status = contact_arrays(self.model, self.scene, params, self.dt)
         ex = self.excitation.run_arrays(params)
         runs = RunArrays(ks, c, params["gap_m"], ex["exc_kind"], ex["exc_amp"], ex["exc_omega"], ex["rec_id"],
@@ -93,8 +96,9 @@ class Prepared:
 
 
 def prepare(scene: Scene) -> Prepared:
-    """Model, system matrices at dt, excitation, grid, history and experiment specs of a scene."""
-    dt = scene.integration.dt_s
+    """Model, system matrices at dt, excitation, grid, history and experiment specs of a scene.
+    With dt_s = 'auto' these are at dt_max_s, and runs go through the step-doubling ladder."""
+    dt = scene.integration.first_dt_s
     model = CoupledModel.from_scene(scene)
     exc = Excitation.from_scene(scene, dt)
     opts = KernelOptions(SCHEMES[scene.integration.scheme], CONTACT_LAWS[scene.contact.law],
@@ -107,7 +111,13 @@ def prepare(scene: Scene) -> Prepared:
         exp = load_experiment(scene.experiment, model.floors)
         score = score_spec(exp, scene.experiment, model.floors, exc.max_duration_s, dt)
         codes = list(exp.channels)
-    return Prepared(scene, model, model.system_arrays(dt), exc, Grid.from_scene(scene), opts, hspec, hcols, score, codes)
+    auto = None
+    if scene.integration.auto:
+        from .autodt import AutoDt
+
+        auto = AutoDt(scene, prepare)
+    return Prepared(scene, model, model.system_arrays(dt), exc, Grid.from_scene(scene), opts, hspec, hcols, score, codes,
+                    auto)
 
 
 def contact_arrays(model: CoupledModel, scene: Scene, params: dict[str, np.ndarray], dt: float):
@@ -298,7 +308,7 @@ def _model_facts(prep: Prepared) -> dict:
     modes = [b.modes() for b in (model.b1, model.b2)]
     facts = {
         "kind": "runs",
-        "dt_s": prep.dt,
+        "dt_s": "auto" if scene.integration.auto else prep.dt,
         "scheme": scene.integration.scheme,
         "contact_law": scene.contact.law,
         "grid_axes": {name: list(v) for name, v in grid.axes},
@@ -338,4 +348,7 @@ def _param_columns(exc: Excitation, params: dict, derived: dict) -> dict:
     cols["scale"] = params["scale"]
     cols["contact_damping_ratio"] = derived["contact_damping_ratio"]
     cols["steps_per_contact_period"] = derived["steps_per_contact_period"]
+    for key in ("dt_s", "dt_error_estimate"):  # dt = 'auto'
+        if key in derived:
+            cols[key] = derived[key]
     return cols

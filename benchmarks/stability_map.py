@@ -21,6 +21,8 @@ Per run (columns added to the sweep's rows):
   energy_made: balance_gap < -1e-6 (the run ended with more energy than the input and the
       dissipation account for, by more than a millionth of the input work);
   energy_flag: status 'energy_residual' (|balance_gap| > 1 %);
+  blown_up: diverged, or |balance_gap| > 1 (an energy error larger than all the input work: a run
+      that exploded without reaching the kernel's 1 km limit within the duration);
   unsettled / underresolved: status 'contact_unsettled' / 'contact_underresolved' (fewer than 20
       steps per contact period 2 pi sqrt(m_eff / k_s): the `steps_per_contact_period` column).
 Prints per scheme, law and dt the counts; per scheme a k_s/k x dt table of diverged and energy
@@ -135,6 +137,7 @@ def classify(df: pd.DataFrame) -> pd.DataFrame:
         df["balance_gap"] = (df.input_energy_J - df[ENERGY_TERMS].sum(axis=1)) / df.input_work_abs_J
     df["energy_made"] = df.balance_gap < -MADE_TOL
     df["energy_flag"] = df.status.str.contains("energy_residual")
+    df["blown_up"] = df.diverged | ~(df.balance_gap.abs() <= 1.0)
     df["unsettled"] = df.status.str.contains("contact_unsettled")
     df["underresolved"] = df.status.str.contains("contact_underresolved")
     df["category"] = np.where(df.diverged | df.nonfinite, "diverged",
@@ -146,7 +149,8 @@ def summary(df: pd.DataFrame, by=("scheme", "law", "dt_s")) -> pd.DataFrame:
     """Counts per group: runs, diverged, nonfinite, energy made / flagged, unsettled, under-resolved, and the
     largest |balance gap| over the runs that did not diverge."""
     g = df.groupby(list(by), sort=False)
-    out = g.agg(runs=("status", "size"), diverged=("diverged", "sum"), nonfinite=("nonfinite", "sum"),
+    out = g.agg(runs=("status", "size"), diverged=("diverged", "sum"), blown_up=("blown_up", "sum"),
+                nonfinite=("nonfinite", "sum"),
                 energy_made=("energy_made", "sum"), energy_flag=("energy_flag", "sum"),
                 unsettled=("unsettled", "sum"), underresolved=("underresolved", "sum"))
     fin = df[~df.diverged].assign(abs_gap=lambda d: d.balance_gap.abs())
@@ -198,6 +202,20 @@ def threshold_in_steps(df: pd.DataFrame, scheme: str = "paper") -> pd.DataFrame:
                      "min_spp_stable": g[~g.diverged].steps_per_contact_period.min(),
                      "ks_dt2_over_meff_at_max_spp_diverged": (2 * math.pi / spp_div) ** 2 if len(div) else np.nan})
     return pd.DataFrame(rows)
+
+
+def divergence_by_steps(df: pd.DataFrame, scheme: str = "paper", what: str = "diverged") -> pd.DataFrame:
+    """Runs with `what` per value of steps per contact period (rows; the (k_s/k, dt) cells that have it) and r
+    (columns): if divergence follows k_s dt^2 / m_eff, cells of equal steps at different (k_s, dt) agree."""
+    d = df[df.scheme == scheme].assign(spp=lambda x: x.steps_per_contact_period.round(3))
+    t = d.pivot_table(index="spp", columns="r", values=what, aggfunc="sum").astype(int)
+    t.columns = [f"r={c:g}" for c in t.columns]
+    n = d.groupby("spp").size()
+    t["all"] = t.sum(axis=1).astype(str) + "/" + n.astype(str)
+    t["cells (k_s/k, dt)"] = d.groupby("spp").apply(
+        lambda g: " ".join(f"({k:g},{t_:g})" for k, t_ in sorted(set(zip(g.ks_ratio, g.dt_s)))), include_groups=False)
+    t["ks_dt2/m_eff"] = [(2 * math.pi / v) ** 2 for v in t.index]
+    return t.sort_index(ascending=False)
 
 
 def format_counts(t: pd.DataFrame) -> str:
@@ -290,6 +308,9 @@ def report(df: pd.DataFrame, out_dir: Path, stem: str, log=print) -> dict:
             log(paper_boundary(df).to_string(index=False, float_format=lambda v: f"{v:.3g}"))
             log("\npaper scheme: divergence against steps per contact period, per r:")
             log(threshold_in_steps(df).to_string(index=False, float_format=lambda v: f"{v:.3g}"))
+            for what in ("diverged", "blown_up"):
+                log(f"\npaper scheme: runs {what} per steps per contact period (rows) and r:")
+                log(divergence_by_steps(df, "paper", what).to_string(float_format=lambda v: f"{v:.3g}"))
     out_dir.mkdir(parents=True, exist_ok=True)
     csv = out_dir / f"{stem}_summary.csv"
     summ.to_csv(csv, index=False)

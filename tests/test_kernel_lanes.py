@@ -1,0 +1,233 @@
+"""The lane kernel (kernel_lanes.integrate_lanes) against the scalar kernel (kernel.integrate_batch).
+
+The lane kernel performs each run's floating-point operations in the scalar kernel's order (see
+kernel_lanes' docstring), so the claim tested here is equality of every metric slot, bit for bit,
+not closeness: peaks, times, counts, median compression phase, energy terms and status bits.
+Tolerance: none. The grids span k_s/k 0.01..1e4, r 0/0.4/1, gaps 0/1/20 mm, harmonic and recorded
+excitation, both contact laws, runs of unequal length in one group, a diverging run (rerun by the
+scalar kernel), and a model with other floor counts. Then: the result of a run does not depend on
+the lane, group or thread it lands in (permuted run order, 1 and 2 threads), and run_chunk picks
+the scalar kernel whenever the lane kernel cannot compute the same thing.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+
+import numpy as np
+import pytest
+
+from conftest import SWEEPS
+from pounding_sweep import driver, kernel, kernel_lanes
+from pounding_sweep import metrics_layout as L
+from pounding_sweep.config import Axis, load_scene
+from pounding_sweep.contact import CONTACT_LAWS
+from pounding_sweep.driver import HistorySpec, KernelOptions, RunArrays, ScoreSpec
+from pounding_sweep.sweep import contact_arrays, prepare
+
+KS = (0.01, 0.1, 1.0, 10.0, 100.0, 1e4)
+R = (0.0, 0.4, 1.0)
+GAPS = (0.0, 1e-3, 0.02)
+
+
+def implicit(scene, law="classic", duration=None):
+    s = dataclasses.replace(scene, integration=dataclasses.replace(scene.integration, scheme="implicit"),
+                            contact=dataclasses.replace(scene.contact, law=law))
+    if duration is not None:
+        s = dataclasses.replace(s, excitation=dataclasses.replace(s.excitation, duration_s=duration))
+    return s
+
+
+def chunk_inputs(prep, params=None):
+    """RunArrays and record arrays for a chunk of the scene's grid, as sweep.Prepared.run builds them."""
+    params = params if params is not None else prep.grid.chunk(0, prep.grid.size)
+    ks, c, _, _, status = contact_arrays(prep.model, prep.scene, params, prep.dt)
+    ex = prep.excitation.run_arrays(params)
+    runs = RunArrays(ks, c, params["gap_m"], ex["exc_kind"], ex["exc_amp"], ex["exc_omega"], ex["rec_id"],
+                     ex["nsteps"], status)
+    rec = (prep.excitation.rec_flat, prep.excitation.rec_off, prep.excitation.rec_len)
+    return runs, rec
+
+
+def both(prep, runs, rec, threads=1):
+    lanes, _ = driver.run_chunk_lanes(prep.sysarr, runs, rec, prep.opts, threads)
+    scalar, _, _, _ = driver.run_chunk_scalar(prep.sysarr, runs, rec, HistorySpec.none(), prep.opts, 1)
+    return lanes, scalar
+
+
+def assert_rows_identical(lanes, scalar, floors=(3, 3)):
+    """Bitwise equality of every slot; on failure, name the first differing runs and columns."""
+    assert lanes.shape == scalar.shape
+    same = lanes.view(np.int64) == scalar.view(np.int64)
+    if not same.all():
+        cols = L.metric_columns(floors, min(floors))
+        bad = np.argwhere(~same)[:8]
+        lines = [f"run {r}: {cols[c]} lanes {lanes[r, c]!r} scalar {scalar[r, c]!r}" for r, c in bad]
+        raise AssertionError(f"{(~same.all(axis=1)).sum()} of {len(lanes)} rows differ:\n" + "\n".join(lines))
+
+
+def col(metrics, name, floors=(3, 3)):
+    return metrics[:, L.metric_columns(floors, min(floors)).index(name)]
+
+
+@functools.lru_cache(maxsize=None)
+def harmonic_grid(law):
+    """k_s/k x r x gap, 0.5 s of the 6 Hz table motion at 2 mm and 5 mm."""
+    s = implicit(load_scene(SWEEPS / "paper_6hz.toml"), law, duration=0.5)
+    s = dataclasses.replace(s, sweep=(Axis("amplitude_m", (0.002, 0.005)), Axis("gap_m", GAPS),
+                                      Axis("ks_ratio", KS), Axis("r", R)))
+    prep = prepare(s)
+    runs, rec = chunk_inputs(prep)
+    return (prep, runs, rec) + both(prep, runs, rec)
+
+
+@pytest.mark.parametrize("law", ["classic", "no_tension"])
+def test_harmonic_grid_rows_identical(law):
+    prep, runs, rec, lanes, scalar = harmonic_grid(law)
+    assert driver.kernel_for(prep.sysarr, prep.hist, prep.opts, prep.score) == "lanes"
+    assert_rows_identical(lanes, scalar)
+    # the grid exercises what the lane kernel does differently: contact in some lanes and not in
+    # others, impacts, long and short compressive phases, the active-set fallback (classic law)
+    impacts = col(scalar, "impacts_f3")
+    assert (impacts == 0).any() and (impacts > 5).any()
+    assert (col(scalar, "compression_phases_f1") > 0).any()
+    assert (col(scalar, "median_compression_phase_f3_s") > 0).any()
+    assert (col(scalar, "status_code").astype(int) & L.STATUS_UNDERRESOLVED).any()
+    assert (col(scalar, "max_contact_iterations") > 1).any()
+    if law == "classic":
+        assert (col(scalar, "unsettled_steps") > 0).any()
+        assert (col(scalar, "min_force_f3_N") < 0).any()
+
+
+def test_record_grid_with_runs_of_unequal_length_rows_identical(tmp_path):
+    """Duzce DZC180 (similitude 1/15) and a shortened copy in one sweep: groups mix records and
+    lengths, so lanes end at different steps and read different ground motions."""
+    from pounding_sweep.records import read_record
+
+    rec = read_record(SWEEPS / "records" / "RSN1605_DUZCE_DZC180.AT2", units="g")
+    short = tmp_path / "short.csv"
+    n = rec.time_s.size // 3
+    np.savetxt(short, np.column_stack([rec.time_s[:n], rec.acc_m_s2[:n]]), delimiter=",", header="t_s,acc_m_s2",
+               comments="")
+    s = implicit(load_scene(SWEEPS / "paper_duzce.toml"))
+    s = dataclasses.replace(s, excitation=dataclasses.replace(s.excitation, duration_s=None),
+                            sweep=(Axis("ks_ratio", (0.1, 1.0, 10.0)), Axis("r", (0.0, 0.4, 1.0)),
+                                   Axis("record", (str(SWEEPS / "records" / "RSN1605_DUZCE_DZC180.AT2"), str(short))),
+                                   Axis("scale", (0.5, 1.0))))
+    prep = prepare(s)
+    runs, recarr = chunk_inputs(prep)
+    assert len(set(runs.nsteps.tolist())) == 2
+    lanes, scalar = both(prep, runs, recarr)
+    assert_rows_identical(lanes, scalar)
+    assert (col(scalar, "impacts_f3") > 0).any()
+
+
+def test_uneven_lengths_and_a_diverging_run_in_one_group():
+    """Hand-made runs: lengths from 1 to 3000 steps (and 0) in one group; one run with a table
+    motion of 100 km, which the divergence guard stops: the lane kernel hands it to the scalar kernel."""
+    prep = prepare(implicit(load_scene(SWEEPS / "paper_6hz.toml"), duration=0.3))
+    params = prep.grid.chunk(0, 1)
+    base, rec = chunk_inputs(prep, params)
+    n = 40
+    rng = np.random.default_rng(7)
+    pick = lambda a: np.repeat(a, n, axis=0).copy()  # noqa: E731
+    runs = RunArrays(*(pick(getattr(base, f.name)) for f in dataclasses.fields(RunArrays)))
+    runs.ks[:] = 6830.0 * rng.choice([0.1, 1.0, 10.0], n)
+    runs.cdash[:] = runs.cdash * np.sqrt(runs.ks / base.ks)[:, None] * rng.choice([0.0, 0.5, 1.0], n)[:, None]
+    runs.gap[:] = rng.choice([0.0, 5e-4], n)
+    runs.nsteps[:] = rng.integers(1, 3000, n)
+    runs.nsteps[3] = 0
+    runs.exc_amp[5] = 1e5
+    lanes, scalar = both(prep, runs, rec)
+    assert col(scalar, "status_code")[5] == L.STATUS_NONFINITE
+    assert col(scalar, "steps")[3] == 0 and col(scalar, "steps")[7] == runs.nsteps[7]
+    assert_rows_identical(lanes, scalar)
+
+
+def test_other_floor_counts():
+    """A 4-story building beside a 2-story one (two contact pairs): compiled for those sizes."""
+    s = implicit(load_scene(SWEEPS / "paper_6hz.toml"), duration=0.4)
+    s = dataclasses.replace(
+        s,
+        building1=dataclasses.replace(s.building1, masses_kg=(1.7, 1.7, 1.6, 1.5)),
+        building2=dataclasses.replace(s.building2, masses_kg=(0.56, 0.45)),
+        sweep=(Axis("gap_m", (0.0, 1e-3)), Axis("ks_ratio", (0.1, 1.0, 10.0)), Axis("r", (0.0, 0.4, 1.0))),
+    )
+    prep = prepare(s)
+    assert prep.model.floors == (4, 2)
+    runs, rec = chunk_inputs(prep)
+    lanes, scalar = both(prep, runs, rec)
+    assert_rows_identical(lanes, scalar, floors=(4, 2))
+    assert (col(scalar, "impacts_f2", (4, 2)) > 0).any()
+
+
+def test_a_run_does_not_depend_on_its_lane_group_or_thread():
+    """Runs permuted (they land in other lanes and groups) and 2 threads: the same rows."""
+    prep, runs, rec, lanes, _ = harmonic_grid("classic")
+    perm = np.random.default_rng(3).permutation(runs.n)
+    shuffled = RunArrays(*(np.ascontiguousarray(getattr(runs, f.name)[perm]) for f in dataclasses.fields(RunArrays)))
+    again, _ = driver.run_chunk_lanes(prep.sysarr, shuffled, rec, prep.opts, threads=2)
+    assert_rows_identical(again, lanes[perm])
+    # a group of one: the run alone with 15 parked lanes
+    one = RunArrays(*(np.ascontiguousarray(getattr(runs, f.name)[7:8]) for f in dataclasses.fields(RunArrays)))
+    alone, _ = driver.run_chunk_lanes(prep.sysarr, one, rec, prep.opts)
+    assert_rows_identical(alone, lanes[7:8])
+
+
+def test_run_chunk_dispatch_and_the_eligibility_rules():
+    prep = prepare(implicit(load_scene(SWEEPS / "paper_6hz.toml"), duration=0.05))
+    sysarr, opts = prep.sysarr, prep.opts
+    none_h, none_s = HistorySpec.none(), ScoreSpec.none()
+    why = kernel_lanes.lanes_ineligible_reason
+    assert why(sysarr, none_h, opts, none_s) is None
+    assert "histories" in why(sysarr, HistorySpec(np.array([L.H_DISP]), np.array([2]), 1), opts, none_s)
+    score = ScoreSpec(np.array([0.1]), np.zeros((1, 1)), np.array([2]), 0, 0.01)
+    assert "scoring" in why(sysarr, none_h, opts, score)
+    assert "implicit" in why(sysarr, none_h, dataclasses.replace(opts, scheme=kernel.SCHEMES["paper"]), none_s)
+    for name, code in kernel.SCHEMES.items():  # every other scheme, the event scheme included
+        if name != "implicit":
+            assert why(sysarr, none_h, dataclasses.replace(opts, scheme=code), none_s) is not None
+    assert why(sysarr, none_h, dataclasses.replace(opts, max_iter=0), none_s) is not None
+    assert why(sysarr, none_h, dataclasses.replace(opts, law=7), none_s) is not None
+    coupled = dataclasses.replace(sysarr, Kinv=sysarr.Kinv + 1e-30)
+    assert "couples" in why(coupled, none_h, opts, none_s)
+    full_c = dataclasses.replace(sysarr, C=sysarr.C + 1e-30)
+    assert "tridiagonal" in why(full_c, none_h, opts, none_s)
+    swapped = dataclasses.replace(sysarr, i1=sysarr.i1[::-1].copy())
+    assert "facing" in why(swapped, none_h, opts, none_s)
+    # the codes the lane kernel repeats agree with the scalar kernel's and the contact module's
+    assert kernel_lanes.SCHEME_IMPLICIT == kernel.SCHEMES["implicit"]
+    assert kernel_lanes.LAW_NO_TENSION == CONTACT_LAWS["no_tension"]
+    assert (kernel_lanes.EXC_HARMONIC, kernel_lanes.EXC_RECORD) == (kernel.EXC_HARMONIC, kernel.EXC_RECORD)
+
+    # run_chunk: lanes when eligible (same rows as the scalar kernel), scalar with histories
+    runs, rec = chunk_inputs(prep)
+    calls = []
+    real = driver.run_chunk_lanes
+
+    def spy(*a, **k):
+        calls.append(1)
+        return real(*a, **k)
+
+    driver.run_chunk_lanes, saved = spy, driver.run_chunk_lanes
+    try:
+        m1, t1, h1, s1 = driver.run_chunk(sysarr, runs, rec, none_h, opts)
+        assert calls and h1 is None and s1 is None and t1.shape == (runs.n,) and (t1 > 0).all()
+        hist = HistorySpec(np.array([L.H_DISP]), np.array([2]), 10)
+        m2, _, h2, _ = driver.run_chunk(sysarr, runs, rec, hist, opts)
+        assert len(calls) == 1 and h2 is not None
+    finally:
+        driver.run_chunk_lanes = saved
+    assert_rows_identical(m1, m2)
+
+
+def test_excitation_profiles_equal_the_scalar_kernels_ground_acceleration():
+    prep = prepare(implicit(load_scene(SWEEPS / "paper_6hz.toml"), duration=0.2))
+    params = prep.grid.chunk(0, 1)
+    runs, rec = chunk_inputs(prep, params)
+    coef, pid, prof = kernel_lanes.excitation_profiles(runs, rec, prep.dt)
+    steps = np.arange(int(runs.nsteps[0]) + 1)
+    ref = np.array([kernel.ground_acceleration(runs.exc_kind[0], runs.exc_amp[0], runs.exc_omega[0], rec[0], 0, 0, s,
+                                               prep.dt) for s in steps])
+    assert np.array_equal((coef[0] * prof[pid[0], steps]).view(np.int64), ref.view(np.int64))

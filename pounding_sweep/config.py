@@ -32,6 +32,8 @@ def _f(doc: str, default=dataclasses.MISSING, **kw):
 
 EXECUTORS = ("local", "dask")
 
+from .video.scene import VideoSpec  # noqa: E402  (plain data; OpenCV stays unimported)
+
 # ----------------------------------------------------------------------------- sections
 
 
@@ -135,8 +137,10 @@ class ExecutionConfig:
 class ExperimentConfig:
     """Tracked displacement to score every run against (CSV or Parquet; see the README's format)."""
 
-    table: str = _f("path of the tracked-displacement table (.csv or .parquet)")
-    channels: dict = _f("table column -> model floor, e.g. {model1_floor3 = 'b1f3'}")
+    table: str | None = _f("path of the tracked-displacement table (.csv or .parquet); or an [experiment.video] "
+                           "section to track a video instead", None)
+    channels: dict | None = _f("table column -> model floor, e.g. {model1_floor3 = 'b1f3'} (with a video: default "
+                               "every marker named by a floor)", None)
     time_column: str = _f("name of the time column [s]", "t_s")
     units: str = _f("units of the displacement columns: 'mm' or 'm'", "mm")
     window_s: tuple[float, ...] | None = _f("[start, end] of the compared window in simulation time [s] (default: all overlap)", None)
@@ -145,6 +149,8 @@ class ExperimentConfig:
     combine: str = _f("how channels combine into one error: 'mean', 'max' or 'rms' of their eq. 20 errors", "mean")
     refine: bool = _f("after the grid, minimise the combined error over continuous k_s/k and r (scipy.optimize)", False)
     refine_max_evals: int = _f("simulations the refinement may spend", 80)
+    video: VideoSpec | None = _f("[experiment.video]: a shake-table video whose LED markers are tracked into the "
+                                 "table (see python -m pounding_sweep track --help for its keys)", None)
 
 
 @dataclass(frozen=True)
@@ -185,7 +191,7 @@ class Scene:
         d["sweep"] = [{"name": a.name, "values": list(a.values)} for a in self.sweep]
         files = sorted(({self.excitation.record} | set(_axis_values(self, "record"))) - {None})
         if self.experiment is not None:
-            files.append(self.experiment.table)
+            files.append(self.experiment.video.path if self.experiment.video is not None else self.experiment.table)
         d["record_sha256"] = {Path(p).name: _file_digest(p) for p in files}
         return d
 
@@ -282,8 +288,17 @@ def scene_from_dict(raw: dict, base_dir: Path, source: str = "<dict>", toml_text
     if "experiment" in raw:
         if not isinstance(raw["experiment"], dict):
             raise ConfigError(f"'experiment' must be a table [experiment], got {raw['experiment']!r}")
-        experiment = _build(ExperimentConfig, raw["experiment"], "experiment")
-        experiment = dataclasses.replace(experiment, table=str((base_dir / experiment.table).resolve()))
+        xraw = dict(raw["experiment"])
+        video = xraw.pop("video", None)
+        experiment = _build(ExperimentConfig, xraw, "experiment")
+        if video is not None:
+            from .video.scene import parse_video_section  # no OpenCV import: tracking imports it lazily
+
+            spec = parse_video_section(video, base_dir)
+            experiment = dataclasses.replace(experiment, video=spec,
+                                             channels=experiment.channels or spec.default_channels())
+        if experiment.table is not None:
+            experiment = dataclasses.replace(experiment, table=str((base_dir / experiment.table).resolve()))
     scene = Scene(name=name, description=desc, sweep=sweep, source=source, toml_text=toml_text,
                   experiment=experiment, **sections)
     validate(scene)
@@ -539,6 +554,14 @@ def validate(s: Scene) -> None:
 
 def _validate_experiment(s: Scene) -> None:
     x = s.experiment
+    if (x.table is None) == (x.video is None):
+        raise ConfigError("[experiment]: give either table = '...' (a tracked-displacement table) or an "
+                          "[experiment.video] section (a video to track), not " + ("both" if x.table else "neither"))
+    if x.video is not None and x.units != "mm":
+        raise ConfigError(f"[experiment] units = {x.units!r}: a tracked video gives millimetres; use 'mm'")
+    if not x.channels:
+        raise ConfigError("[experiment] channels: map at least one table column to a floor, e.g. "
+                          "channels = { model1_floor3_mm = 'b1f3' }")
     if x.units not in ("mm", "m"):
         raise ConfigError(f"[experiment] units = {x.units!r}: expected 'mm' or 'm'")
     if x.combine not in ("mean", "max", "rms"):

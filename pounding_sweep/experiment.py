@@ -61,8 +61,11 @@ def read_table(path: str | Path) -> tuple[pd.DataFrame, dict]:
 def load_experiment(cfg: ExperimentConfig, floors: tuple[int, int]) -> Experiment:
     """Read the table and check it: time column present, numeric, finite, strictly increasing;
     every mapped column present, numeric and finite; every channel a model floor."""
-    df, md = read_table(cfg.table)
-    where = cfg.table
+    if cfg.video is not None:
+        df, md, where = _tracked(cfg.video)
+    else:
+        df, md = read_table(cfg.table)
+        where = cfg.table
     if cfg.time_column not in df.columns:
         raise ExperimentError(f"{where}: no time column '{cfg.time_column}' (columns: {', '.join(map(str, df.columns))})")
     t = _numeric(df[cfg.time_column], where, cfg.time_column)
@@ -92,6 +95,32 @@ def load_experiment(cfg: ExperimentConfig, floors: tuple[int, int]) -> Experimen
         chans[code] = _numeric(df[col], where, col) * factor
         cols[code] = col
     return Experiment(str(where), t, chans, cols, md)
+
+
+_TRACKED: dict = {}  # (spec, file size, mtime) -> (table, provenance): a video is tracked once per process
+
+
+def _tracked(spec) -> tuple[pd.DataFrame, dict, str]:
+    """Track the video of an [experiment.video] section (OpenCV, lazily imported) into the table
+    format above; a video that cannot give one is an ExperimentError naming the file."""
+    from .video.io import VideoError
+    from .video.scene import tracked_table
+
+    try:
+        st = Path(spec.path).stat()
+        key = (spec, st.st_size, st.st_mtime_ns)
+        if key not in _TRACKED:
+            from .progress import Progress
+
+            df, md = tracked_table(spec, progress=Progress(unit="frames"))
+            _TRACKED.clear()
+            _TRACKED[key] = (df, md)
+        df, md = _TRACKED[key]
+    except FileNotFoundError:
+        raise ExperimentError(f"{spec.path}: video not found ([experiment.video] path)") from None
+    except VideoError as e:
+        raise ExperimentError(str(e)) from None
+    return df, {"tracking": md}, spec.path
 
 
 def _numeric(series: pd.Series, where: str, col: str) -> np.ndarray:

@@ -325,7 +325,8 @@ def _model_facts(prep: Prepared) -> dict:
     if prep.score_codes:
         x = scene.experiment
         facts["experiment"] = {
-            "table": Path(x.table).name, "channels": x.channels, "units": x.units, "combine": x.combine,
+            "table": Path(x.table).name if x.table else None,
+            "video": Path(x.video.path).name if x.video is not None else None, "channels": x.channels, "units": x.units, "combine": x.combine,
             "window_s": [float(prep.score.t[0]), float(prep.score.t[-1])], "samples": int(prep.score.t.size),
             "score_columns": dict(score_columns(prep.score_codes)),
         }

@@ -44,6 +44,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--overwrite", action="store_true",
                    help="replace results of another sweep at --out (by default a rerun of the same scene resumes: "
                    "finished parts are kept, the rest is run)")
+    p.add_argument("--yes", action="store_true", help="run a grid larger than [execution] max_runs (2,000,000)")
     p.add_argument("--quiet", action="store_true", help="no progress and no summary")
     p.add_argument("--describe", action="store_true", help="list every scene section and key, then exit")
     return p
@@ -133,7 +134,7 @@ def main(argv: list[str] | None = None) -> int:
             raise ConfigError(f"--workers {args.workers}: must be >= 0")
         scene = _with_execution(scene, args)
         summary = run_scene(scene, out_path=args.out, threads=args.threads, progress=Progress(not args.quiet),
-                            overwrite=args.overwrite)
+                            overwrite=args.overwrite, confirmed=args.yes)
     except (ConfigError, RecordError, ExperimentError) as e:
         print(f"error: {e}", file=sys.stderr)
         return EXIT_BAD_INPUT

@@ -31,6 +31,7 @@ def _f(doc: str, default=dataclasses.MISSING, **kw):
 
 
 EXECUTORS = ("local", "dask")
+MAX_AXIS_VALUES = 10_000_000  # a range longer than this is a typo, not a sweep
 
 from .video.scene import VideoSpec  # noqa: E402  (plain data; OpenCV stays unimported)
 
@@ -131,6 +132,7 @@ class ExecutionConfig:
     dask_address: str = _f("scheduler address, e.g. 'tcp://10.0.0.5:8786' (empty: start a LocalCluster here)", "")
     dask_workers: int = _f("worker processes of the LocalCluster, one thread each (0: all cores)", 0)
     chunk_runs: int = _f("runs per result part (Parquet file) and per task", 4096)
+    max_runs: int = _f("largest grid run without confirmation (the command line's --yes lifts it)", 2_000_000)
 
 
 @dataclass(frozen=True)
@@ -408,6 +410,8 @@ def _range_values(spec: dict, key: str) -> tuple[float, ...]:
     spacing = _typed(spec.get("spacing", "linear"), str, f"{key}.spacing")
     if num < 1:
         raise ConfigError(f"{key}.num = {num}: must be at least 1")
+    if num > MAX_AXIS_VALUES:
+        raise ConfigError(f"{key}.num = {num:,}: more than {MAX_AXIS_VALUES:,} values on one axis")
     if spacing == "linear":
         return tuple(float(x) for x in np.linspace(start, stop, num))
     if spacing == "log":
@@ -541,6 +545,8 @@ def validate(s: Scene) -> None:
         raise ConfigError(f"[execution] executor = {s.execution.executor!r}: expected one of {list(EXECUTORS)}")
     if s.execution.dask_workers < 0:
         raise ConfigError(f"[execution] dask_workers = {s.execution.dask_workers}: must be >= 0")
+    if s.execution.max_runs < 1:
+        raise ConfigError(f"[execution] max_runs = {s.execution.max_runs}: must be >= 1")
     if s.execution.chunk_runs < 1:
         raise ConfigError(f"[execution] chunk_runs = {s.execution.chunk_runs}: must be >= 1")
     if s.experiment is not None:

@@ -146,7 +146,7 @@ class OutputError(ConfigError):
 
 def run_scene(scene: Scene, out_path: str | Path | None = None, threads: int | None = None,
               progress: Callable[[int, int], None] | None = None, executor=None,
-              overwrite: bool = False) -> SweepSummary:
+              overwrite: bool = False, confirmed: bool = False) -> SweepSummary:
     """Run every grid point of the scene into a Parquet dataset folder (one part per chunk); return
     a summary. Parts already in the folder from an interrupted run of the same scene (same config
     hash and package version) are kept and skipped; other results there are refused unless
@@ -154,9 +154,13 @@ def run_scene(scene: Scene, out_path: str | Path | None = None, threads: int | N
     from .executors import make_executor
 
     out_path = Path(out_path or scene.output.path)
+    ex = scene.execution
+    size = Grid.from_scene(scene).size
+    if size > ex.max_runs and not confirmed:
+        raise ConfigError(f"[sweep] gives {size:,} runs, more than [execution] max_runs = {ex.max_runs:,}: "
+                          "confirm with --yes (or raise max_runs) if that many is meant")
     prep = prepare(scene)
     grid, model, exc = prep.grid, prep.model, prep.excitation
-    ex = scene.execution
     chunk_runs = ex.chunk_runs
     if prep.hist.active:
         per_run = prep.hist.kinds.size * (int(exc.max_steps) // prep.hist.decimate + 1) * 8

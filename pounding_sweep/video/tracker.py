@@ -175,7 +175,6 @@ class Tracker:
         self.last = np.zeros((self.n, 2))
         self.last_k = np.zeros(self.n, int)
         self.vel = np.zeros((self.n, 2))
-        self.rest0 = None
         self.off = np.zeros(2)
         self._pairs: list[tuple[int, int, float]] = []
 
@@ -321,6 +320,8 @@ class Tracker:
                 idx[r[ok]] = k[ok]
             for i in np.nonzero(idx < 0)[0]:
                 near = f"; the nearest bright spot is {D[i].min():.1f} px away" if len(c) else "; no bright spot in the frame"
+                if len(c) and D[i].min() <= gate:
+                    near += " but belongs to another marker (merged spots? start at a frame where they are apart)"
                 raise VideoError(self.path, f"marker '{self.names[i]}' not found within {gate:g} px of its first-frame position"
                                  f"{near} (frame {s.start_frame})", f"x = {s.positions_px[i][0]:g}, y = {s.positions_px[i][1]:g}")
             return idx
@@ -374,7 +375,6 @@ class Tracker:
         if self.k == 0:
             idx = self._initial(c)
             pos[:, 0], pos[:, 1], area = c.x[idx], c.y[idx], c.area[idx]
-            self.rest0 = pos.copy()
             for i in range(self.n):  # side-by-side neighbours close enough to be confused: order must persist
                 for j in range(i + 1, self.n):
                     dx, dy = pos[j] - pos[i]

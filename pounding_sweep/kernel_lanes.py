@@ -135,34 +135,25 @@ def _sin_profile(omega, nsteps, dt, out):
         out[step] = np.sin(omega * step * dt)
 
 
-@njit_lanes
-def _harmonic_coef(amp, omega):
-    """-amp * omega * omega, evaluated as kernel.ground_acceleration does (left to right)."""
-    return -amp * omega * omega
-
-
 def excitation_profiles(runs, rec, dt):
     """Ground acceleration as coef[run] * prof[pid[run], step], equal to kernel.ground_acceleration.
 
-    Harmonic: prof = sin(omega step dt) per distinct omega, coef = -amp omega^2. Record: prof =
-    the resampled record (zero past its end), coef = the run's scale. Returns (coef, pid, prof).
+    Harmonic: prof = sin(omega step dt) per distinct omega (computed by compiled code, as the kernel
+    does), coef = -amp * omega * omega (left to right: NumPy's float64 products are the same IEEE
+    operations). Record: prof = the resampled record (zero past its end), coef = the run's scale.
+    Returns (coef, pid, prof).
     """
     rec_flat, rec_off, rec_len = rec
     n = runs.n
     nmax = int(runs.nsteps.max()) if n else 0
-    keys: dict = {}
-    pid = np.empty(n, np.int64)
-    coef = np.empty(n)
-    for i in range(n):
-        if runs.exc_kind[i] == EXC_HARMONIC:
-            key = (EXC_HARMONIC, float(runs.exc_omega[i]))
-            coef[i] = _harmonic_coef(float(runs.exc_amp[i]), float(runs.exc_omega[i]))
-        else:
-            key = (EXC_RECORD, int(runs.rec_id[i]))
-            coef[i] = runs.exc_amp[i]
-        pid[i] = keys.setdefault(key, len(keys))
-    prof = np.zeros((max(1, len(keys)), nmax + 1))
-    for (kind, val), k in keys.items():
+    harmonic = runs.exc_kind == EXC_HARMONIC
+    coef = np.where(harmonic, -runs.exc_amp * runs.exc_omega * runs.exc_omega, runs.exc_amp)
+    keys = [(EXC_HARMONIC, float(w)) if h else (EXC_RECORD, int(r))
+            for h, w, r in zip(harmonic.tolist(), runs.exc_omega.tolist(), runs.rec_id.tolist())]
+    index: dict = {}
+    pid = np.array([index.setdefault(k, len(index)) for k in keys], dtype=np.int64)
+    prof = np.zeros((max(1, len(index)), nmax + 1))
+    for (kind, val), k in index.items():
         if kind == EXC_HARMONIC:
             _sin_profile(val, nmax, dt, prof[k])
         else:

@@ -21,7 +21,9 @@ Sections (each prints a table):
      grid, kernel, Parquet);
   5. peak memory of a 1,000,000-run metrics-only sweep (subprocess, getrusage) against a 100,000-run
      one, and the Parquet file growing while the sweep runs;
-  6. the paper's Duzce grid through the CLI with a warm cache (wall time of the whole command).
+  6. the paper's Duzce grid through the CLI with a warm cache (wall time of the whole command);
+  7. profile: the lane kernel's four vector functions timed alone, with their instruction mix, against
+     the whole kernel.
 
 Timings: best of several repeats (wall clock), load average printed before each section.
 """
@@ -434,6 +436,96 @@ def cli_duzce(repeats: int) -> None:
     table(rows, ["command", "best [s]", "median [s]", "cache load", "sweep", "runs"])
 
 
+# ----------------------------------------------------------------------------------------- 7. profile
+
+def _profile_child() -> None:
+    """Runs in a subprocess with an empty NUMBA_CACHE_DIR (so the generated code can be inspected):
+    each vector function called 20,000 times from a compiled loop, on a 16-lane work array."""
+    import re
+
+    import numba
+
+    from pounding_sweep import kernel_lanes as K
+
+    sa = prepare(load_scene(SCENE_6HZ)).sysarr
+    nt, n1t = K.size_tuples(sa)
+    n, p = sa.m.size, sa.i1.size
+    W = np.zeros(K.n_rows(n, p) * K.LANES)
+    m, C, Kinv, H, S = sa.m, sa.C, sa.Kinv, sa.H, sa.S
+    on = np.ones(p, np.int64)
+    pq_, fq_, pc_, fc_ = K._predict_quiet, K._finish_quiet, K._predict_contact, K._finish_contact
+
+    @numba.njit
+    def loop(which, reps, W, nt, n1t, m, C, Kinv, H, S, on):
+        acc = 0
+        for k in range(reps):
+            if which == 0:
+                acc += pq_(W, 1e-4, nt, n1t, m, C, Kinv)
+            elif which == 1:
+                acc += fq_(W, 1e-4, k, nt, n1t, m, C)
+            elif which == 2:
+                acc += pc_(W, 1e-4, 0, nt, n1t, m, C, Kinv, S, on)
+            else:
+                a, b = fc_(W, 1e-4, k, nt, n1t, m, C, H, on, on)
+                acc += a + b
+        return acc
+
+    out = {}
+    for which, (name, fn) in enumerate((("predict_quiet", pq_), ("finish_quiet", fq_), ("predict_contact", pc_),
+                                        ("finish_contact", fc_))):
+        loop(which, 2, W, nt, n1t, m, C, Kinv, H, S, on)
+        asm = list(fn.inspect_asm().values())[0].split("\n_ZN")[1]  # the function, not its Python wrapper
+        ops = [ln.split()[0] for ln in asm.splitlines() if ln.startswith("\t") and not ln.strip().startswith(".")]
+        reps, best = 20000, float("inf")
+        for _ in range(7):
+            t0 = time.thread_time()
+            loop(which, reps, W, nt, n1t, m, C, Kinv, H, S, on)
+            best = min(best, time.thread_time() - t0)
+        out[name] = dict(ns=best / reps / K.LANES * 1e9, instr=len(ops),
+                         fp=sum(1 for op in ops if re.match(r"v(add|sub|mul|div)pd$", op)),
+                         mem=sum(1 for ln in asm.splitlines() if re.search(r"vmov(u|a)p[sd]\s.*\(", ln)),
+                         masked=sum(1 for op in ops if "maskmov" in op))
+    print(json.dumps(out))
+
+
+def profile(prep_cpu) -> None:
+    header("7. profile: the lane kernel's vector functions, each alone (CPU time; instruction mix from the "
+           "generated code, fresh cache in a subprocess)")
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        p = subprocess.run([sys.executable, __file__, "--profile-child"], env=env, capture_output=True, text=True,
+                           check=True)
+    r = json.loads(p.stdout.strip().splitlines()[-1])
+    rows = [[k, f"{v['ns']:.2f}", v["instr"], v["fp"], v["mem"], v["masked"]] for k, v in r.items()]
+    table(rows, ["function (one call = 16 lanes)", "ns per lane-step", "instructions (static)",
+                 "vector add/sub/mul/div", "vector loads/stores", "masked moves"])
+    quiet = r["predict_quiet"]["ns"] + r["finish_quiet"]["ns"]
+    contact = r["predict_contact"]["ns"] + r["finish_contact"]["ns"]
+    whole = prep_cpu()
+    print(f"sum of parts: no contact {quiet:.1f} ns, every pair in contact {contact:.1f} ns per lane-step; whole kernel "
+          f"(CPU time, 1 thread): grid without contact {whole['quiet']:.1f} ns, grid at gap 0 {whole['contact']:.1f} ns "
+          f"(the rest: per-step calls and checks, the scalar active-set iterations at impacts and separations, "
+          f"partly idle lanes)")
+
+
+def whole_kernel_cpu() -> dict:
+    out = {}
+    for label, gaps in (("quiet", (0.05,)), ("contact", (0.0,))):
+        s = scene(duration=2.0, sweep=[("gap_m", gaps), ("ks_ratio", np.geomspace(0.01, 100, 6)),
+                                       ("r", np.linspace(0, 1, 8))])
+        prep = prepare(s)
+        params = prep.grid.chunk(0, prep.grid.size)
+        m = prep.run(params, threads=1)[0]
+        steps = m[:, L.metric_columns(prep.model.floors, prep.model.n_pairs).index("steps")].sum()
+        best = float("inf")
+        for _ in range(5):
+            t0 = time.thread_time()
+            prep.run(params, threads=1)
+            best = min(best, time.thread_time() - t0)
+        out[label] = best / steps * 1e9
+    return out
+
+
 # ----------------------------------------------------------------------------------------- main
 
 
@@ -441,8 +533,12 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="small sizes: a smoke test of every section")
     ap.add_argument("--no-opensees", action="store_true", help="leave OpenSeesPy out of section 2")
-    ap.add_argument("--sections", default="0123456", help="which sections to run, e.g. 023")
+    ap.add_argument("--sections", default="01234567", help="which sections to run, e.g. 023")
+    ap.add_argument("--profile-child", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args()
+    if a.profile_child:
+        _profile_child()
+        return
     q = a.quick
     t0 = time.perf_counter()
     secs = a.sections
@@ -461,6 +557,8 @@ def main() -> None:
         memory(sizes=[10_000, 100_000] if q else [100_000, 1_000_000], dur=0.01 if q else 0.05)
     if "6" in secs:
         cli_duzce(repeats=2 if q else 5)
+    if "7" in secs:
+        profile(whole_kernel_cpu)
     print(f"\n(total {time.perf_counter() - t0:.0f} s; load average at the end {load()})")
 
 

@@ -496,10 +496,11 @@ def _predict_quiet(W, dt, nt, n1t, m, C, Kinv):
 
 
 @njit_lanes
-def _predict_contact(W, dt, law, nt, n1t, m, C, Kinv, S):
+def _predict_contact(W, dt, law, nt, n1t, m, C, Kinv, S, pon):
     """Some lane in contact: the end state without contact, then for every lane the forces of its
     current active set (the scalar kernel's first active-set iteration, through the lane's stored
-    elimination factors) and EVT = 1 where the end state asks for another set."""
+    elimination factors) and EVT = 1 where the end state asks for another set. Pairs no lane has
+    in contact (pon[j] == 0) have zero force in every lane: their rows of the solve are skipped."""
     N = len(nt)
     N1 = len(n1t)
     P = min(N1, N - N1)
@@ -522,27 +523,35 @@ def _predict_contact(W, dt, law, nt, n1t, m, C, Kinv, S):
             bb = ksd + vload(W, (r_cd + j) * LANES + c) * wrel
             vstore(W, (r_z0 + j) * LANES + c, z0)
             vstore(W, (r_bb + j) * LANES + c, bb)
-            act = vload(W, (r_act + j) * LANES + c) > 0.5
-            vstore(W, (r_x + j) * LANES + c, vsel(act, z0 - bb / vload(W, (r_ke + j) * LANES + c), zero))
+            if pon[j] > 0:
+                act = vload(W, (r_act + j) * LANES + c) > 0.5
+                vstore(W, (r_x + j) * LANES + c, vsel(act, z0 - bb / vload(W, (r_ke + j) * LANES + c), zero))
+            else:
+                vstore(W, (r_x + j) * LANES + c, zero)
         # forward elimination, then back substitution (kernel._solve_spd's order on the active pairs;
         # inactive pairs are identity rows with zero multipliers, which change nothing)
         for k in range(P):
-            for i in range(k + 1, P):
-                vstore(W, (r_x + i) * LANES + c, vload(W, (r_x + i) * LANES + c)
-                       - vload(W, (r_ff + i * P + k) * LANES + c) * vload(W, (r_x + k) * LANES + c))
+            if pon[k] > 0:
+                for i in range(k + 1, P):
+                    if pon[i] > 0:
+                        vstore(W, (r_x + i) * LANES + c, vload(W, (r_x + i) * LANES + c)
+                               - vload(W, (r_ff + i * P + k) * LANES + c) * vload(W, (r_x + k) * LANES + c))
         for ii in range(P):
             i = P - 1 - ii
-            s = vload(W, (r_x + i) * LANES + c)
-            for j in range(i + 1, P):
-                s = s - vload(W, (r_fu + i * P + j) * LANES + c) * vload(W, (r_x + j) * LANES + c)
-            vstore(W, (r_x + i) * LANES + c, s / vload(W, (r_fu + i * P + i) * LANES + c))
+            if pon[i] > 0:
+                s = vload(W, (r_x + i) * LANES + c)
+                for j in range(i + 1, P):
+                    if pon[j] > 0:
+                        s = s - vload(W, (r_fu + i * P + j) * LANES + c) * vload(W, (r_x + j) * LANES + c)
+                vstore(W, (r_x + i) * LANES + c, s / vload(W, (r_fu + i * P + i) * LANES + c))
         e = mconst(False)
         for j in range(P):
             vstore(W, (r_f + j) * LANES + c, vload(W, (r_x + j) * LANES + c))
         for j in range(P):
             z = vload(W, (r_z0 + j) * LANES + c)
             for q in range(P):
-                z = z - S[j, q] * vload(W, (r_x + q) * LANES + c)
+                if pon[q] > 0:
+                    z = z - S[j, q] * vload(W, (r_x + q) * LANES + c)
             pen = z - d
             want = (pen > 0.0) & (pull_ok | ((vload(W, (r_ke + j) * LANES + c) * z - vload(W, (r_bb + j) * LANES + c)) > 0.0))
             act = vload(W, (r_act + j) * LANES + c) > 0.5
@@ -625,11 +634,13 @@ def _finish_quiet(W, dt, step, nt, n1t, m, C):
 
 
 @njit_lanes
-def _finish_contact(W, dt, step, nt, n1t, m, C, H):
+def _finish_contact(W, dt, step, nt, n1t, m, C, H, pon_now, pon_any):
     """Some lane in contact: u = u0 - H F, _finish_dofs, the work of the contact's spring and
     dashpot parts and the per-pair metrics (kernel.py's order of comparisons; times as kernel.py
     takes them: step * dt for floors, (step - 1) * dt + dt for the force peak). Returns (lanes not
-    finite, lanes where a compressive phase ended: END rows)."""
+    finite, lanes where a compressive phase ended: END rows). Pairs in contact in no lane now
+    (pon_now[j] == 0) have F = 0: H F leaves them out; pairs in contact in no lane now nor at the step
+    start (pon_any[j] == 0) change no energy term or metric: skipped."""
     N = len(nt)
     N1 = len(n1t)
     P = min(N1, N - N1)
@@ -650,11 +661,13 @@ def _finish_contact(W, dt, step, nt, n1t, m, C, H):
         d = vload(W, (r_s + S_D) * LANES + c)
         ks = vload(W, (r_s + S_KS) * LANES + c)
         for j in range(P):  # penetration at the step start (the scalar kernel's pen_prev)
-            vstore(W, (r_x + j) * LANES + c, (vload(W, (r_u + j) * LANES + c) - vload(W, (r_u + N1 + j) * LANES + c)) - d)
+            if pon_any[j] > 0:
+                vstore(W, (r_x + j) * LANES + c, (vload(W, (r_u + j) * LANES + c) - vload(W, (r_u + N1 + j) * LANES + c)) - d)
         for i in range(N):
             s = vload(W, (r_u0 + i) * LANES + c)
             for j in range(P):
-                s = s - H[i, j] * vload(W, (r_f + j) * LANES + c)
+                if pon_now[j] > 0:
+                    s = s - H[i, j] * vload(W, (r_f + j) * LANES + c)
             vstore(W, (r_rh + i) * LANES + c, s)
         ok = _finish_dofs(W, c, ag, t, a1, a2, b1, dt, m, C, N, N1, r_u, r_v, r_a, r_w, r_rh, r_s, r_met)
         bad = ~ok
@@ -665,6 +678,8 @@ def _finish_contact(W, dt, step, nt, n1t, m, C, H):
         wrel = vload(W, (r_s + S_WREL) * LANES + c)
         ended = mconst(False)
         for j in range(P):
+            if pon_any[j] == 0:
+                continue
             pen = (vload(W, (r_u + j) * LANES + c) - vload(W, (r_u + N1 + j) * LANES + c)) - d
             act = vload(W, (r_act + j) * LANES + c) > 0.5
             was = vload(W, (r_was + j) * LANES + c) > 0.5
@@ -981,6 +996,10 @@ def integrate_lanes(
     lane_nst = np.empty(LANES, dtype=np.int64)
     lane_status = np.empty(LANES, dtype=np.int64)
     live = np.zeros(LANES, dtype=np.bool_)
+    act_pair = np.zeros(P, dtype=np.int64)
+    pon_start = np.zeros(P, dtype=np.int64)  # pairs some lane has in contact at the step start
+    pon_now = np.zeros(P, dtype=np.int64)  # ... at the step end
+    pon_any = np.zeros(P, dtype=np.int64)  # either
     pid_lane = np.zeros(LANES, dtype=np.int64)
     # scalar work arrays of the active-set iteration
     z0 = np.empty(P)
@@ -1042,49 +1061,60 @@ def integrate_lanes(
             if live[l] and lane_nst[l] < next_end:
                 next_end = lane_nst[l]
         n_act = 0  # active (lane, pair) entries
+        act_pair[:] = 0  # lanes with pair j active
         pid0 = pid[order[base]] if nl > 0 else 0
         for step in range(1, max_nst + 1):
             _fill_ag(W, r_s + S_AG, r_s + S_COEF, prof, pid_lane, step, uniform, pid0)
             had_contact = n_act > 0
             if had_contact:
-                nevt = _predict_contact(W, dt, law, nt, n1t, m, C, Kinv, S)
+                for j in range(P):
+                    pon_start[j] = 1 if act_pair[j] > 0 else 0
+                nevt = _predict_contact(W, dt, law, nt, n1t, m, C, Kinv, S, pon_start)
             else:
                 nevt = _predict_quiet(W, dt, nt, n1t, m, C, Kinv)
+                pon_start[:] = 0
             if nevt > 0:
                 for l in range(LANES):
                     if live[l] and W[(r_s + S_EVT) * LANES + l] > 0.5:
-                        before = 0
                         for j in range(P):
-                            before += 1 if W[(r_act + j) * LANES + l] > 0.5 else 0
+                            if W[(r_act + j) * LANES + l] > 0.5:
+                                act_pair[j] -= 1
+                                n_act -= 1
                         it, uns, changed = _settle_lane(W, l, law, max_iter, S, N1, P, r_w, r_u0, r_f, r_act, r_ke,
                                                         r_cd, r_s, z0, bb, ke, active, trial, prev, seen, idx,
                                                         Asmall, rsmall, Fw)
                         if it > W[(r_s + S_MIT) * LANES + l]:
                             W[(r_s + S_MIT) * LANES + l] = it
                         W[(r_s + S_UNS) * LANES + l] += uns
-                        after = 0
                         for j in range(P):
-                            after += 1 if W[(r_act + j) * LANES + l] > 0.5 else 0
-                        n_act += after - before
+                            if W[(r_act + j) * LANES + l] > 0.5:
+                                act_pair[j] += 1
+                                n_act += 1
                         if changed:
                             _lane_factors(W, l, S, P, r_ke, r_act, r_ff, r_fu, idx, Asmall)
             if had_contact or n_act > 0:
-                nbad, nend = _finish_contact(W, dt, step, nt, n1t, m, C, H)
+                for j in range(P):
+                    pon_now[j] = 1 if act_pair[j] > 0 else 0
+                    pon_any[j] = 1 if (pon_start[j] > 0 or act_pair[j] > 0) else 0
+                nbad, nend = _finish_contact(W, dt, step, nt, n1t, m, C, H, pon_now, pon_any)
             else:
                 nbad = _finish_quiet(W, dt, step, nt, n1t, m, C)
                 nend = 0
             if nend > 0:
                 for l in range(LANES):
-                    if live[l]:
-                        for j in range(P):
-                            if W[(r_end + j) * LANES + l] > 0.5:
+                    for j in range(P):
+                        if W[(r_end + j) * LANES + l] > 0.5:
+                            W[(r_end + j) * LANES + l] = 0.0
+                            if live[l]:
                                 _end_phase(dur, nph, l, j, W[(r_cac + j) * LANES + l])
             if nbad > 0:
                 for l in range(LANES):
                     if live[l] and W[(r_s + S_BAD) * LANES + l] > 0.5:
                         redo[lane_run[l]] = 1
                         for j in range(P):
-                            n_act -= 1 if W[(r_act + j) * LANES + l] > 0.5 else 0
+                            if W[(r_act + j) * LANES + l] > 0.5:
+                                act_pair[j] -= 1
+                                n_act -= 1
                         _park(W, l, N, P, nrows, r_u, r_v, r_a, r_f, r_fu, r_s)
                         live[l] = False
             if step == next_end:
@@ -1094,7 +1124,9 @@ def integrate_lanes(
                         _finalize_lane(W, l, metrics[lane_run[l]], lane_status[l], step, dt, m, K, N, N1, P, dur,
                                        nph, r_u, r_v, r_act, r_inc, r_cac, r_s, r_met)
                         for j in range(P):
-                            n_act -= 1 if W[(r_act + j) * LANES + l] > 0.5 else 0
+                            if W[(r_act + j) * LANES + l] > 0.5:
+                                act_pair[j] -= 1
+                                n_act -= 1
                         _park(W, l, N, P, nrows, r_u, r_v, r_a, r_f, r_fu, r_s)
                         live[l] = False
                     elif live[l] and lane_nst[l] < next_end:

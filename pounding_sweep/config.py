@@ -32,6 +32,7 @@ def _f(doc: str, default=dataclasses.MISSING, **kw):
 
 EXECUTORS = ("local", "dask")
 MAX_AXIS_VALUES = 10_000_000  # a range longer than this is a typo, not a sweep
+MAX_STEPS = 100_000_000  # steps of one harmonic run (records: the same limit on resampling, records._MAX_SAMPLES)
 
 from .video.scene import VideoSpec  # noqa: E402  (plain data; OpenCV stays unimported)
 
@@ -258,11 +259,34 @@ def load_scene(path: str | Path) -> Scene:
     try:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
-        raise ConfigError(f"{path}: TOML syntax error: {e}") from None
+        raise ConfigError(f"{path}: TOML syntax error: {e}{_toml_line(text, str(e))}") from None
     try:
         return scene_from_dict(raw, base_dir=path.resolve().parent, source=str(path), toml_text=text)
     except ConfigError as e:
         raise ConfigError(f"{path}: {e}") from None
+
+
+def _toml_line(text: str, message: str) -> str:
+    """The line a TOML error points at, as written (tomllib names only its number); at column 1
+    also the statement before it, which is usually the one left unfinished (an unclosed array)."""
+    import re
+
+    lines = text.splitlines()
+
+    def show(i: int) -> str:
+        line = lines[i].strip()
+        return repr(line[:80] + " ..." if len(line) > 80 else line)
+
+    def before(i: int) -> int:
+        return max((k for k in range(i) if lines[k].strip() and not lines[k].lstrip().startswith("#")), default=-1)
+
+    m = re.search(r"at line (\d+), column (\d+)", message)
+    if m and 1 <= int(m.group(1)) <= len(lines):
+        i = int(m.group(1)) - 1
+        prev = before(i) if m.group(2) == "1" else -1
+        return f": {show(i)}" + (f" (after line {prev + 1}: {show(prev)})" if prev >= 0 else "")
+    i = before(len(lines))  # "at end of document": the last statement
+    return f": {show(i)} (line {i + 1})" if i >= 0 else ""
 
 
 def scene_from_dict(raw: dict, base_dir: Path, source: str = "<dict>", toml_text: str = "") -> Scene:
@@ -512,6 +536,11 @@ def validate(s: Scene) -> None:
     _positive(e.length_scale, "[excitation] length_scale")
     if e.format not in ("auto", "at2", "csv"):
         raise ConfigError(f"[excitation] format = {e.format!r}: expected 'auto', 'at2' or 'csv'")
+    if e.units is not None:
+        from .records import _ACCEPTED_UNITS, _UNIT_ALIASES
+
+        if e.units.strip().lower().replace(" ", "") not in _UNIT_ALIASES:
+            raise ConfigError(f"[excitation] units = {e.units!r}: expected one of {_ACCEPTED_UNITS}")
     i = s.integration
     if isinstance(i.dt_s, str):
         if i.dt_s != "auto":
@@ -532,6 +561,9 @@ def validate(s: Scene) -> None:
         raise ConfigError(f"[integration] min_steps_per_contact_period = {i.min_steps_per_contact_period!r}: must be >= 0")
     if e.type == "harmonic" and e.duration_s is not None and i.first_dt_s >= e.duration_s:
         raise ConfigError(f"[integration] dt_s = {i.first_dt_s!r}: must be shorter than [excitation] duration_s = {e.duration_s!r}")
+    if e.type == "harmonic" and e.duration_s is not None and e.duration_s / i.first_dt_s > MAX_STEPS:
+        raise ConfigError(f"[integration] {'dt_max_s' if i.auto else 'dt_s'} = {i.first_dt_s!r}: {e.duration_s / i.first_dt_s:.3g} "
+                          f"steps over [excitation] duration_s = {e.duration_s!r}, more than {MAX_STEPS:,} (dt in the wrong units?)")
     _positive(s.output.history_decimate, "[output] history_decimate")
     from .channels import parse_channel
 

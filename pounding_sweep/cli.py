@@ -126,6 +126,7 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_BAD_INPUT
     from .sweep import run_scene
 
+    scene = None
     try:
         scene = load_scene(args.scene)
         if args.threads is not None and args.threads < 0:
@@ -136,7 +137,10 @@ def main(argv: list[str] | None = None) -> int:
         summary = run_scene(scene, out_path=args.out, threads=args.threads, progress=Progress(not args.quiet),
                             overwrite=args.overwrite, confirmed=args.yes)
     except (ConfigError, RecordError, ExperimentError) as e:
-        print(f"error: {e}", file=sys.stderr)
+        msg = str(e)
+        if scene is not None and msg.startswith("["):  # a key of the scene, found after loading: name the file too
+            msg = f"{args.scene}: {msg}"
+        print(f"error: {msg}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except OSError as e:  # e.g. --out names a folder or an unwritable place
         print(f"error: cannot write results: {e}", file=sys.stderr)

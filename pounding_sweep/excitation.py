@@ -53,8 +53,12 @@ class Excitation:
         if lens.min() < 2:
             from .config import ConfigError
 
-            raise ConfigError(f"[excitation] the run ({paths[int(lens.argmin())]}, duration_s = {e.duration_s}, "
-                              f"length_scale = {e.length_scale}) is shorter than one step dt_s = {dt}")
+            k = int(lens.argmin())
+            key = "dt_max_s" if scene.integration.auto else "dt_s"
+            run = (f"[excitation] duration_s = {e.duration_s!r}" if e.duration_s is not None else
+                   f"record {paths[k]}, {recs[k].duration_s:.6g} s long"
+                   + (f" at length_scale = {e.length_scale:g}" if e.length_scale != 1.0 else ""))
+            raise ConfigError(f"[integration] {key} = {dt!r}: must be shorter than the run ({run})")
         offs = np.concatenate([[0], np.cumsum(lens)[:-1]]).astype(np.int64)
         flat = np.ascontiguousarray(np.concatenate(arrays))
         return cls("record", dt, e.duration_s, tuple(recs), tuple(paths), flat, offs, lens)

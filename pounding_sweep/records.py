@@ -277,14 +277,14 @@ def read_csv_record(path, units="m/s2") -> GroundRecord:
         i = bad[0] + 1
         raise RecordError(
             f"{src}, line {lineno_arr[i]}: time must be strictly increasing, "
-            f"got {t[i]!r} after {t[i - 1]!r}"
+            f"got {float(t[i])!r} after {float(t[i - 1])!r}"
         )
     dt = float(np.median(d))
     if (d.max() - d.min()) / dt >= 1e-6:
         i = int(np.argmax(np.abs(d - dt))) + 1
         raise RecordError(
-            f"{src}, line {lineno_arr[i]}: non-uniform time step {d[i - 1]!r} s (median {dt!r} s) "
-            f"at t={t[i]!r}; resample the record to a uniform step first"
+            f"{src}, line {lineno_arr[i]}: non-uniform time step {float(d[i - 1])!r} s (median {dt!r} s) "
+            f"at t={float(t[i])!r}; resample the record to a uniform step first"
         )
     return GroundRecord(name=p.stem, source=src, dt_s=dt, acc_m_s2=a * factor, description="")
 

@@ -39,11 +39,18 @@ class Experiment:
         return float(np.median(np.diff(self.time_s))) if self.time_s.size > 1 else 1.0
 
 
+TABLE_SUFFIXES = (".csv", ".parquet")  # read as text or by pyarrow; nothing else (no pickles, no Excel)
+
+
 def read_table(path: str | Path) -> tuple[pd.DataFrame, dict]:
-    """Read a CSV or Parquet table (and Parquet key-value metadata, decoded)."""
+    """Read a CSV or Parquet table (and Parquet key-value metadata, decoded); the suffix decides."""
     path = Path(path)
+    if path.is_dir():
+        raise ExperimentError(f"{path}: a folder, not an experiment table (.csv or .parquet)")
     if not path.is_file():
         raise ExperimentError(f"{path}: experiment table not found")
+    if path.suffix.lower() not in TABLE_SUFFIXES:
+        raise ExperimentError(f"{path}: an experiment table is .csv or .parquet, not {path.suffix or 'a file without suffix'!r}")
     try:
         if path.suffix.lower() == ".parquet":
             import pyarrow.parquet as pq

@@ -333,12 +333,12 @@ def scaling(sizes: list[int], run_s: float, lengths: list[float], n_len: int) ->
         for n in sizes:
             s = grid_of(n, run_s)
             summ = run_scene(s, out_path=Path(d) / f"n{n}.parquet")
-            rows.append([f"{n:,} runs x {run_s:g} s", f"{summ.compile_s:.2f}", f"{summ.run_s:.3f}",
+            rows.append([f"{summ.runs:,} runs x {run_s:g} s", f"{summ.compile_s:.2f}", f"{summ.run_s:.3f}",
                          fmt_rate(summ.steps / summ.run_s), f"{summ.run_s / summ.runs * 1e3:.3f}"])
         for dur in lengths:
             s = grid_of(n_len, dur)
             summ = run_scene(s, out_path=Path(d) / f"l{dur}.parquet")
-            rows.append([f"{n_len:,} runs x {dur:g} s", f"{summ.compile_s:.2f}", f"{summ.run_s:.3f}",
+            rows.append([f"{summ.runs:,} runs x {dur:g} s", f"{summ.compile_s:.2f}", f"{summ.run_s:.3f}",
                          fmt_rate(summ.steps / summ.run_s), f"{summ.run_s / summ.runs * 1e3:.3f}"])
     table(rows, ["grid", "cache load [s]", "sweep wall [s]", "steps/s", "ms per run"])
     print("(grids over k_s/k 0.1..10 x r 0..1 x gap 0..5 mm, 6 Hz table motion at 2 mm; sweep wall excludes the "
@@ -552,7 +552,7 @@ def main() -> None:
         threads_table(n_r=4 if q else 20, duration=0.5 if q else 2.0)
     if "4" in secs:
         scaling(sizes=[1, 10, 100, 1000] if q else [1, 10, 100, 1000, 10_000, 100_000], run_s=0.2 if q else 1.0,
-                lengths=[0.5, 2.0] if q else [0.5, 2.0, 8.0, 32.0], n_len=64 if q else 256)
+                lengths=[0.5, 2.0] if q else [0.5, 2.0, 8.0, 32.0], n_len=100 if q else 1000)
     if "5" in secs:
         memory(sizes=[10_000, 100_000] if q else [100_000, 1_000_000], dur=0.01 if q else 0.05)
     if "6" in secs:

@@ -476,6 +476,7 @@ def validate(s: Scene) -> None:
             raise ConfigError(f"[{bname}]: column_EI_Nm2 needs n_columns and story_height_m")
         if b.n_columns is not None:
             _positive(b.n_columns, f"[{bname}] n_columns")
+        _check_story_stiffness(b, bname, n)
         explicit = b.rayleigh_a0_per_s is not None or b.rayleigh_a1_s is not None
         if explicit and b.damping_ratio is not None:
             raise ConfigError(f"[{bname}]: give damping_ratio or rayleigh_a0_per_s/rayleigh_a1_s, not both")
@@ -588,6 +589,28 @@ def validate(s: Scene) -> None:
         n *= len(a.values)
     if n > MAX_GRID:
         raise ConfigError(f"[sweep]: {n} grid points exceed the limit of {MAX_GRID}")
+
+
+def _check_story_stiffness(b: BuildingConfig, bname: str, n: int) -> None:
+    """Each story's stiffness, as the model forms it (k = n_columns 12 EI / h^3 from columns), must be a
+    positive number whose stiffness matrix (2 k on the diagonal) stays finite: 1e308 N/m, or an EI and
+    h that overflow, would otherwise end in the model's arithmetic."""
+    if b.story_stiffness_N_per_m is not None:
+        for k in b.story_stiffness_N_per_m:
+            if not math.isfinite(2.0 * k):
+                raise ConfigError(f"[{bname}] story_stiffness_N_per_m = {k!r}: too large (the stiffness matrix overflows)")
+        return
+    ei, h = (v if len(v) == n else v * n for v in (b.column_EI_Nm2, b.story_height_m))
+    for e, hh in zip(ei, h):
+        try:
+            k = b.n_columns * 12.0 * e / hh**3
+        except OverflowError:  # h^3 beyond the largest float
+            k = 0.0
+        except ZeroDivisionError:  # h^3 below the smallest
+            k = math.inf
+        if not (k > 0 and math.isfinite(2.0 * k)):
+            raise ConfigError(f"[{bname}] column_EI_Nm2 = {e!r}, n_columns = {b.n_columns}, story_height_m = {hh!r}: "
+                              f"k = n_columns 12 EI / h^3 = {k!r} N/m, not a usable story stiffness")
 
 
 def _validate_experiment(s: Scene) -> None:

@@ -35,12 +35,10 @@ import dataclasses
 import json
 import os
 import platform
-import resource
 import statistics
 import subprocess
 import sys
 import tempfile
-import textwrap
 import threading
 import time
 from pathlib import Path
@@ -395,7 +393,8 @@ def memory(sizes: list[int], dur: float) -> None:
             grew = sorted(set(seen))
             rows.append([f"{n:,}", f"{r['maxrss_kb'] / 1024:.0f}", f"{r['run_s']:.1f}", fmt_rate(r["steps"] / r["run_s"]),
                          f"{size / 2**20:.0f}", f"{len(parts)}", f"{nrows:,}",
-                         f"yes: {len(grew)} part counts seen, {grew[0]}..{grew[-1]}" if len(grew) > 2 else "no"])
+                         f"yes: {len(grew)} part counts seen, {grew[0]}..{grew[-1]}" if len(grew) > 2
+                         else ("too short to watch" if r["wall"] < 2.0 else "no")])
     table(rows, ["runs", "peak RSS [MiB]", "sweep wall [s]", "steps/s", "Parquet [MiB]", "parts", "rows",
                  "written as it went"])
 

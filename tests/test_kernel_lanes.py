@@ -23,7 +23,7 @@ from pounding_sweep import driver, kernel, kernel_lanes
 from pounding_sweep import metrics_layout as L
 from pounding_sweep.config import Axis, load_scene
 from pounding_sweep.contact import CONTACT_LAWS
-from pounding_sweep.driver import HistorySpec, KernelOptions, RunArrays, ScoreSpec
+from pounding_sweep.driver import HistorySpec, RunArrays, ScoreSpec
 from pounding_sweep.sweep import contact_arrays, prepare
 
 KS = (0.01, 0.1, 1.0, 10.0, 100.0, 1e4)

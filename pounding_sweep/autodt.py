@@ -36,6 +36,19 @@ class AutoDt:
         self.factor = 2.0 ** ORDER[i.scheme] - 1.0
         self._prepare = prepare
         self._levels: dict = {}
+        self.check_finest()
+
+    def check_finest(self) -> None:
+        """Refuse before any run a dt_min_s whose runs would be too long to integrate (the finest
+        level is otherwise only built mid-sweep, after parts were written)."""
+        from .config import MAX_STEPS, ConfigError
+        from .excitation import Excitation
+
+        duration = Excitation.from_scene(self.scene, self.dt_max).max_duration_s
+        steps = duration / self.dt(self.n_levels - 1)
+        if steps > MAX_STEPS:
+            raise ConfigError(f"[integration] dt_min_s = {self.scene.integration.dt_min_s!r}: runs of {duration:.4g} s "
+                              f"would take {steps:,.0f} steps at the finest level, more than {MAX_STEPS:,}")
 
     def dt(self, level: int) -> float:
         return self.dt_max / 2.0**level

@@ -211,10 +211,15 @@ def _axis_values(scene: Scene, name: str) -> tuple:
 
 
 def _file_digest(path: str) -> str:
+    """SHA-256 of a file, read in 1 MiB blocks (a video may be larger than memory wants)."""
+    h = hashlib.sha256()
     try:
-        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+        with open(path, "rb") as f:
+            for block in iter(lambda: f.read(1 << 20), b""):
+                h.update(block)
     except OSError:
         return "unreadable"
+    return h.hexdigest()
 
 
 # ----------------------------------------------------------------------------- sweep axes
@@ -302,6 +307,9 @@ def scene_from_dict(raw: dict, base_dir: Path, source: str = "<dict>", toml_text
             raise ConfigError(f"'{name}' must be a table [{name}], got {type(table).__name__} {table!r}")
         sections[name] = _build(cls, table, name)
     name = _typed(raw.get("name", Path(source).stem), str, "name")
+    if not name or any(c in name for c in '/\\\x00') or name in (".", ".."):
+        raise ConfigError(f"name = {name!r}: a scene name is also the default output file name; "
+                          "use letters, digits, '-', '_' or '.', no path separators")
     desc = _typed(raw.get("description", ""), str, "description")
     exc = sections["excitation"]
     if exc.record is not None:

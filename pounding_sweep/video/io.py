@@ -138,12 +138,22 @@ class VideoReader:
         while True:
             ok, frame = cap.read()
             if not ok or frame is None:
+                self._check_complete(len(self.timestamps_ms))
                 return
             if frame.shape != shape:
                 raise VideoError(self.info.path, f"frame {len(self.timestamps_ms)} changes size",
                                  f"{frame.shape[1]}x{frame.shape[0]} after {shape[1]}x{shape[0]}")
             self.timestamps_ms.append(cap.get(cv2.CAP_PROP_POS_MSEC))
             yield frame
+
+    def _check_complete(self, decoded: int) -> None:
+        """A file that stops decoding well before the frame count its container states was cut
+        (a copy or recording interrupted): refuse it rather than track a shorter run. The count is
+        only a header value, so a shortfall of 2 frames or 2 % is let pass."""
+        hint = self.info.frame_count_hint
+        if hint > 0 and decoded < hint - max(2, 0.02 * hint):
+            raise VideoError(self.info.path, "the video ends early: truncated or damaged",
+                             f"{decoded} of the {hint} frames its container states decoded")
 
     def check_uniform_timestamps(self, fps_container: float | None = None) -> None:
         """Refuse variable-frame-rate video (dropped or repeated frames make the frame index a

@@ -318,6 +318,8 @@ CASES: list[Case] = [
        table_scene() + 'refine = "yes"\n', files={"exp.csv": table_csv()}),
     _c("dt_word", "types", 'dt_s = "fast"', [S, "[integration] dt_s"], "'fast'", edit(BASE, "dt_s = 1e-4", 'dt_s = "fast"')),
     # ------------------------------------------------------------------ out-of-range values
+    _c("scene_name_is_a_path", "values", "name = '../elsewhere' (the default output file name)", [S, "name"],
+       "../elsewhere", edit(BASE, 'name = "bad_input_case"', 'name = "../elsewhere"')),
     _c("r_above_1", "values", "[contact] r = 1.5", [S, "[contact] r"], "1.5", edit(BASE, "r = 0.4", "r = 1.5"), sub=True),
     _c("r_negative_in_sweep", "values", "[sweep] r = [0.2, -0.1]", [S, "[sweep] r"], "-0.1",
        edit(BASE, "r = [0.2, 0.6]", "r = [0.2, -0.1]")),
@@ -512,7 +514,9 @@ CASES: list[Case] = [
     _c("track_truncated_header", "video", "track the first 2000 bytes of a video", ["run.mkv"], "no frames", None,
        files={"run.mkv": video_head(2000)}, argv=track()),
     _c("track_truncated_to_one_frame", "video", "track the first 5 % of a video (1 frame left)", ["run.mkv"],
-       "1 frame(s)", None, files={"run.mkv": video_fraction(0.05)}, argv=track()),
+       "1 of the 40 frames", None, files={"run.mkv": video_fraction(0.05)}, argv=track()),
+    _c("track_truncated_mid_stream", "video", "track the first 60 % of a video (cut mid-stream)", ["run.mkv", "truncated"],
+       "of the 40 frames", None, files={"run.mkv": video_fraction(0.6)}, argv=track()),
     _c("track_still_image", "video", "track a PNG still named .mkv", ["run.mkv"], "frame", None,
        files={"run.mkv": png_still}, argv=track()),
     _c("track_pickle", "video", "track a pickle named run.pkl", ["run.pkl"], "not a video", None,
@@ -525,13 +529,7 @@ CASES: list[Case] = [
 
 #: inputs that should be refused but are not yet: each is run and expected to fail its check
 #: (strict xfail in the test), so fixing the gap shows up. The reason says what is missing.
-KNOWN_GAPS = {
-    "track_truncated_mid_stream": (
-        _c("track_truncated_mid_stream", "video", "track the first 60 % of a video (cut mid-stream)", ["run.mkv"],
-           "truncated", None, files={"run.mkv": video_fraction(0.6)}, argv=track()),
-        "a video cut mid-stream decodes its first frames and tracks them as a shorter run: VideoReader/track_video "
-        "do not compare the decoded count with the container's (an FFV1 .mkv header states 40 frames, 23 decode)"),
-}
+KNOWN_GAPS: dict = {}  # none left: a video cut mid-stream is now refused (VideoReader._check_complete)
 
 
 # ----------------------------------------------------------------------------- running a case

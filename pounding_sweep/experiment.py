@@ -9,11 +9,15 @@ Extra columns (quality flags, other floors) are ignored unless the scene maps th
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
+
+if TYPE_CHECKING:  # pandas costs 0.3 s to import: only where a table is built
+    import pandas as pd
 
 from .channels import floor_dof
 from .config import ExperimentConfig
@@ -58,6 +62,8 @@ def read_table(path: str | Path) -> tuple[pd.DataFrame, dict]:
             t = pq.read_table(path)
             md = {k.decode(errors="replace"): v.decode(errors="replace") for k, v in (t.schema.metadata or {}).items()}
             return t.to_pandas(), md
+        import pandas as pd
+
         return pd.read_csv(path), {}
     except ExperimentError:
         raise
@@ -131,6 +137,8 @@ def _tracked(spec) -> tuple[pd.DataFrame, dict, str]:
 
 
 def _numeric(series: pd.Series, where: str, col: str) -> np.ndarray:
+    import pandas as pd
+
     x = pd.to_numeric(series, errors="coerce").to_numpy(dtype=float)
     bad = ~np.isfinite(x)
     if bad.any():

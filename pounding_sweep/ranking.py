@@ -3,12 +3,16 @@ combined error, and an optional continuous refinement of (k_s/k, r) with scipy.o
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
-import pandas as pd
 import pyarrow as pa
+
+if TYPE_CHECKING:  # pandas costs 0.3 s to import: only where a table is built
+    import pandas as pd
 
 from .score_kernel import SCORE_NAMES, S_REL_RMS_PCT
 
@@ -63,6 +67,8 @@ class Ranking:
             if crit in self.best:
                 r = dict(self.best[crit])
                 rows.append({"criterion": crit, "error_pct": r.pop(crit), **r})
+        import pandas as pd
+
         return pd.DataFrame(rows)
 
 

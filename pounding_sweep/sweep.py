@@ -8,6 +8,8 @@ scored as it finishes and the best runs are kept as running minima.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import time
 from collections import Counter
 from dataclasses import dataclass, field
@@ -15,8 +17,10 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
-import pandas as pd
 import pyarrow.parquet as pq
+
+if TYPE_CHECKING:  # pandas costs 0.3 s to import: only where a table is built
+    import pandas as pd
 
 from . import metrics_layout as L
 from .channels import parse_channel
@@ -184,7 +188,7 @@ def run_scene(scene: Scene, out_path: str | Path | None = None, threads: int | N
 
     exe = executor or make_executor(ex.executor, threads if threads is not None else ex.threads, ex.dask_address,
                                     ex.dask_workers)
-    compile_s = compile_kernel(prep.sysarr, prep.opts)  # here too: refinement and the summary's figure
+    compile_s = compile_kernel(prep.sysarr, prep.opts, prep.hist, prep.score)  # the kernel this sweep uses
     t_run = time.perf_counter()
     try:
         for res in exe.map(prep, todo):
@@ -208,6 +212,8 @@ def run_scene(scene: Scene, out_path: str | Path | None = None, threads: int | N
                            tally.steps, exe.workers, {"peak_force_N": tally.peak_force}, parts=len(chunks),
                            resumed_parts=len(done), executor=exe.name)
     if ranking is not None:
+        import pandas as pd
+
         best = ranking.frame()
         if best.empty:  # every run diverged or ended before the window: nothing to rank
             best = pd.DataFrame(columns=["criterion", "error_pct", "run_id"])

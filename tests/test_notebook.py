@@ -57,7 +57,8 @@ print("CHECKS " + json.dumps({
 def test_notebook_runs_top_to_bottom(tmp_path):
     nb = nbformat.read(NOTEBOOK, as_version=4)
     missing = tmp_path / "not_there.parquet"  # a missing result file: the notebook runs the shipped scene
-    nb = _with_parameters(nb, RESULTS=str(missing), WORK_DIR=str(tmp_path / "work"))
+    nb = _with_parameters(nb, RESULTS=str(missing), WORK_DIR=str(tmp_path / "work"),
+                          SCENE=str(REPO / "sweeps" / "scored_6hz.toml"))  # found also from a non-editable install
     nb.cells.append(nbformat.v4.new_code_cell(CHECKS))
     t0 = time.perf_counter()
     nbclient.NotebookClient(nb, km=_kernel_manager(tmp_path), timeout=180,

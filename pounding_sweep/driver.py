@@ -2,7 +2,7 @@
 
 Two kernels compute the same metric rows: the lane kernel (kernel_lanes.integrate_lanes, 16 runs
 side by side in SIMD lanes, the scalar kernel's arithmetic per run) takes every chunk it is
-eligible for (kernel_lanes.lanes_ineligible_reason: metrics only, implicit scheme, the two
+eligible for (kernel_lanes.lanes_ineligible_reason: metrics only, implicit or event scheme, the two
 shear-frame structure); the scalar kernel (kernel.integrate_batch) takes the others (histories,
 scoring, the paper's scheme) and reruns any run that diverged in a lane.
 
@@ -179,9 +179,9 @@ def run_chunk_lanes(sys: SystemArrays, runs: RunArrays, rec, opts: KernelOptions
 
     def work(g):
         t0 = time.perf_counter()
-        integrate_lanes(order, g, g + 1, sys.dt, opts.law, opts.max_iter, nt, n1t,
+        integrate_lanes(order, g, g + 1, sys.dt, opts.scheme, opts.law, opts.max_iter, nt, n1t,
                         sys.m, sys.C, sys.K, sys.Kinv, sys.H, sys.S, runs.ks, runs.cdash, runs.gap, runs.status_in, runs.nsteps,
-                        coef, pid, prof, metrics, redo)
+                        runs.exc_kind, runs.exc_amp, runs.exc_omega, coef, pid, prof, metrics, redo)
         members = order[g * LANES:(g + 1) * LANES]
         run_time[members] = (time.perf_counter() - t0) / members.size
 

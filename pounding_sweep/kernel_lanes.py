@@ -52,6 +52,7 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic, models, overload, register_model
 
+from . import kernel as _kernel
 from . import metrics_layout as ML
 
 #: runs per group, fixed at compile time: two SIMD values of VW = 8 lanes.
@@ -70,6 +71,7 @@ def njit_lanes(fn):
 # scheme / law / excitation codes, as in kernel.py (repeated, not imported, so that this module
 # compiles without the scalar kernel; test_kernel_lanes checks they agree)
 SCHEME_IMPLICIT = 0
+SCHEME_EVENT = 2
 LAW_NO_TENSION = 1
 EXC_HARMONIC = 0
 EXC_RECORD = 1
@@ -81,8 +83,8 @@ def lanes_ineligible_reason(sys, hist, opts, score) -> str | None:
     """Why this chunk must run on the scalar kernel, or None when the lane kernel computes the same rows.
 
     The lane kernel computes metric rows only (no histories, no scoring against an experiment), for
-    the implicit scheme (the paper's scheme and any other go to the scalar kernel), with at least
-    one active-set iteration per step, and for the coupled shear-frame structure it exploits:
+    the implicit scheme (with at least one active-set iteration per step) and the event scheme (the
+    paper's scheme and any other go to the scalar kernel), and for the coupled shear-frame structure it exploits:
     facing floor pairs j <-> n1 + j, Keff^-1 and C block-diagonal (exact zeros between the
     buildings) and C tridiagonal within each building.
     """
@@ -90,11 +92,11 @@ def lanes_ineligible_reason(sys, hist, opts, score) -> str | None:
         return "histories requested"
     if score is not None and score.active:
         return "scoring against an experiment"
-    if opts.scheme != SCHEME_IMPLICIT:
-        return "scheme is not 'implicit'"
+    if opts.scheme not in (SCHEME_IMPLICIT, SCHEME_EVENT):
+        return "scheme is neither 'implicit' nor 'event'"
     if opts.law not in (0, LAW_NO_TENSION):
         return "unknown contact law"
-    if opts.max_iter < 1:
+    if opts.scheme == SCHEME_IMPLICIT and opts.max_iter < 1:
         return "max_contact_iterations < 1"
     n = sys.m.size
     p = sys.i1.size
@@ -561,6 +563,53 @@ def _predict_contact(W, dt, law, nt, n1t, m, C, Kinv, S, pon):
     return nevt
 
 
+@njit_lanes
+def _event_check(W, dt, law, nt, n1t, H, pon):
+    """Event scheme: EVT = 1 where the end state of the step taken with the lane's start set (u0 - H F,
+    F from _predict_contact, or u0 when no lane is in contact) contradicts that set, by the scalar
+    kernel's test (kernel._step_pieces, operation for operation): penetration beyond
+    kernel._switch_tolerance for a pair out of contact, below minus it for a pair in contact, the
+    no-tension law's indicator min(pen, pen + c/k_s v_rel) in place of a positive penetration. Those
+    lanes take the step in scalar code (_event_lane); the others' step is the scalar kernel's step
+    without an event, which the vector finish computes. Returns the number of EVT lanes."""
+    N = len(nt)
+    N1 = len(n1t)
+    P = min(N1, N - N1)
+    (r_u, r_v, r_a, r_w, r_rh, r_u0, r_f, r_act, r_was, r_inc, r_cac, r_end, r_sp, r_dp, r_ke, r_cd,
+     r_z0, r_bb, r_x, r_ff, r_fu, r_s, r_met) = _layout(N, P)
+    b1 = 2.0 / dt
+    nevt = 0
+    for c in range(0, LANES, VW):
+        d = vload(W, (r_s + S_D) * LANES + c)
+        ks = vload(W, (r_s + S_KS) * LANES + c)
+        e = mconst(False)
+        for j in range(P):
+            p = j
+            q = N1 + j
+            unp = vload(W, (r_u0 + p) * LANES + c)
+            unq = vload(W, (r_u0 + q) * LANES + c)
+            for k in range(P):
+                if pon[k] > 0:
+                    fk = vload(W, (r_f + k) * LANES + c)
+                    unp = unp - H[p, k] * fk
+            for k in range(P):
+                if pon[k] > 0:
+                    fk = vload(W, (r_f + k) * LANES + c)
+                    unq = unq - H[q, k] * fk
+            pe = (unp - unq) - d
+            if law == LAW_NO_TENSION:
+                vnp = b1 * (unp - vload(W, (r_u + p) * LANES + c)) - vload(W, (r_v + p) * LANES + c)
+                vnq = b1 * (unq - vload(W, (r_u + q) * LANES + c)) - vload(W, (r_v + q) * LANES + c)
+                alt = pe + (vload(W, (r_cd + j) * LANES + c) / ks) * (vnp - vnq)
+                pe = vsel(pe > 0.0, vsel(alt < pe, alt, pe), pe)  # min(pe, alt) where pe > 0
+            tol = 1e-15 + 1e-12 * (abs(unp) + abs(unq))
+            act = vload(W, (r_act + j) * LANES + c) > 0.5
+            e = e | (act & (pe < 0.0 - tol)) | (~act & (pe > tol))
+        vstore(W, (r_s + S_EVT) * LANES + c, mfloat(e))
+        nevt += mcount(e)
+    return nevt
+
+
 @_inline
 def _finish_dofs(W, c, ag, t, a1, a2, b1, dt, m, C, N, N1, r_u, r_v, r_a, r_w, r_rh, r_s, r_met):
     """End state (the new u is in the rh rows): velocity, acceleration, divergence check, input and
@@ -868,6 +917,109 @@ def _settle_lane(W, l, law, max_iter, S, N1, P, r_w, r_u0, r_f, r_act, r_ke, r_c
 
 
 @njit_lanes
+def _event_lane(W, l, step, dt, law, harmonic, amp, om, m, C, K, H, S, i1, i2, c, N1, r_u, r_v, r_a, r_w, r_u0,
+                r_f, r_act, r_was, r_inc, r_cac, r_sp, r_dp, r_ke, r_s, r_met, dur_l, nph_l, u, v, a, u0, un, vn, an,
+                F, z0, bb, ke, active, was_active, just, trial, thetas, in_comp, comp_acc, Sprev, Dprev, pen_prev,
+                Cdu, Amat, rvec, en, orow, idx, Asmall, rsmall):
+    """Event scheme, lane l (whose end state contradicts its contact set): the scalar kernel's step,
+    operation for operation (kernel.integrate_batch: the forces of the start set, the trial end state,
+    then kernel._step_pieces, which locates and handles the events, and the per-floor peaks), on the
+    lane's state gathered from W and written back to it. Returns True when the state stays finite
+    (else the lane goes back to the driver, which reruns the run with the scalar kernel)."""
+    N = m.shape[0]
+    P = i1.shape[0]
+    a1 = 4.0 / (dt * dt)
+    a2 = 4.0 / dt
+    b1 = 2.0 / dt
+    k_s = W[(r_s + S_KS) * LANES + l]
+    d = W[(r_s + S_D) * LANES + l]
+    ksd = W[(r_s + S_KSD) * LANES + l]
+    ag = W[(r_s + S_AG) * LANES + l]
+    ag_prev = W[(r_s + S_AGP) * LANES + l]
+    for i in range(N):
+        u[i] = W[(r_u + i) * LANES + l]
+        v[i] = W[(r_v + i) * LANES + l]
+        a[i] = W[(r_a + i) * LANES + l]
+        u0[i] = W[(r_u0 + i) * LANES + l]
+    for j in range(P):
+        z0[j] = u0[i1[j]] - u0[i2[j]]
+        wrel = W[(r_w + i1[j]) * LANES + l] - W[(r_w + i2[j]) * LANES + l]
+        bb[j] = ksd + c[j] * wrel
+        ke[j] = W[(r_ke + j) * LANES + l]
+        active[j] = W[(r_act + j) * LANES + l] > 0.5
+        was_active[j] = W[(r_was + j) * LANES + l] > 0.5
+        in_comp[j] = W[(r_inc + j) * LANES + l] > 0.5
+        comp_acc[j] = W[(r_cac + j) * LANES + l]
+        Sprev[j] = W[(r_sp + j) * LANES + l]
+        Dprev[j] = W[(r_dp + j) * LANES + l]
+        pen_prev[j] = u[i1[j]] - u[i2[j]] - d  # the scalar kernel's pen_prev: set from u at every accepted piece
+    en[_kernel.EN_W_RELEASE] = W[(r_s + S_WREL) * LANES + l]
+    en[_kernel.EN_E_IN] = W[(r_s + S_EIN) * LANES + l]
+    en[_kernel.EN_E_IN_ABS] = W[(r_s + S_EINA) * LANES + l]
+    en[_kernel.EN_D_STRUCT] = W[(r_s + S_DST) * LANES + l]
+    en[_kernel.EN_W_SPRING] = W[(r_s + S_WSP) * LANES + l]
+    en[_kernel.EN_W_DASH] = W[(r_s + S_WDA) * LANES + l]
+    pbase = ML.PER_DOF * N
+    rbase = pbase + ML.PER_PAIR * P
+    for q in range(rbase):
+        orow[q] = W[(r_met + q) * LANES + l]
+    # kernel.integrate_batch, event scheme: the step with the start set, then its pieces
+    _contact_forces(S, z0, bb, ke, active, P, idx, Asmall, rsmall, F)
+    for i in range(N):
+        s = u0[i]
+        for j in range(P):
+            s -= H[i, j] * F[j]
+        un[i] = s
+    for i in range(N):
+        du = un[i] - u[i]
+        vn[i] = b1 * du - v[i]
+        an[i] = a1 * du - a2 * v[i] - a[i]
+    finite, n_ev, uns = _kernel._step_pieces(SCHEME_EVENT, law, step, dt, ag, ag_prev, harmonic, amp, om, m, C, K,
+                                             i1, i2, k_s, c, d, u, v, a, un, vn, an, F, active, was_active, just,
+                                             trial, thetas, in_comp, comp_acc, dur_l, nph_l, Sprev, Dprev, pen_prev,
+                                             Cdu, Amat, rvec, en, orow, pbase)
+    if n_ev > W[(r_s + S_MIT) * LANES + l]:
+        W[(r_s + S_MIT) * LANES + l] = n_ev
+    W[(r_s + S_UNS) * LANES + l] += uns
+    if not finite:
+        W[(r_s + S_BAD) * LANES + l] = 1.0
+        return False
+    W[(r_s + S_BAD) * LANES + l] = 0.0
+    W[(r_s + S_AGP) * LANES + l] = ag
+    t = step * dt
+    for i in range(N):  # per-floor metrics at the step end (kernel.integrate_batch)
+        base = ML.PER_DOF * i
+        ad = abs(u[i])
+        if ad > orow[base + ML.DOF_PEAK_DISP]:
+            orow[base + ML.DOF_PEAK_DISP] = ad
+            orow[base + ML.DOF_PEAK_DISP_TIME] = t
+        aa = abs(a[i] + ag)
+        if aa > orow[base + ML.DOF_PEAK_ABS_ACC]:
+            orow[base + ML.DOF_PEAK_ABS_ACC] = aa
+    for i in range(N):
+        W[(r_u + i) * LANES + l] = u[i]
+        W[(r_v + i) * LANES + l] = v[i]
+        W[(r_a + i) * LANES + l] = a[i]
+    for j in range(P):
+        W[(r_f + j) * LANES + l] = F[j]
+        W[(r_act + j) * LANES + l] = 1.0 if active[j] else 0.0
+        W[(r_was + j) * LANES + l] = 1.0 if was_active[j] else 0.0
+        W[(r_inc + j) * LANES + l] = 1.0 if in_comp[j] else 0.0
+        W[(r_cac + j) * LANES + l] = comp_acc[j]
+        W[(r_sp + j) * LANES + l] = Sprev[j]
+        W[(r_dp + j) * LANES + l] = Dprev[j]
+    W[(r_s + S_WREL) * LANES + l] = en[_kernel.EN_W_RELEASE]
+    W[(r_s + S_EIN) * LANES + l] = en[_kernel.EN_E_IN]
+    W[(r_s + S_EINA) * LANES + l] = en[_kernel.EN_E_IN_ABS]
+    W[(r_s + S_DST) * LANES + l] = en[_kernel.EN_D_STRUCT]
+    W[(r_s + S_WSP) * LANES + l] = en[_kernel.EN_W_SPRING]
+    W[(r_s + S_WDA) * LANES + l] = en[_kernel.EN_W_DASH]
+    for q in range(rbase):
+        W[(r_met + q) * LANES + l] = orow[q]
+    return True
+
+
+@njit_lanes
 def _end_phase(dur, nph, l, j, duration):
     """kernel._end_phase for lane l."""
     k = nph[l, j]
@@ -955,6 +1107,7 @@ def integrate_lanes(
     g_start,
     g_stop,
     dt,
+    scheme,
     law,
     max_iter,
     # structure: nt, n1t are tuples of length N and N1 (floor counts fixed at compile time)
@@ -972,6 +1125,9 @@ def integrate_lanes(
     gap,
     status_in,
     nsteps,
+    exc_kind,
+    exc_amp,
+    exc_omega,
     coef,
     pid,
     prof,
@@ -1014,6 +1170,33 @@ def integrate_lanes(
     Asmall = np.empty((P, P))
     rsmall = np.empty(P)
     n_runs = order.size
+    # event scheme: the lanes whose step has an event (state at the step start kept in snap), and the
+    # scalar work arrays of their step (kernel.integrate_batch's)
+    event = scheme == SCHEME_EVENT
+    snap = np.empty((LANES, nrows))
+    fix = np.zeros(LANES, dtype=np.bool_)
+    i1 = np.arange(P)
+    i2 = N1 + np.arange(P)
+    eu = np.empty(N)
+    ev = np.empty(N)
+    ea = np.empty(N)
+    eu0 = np.empty(N)
+    eun = np.empty(N)
+    evn = np.empty(N)
+    ean = np.empty(N)
+    ecdu = np.empty(N)
+    was_e = np.zeros(P, dtype=np.bool_)
+    just = np.zeros(P, dtype=np.bool_)
+    thetas = np.empty(P)
+    inc_e = np.zeros(P, dtype=np.bool_)
+    cac_e = np.zeros(P)
+    sp_e = np.zeros(P)
+    dp_e = np.zeros(P)
+    penp = np.zeros(P)
+    Amat = np.empty((N, N))
+    rvec = np.empty(N)
+    en = np.zeros(_kernel.EN_N)
+    orow = np.zeros(ML.PER_DOF * N + ML.PER_PAIR * P + ML.PER_RUN)
 
     for g in range(g_start, g_stop):
         base = g * LANES
@@ -1049,7 +1232,7 @@ def integrate_lanes(
             for i in range(N):
                 W[(r_a + i) * LANES + l] = -ag0
             W[(r_s + S_AGP) * LANES + l] = ag0
-            W[(r_s + S_MIT) * LANES + l] = 1.0 if nsteps[run] >= 1 else 0.0
+            W[(r_s + S_MIT) * LANES + l] = 1.0 if (nsteps[run] >= 1 and not event) else 0.0
         for l in range(nl):
             if lane_nst[l] == 0:
                 _finalize_lane(W, l, metrics[lane_run[l]], lane_status[l], 0, dt, m, K, N, N1, P, dur, nph,
@@ -1073,7 +1256,51 @@ def integrate_lanes(
             else:
                 nevt = _predict_quiet(W, dt, nt, n1t, m, C, Kinv)
                 pon_start[:] = 0
-            if nevt > 0:
+            if event:
+                # the step with each lane's start set; lanes where it ends contradicting the set are
+                # redone below in scalar code, from the state kept here
+                for j in range(P):
+                    pon_start[j] = 1 if act_pair[j] > 0 else 0
+                nevt = _event_check(W, dt, law, nt, n1t, H, pon_start)
+                nfix = 0
+                if nevt > 0:
+                    for l in range(LANES):
+                        fix[l] = live[l] and W[(r_s + S_EVT) * LANES + l] > 0.5
+                        if fix[l]:
+                            nfix += 1
+                            for q in range(nrows):
+                                snap[l, q] = W[q * LANES + l]
+                if had_contact:
+                    nbad, nend = _finish_contact(W, dt, step, nt, n1t, m, C, H, pon_start, pon_start)
+                else:
+                    nbad = _finish_quiet(W, dt, step, nt, n1t, m, C)
+                    nend = 0
+                if nfix > 0:
+                    for l in range(LANES):
+                        if not fix[l]:
+                            continue
+                        for q in range(nrows):
+                            W[q * LANES + l] = snap[l, q]
+                        for j in range(P):
+                            if W[(r_act + j) * LANES + l] > 0.5:
+                                act_pair[j] -= 1
+                                n_act -= 1
+                        run = lane_run[l]
+                        _event_lane(W, l, step, dt, law, exc_kind[run] == EXC_HARMONIC, exc_amp[run], exc_omega[run],
+                                    m, C, K, H, S, i1, i2, cdash[run], N1, r_u, r_v, r_a, r_w, r_u0, r_f, r_act,
+                                    r_was, r_inc, r_cac, r_sp, r_dp, r_ke, r_s, r_met, dur[l], nph[l], eu, ev, ea,
+                                    eu0, eun, evn, ean, Fw, z0, bb, ke, active, was_e, just, trial, thetas, inc_e,
+                                    cac_e, sp_e, dp_e, penp, ecdu, Amat, rvec, en, orow, idx, Asmall, rsmall)
+                        for j in range(P):
+                            if W[(r_act + j) * LANES + l] > 0.5:
+                                act_pair[j] += 1
+                                n_act += 1
+                        _lane_factors(W, l, S, P, r_ke, r_act, r_ff, r_fu, idx, Asmall)  # the set may have changed
+                    nbad = 0
+                    for l in range(LANES):
+                        if live[l] and W[(r_s + S_BAD) * LANES + l] > 0.5:
+                            nbad += 1
+            elif nevt > 0:
                 for l in range(LANES):
                     if live[l] and W[(r_s + S_EVT) * LANES + l] > 0.5:
                         for j in range(P):
@@ -1092,7 +1319,9 @@ def integrate_lanes(
                                 n_act += 1
                         if changed:
                             _lane_factors(W, l, S, P, r_ke, r_act, r_ff, r_fu, idx, Asmall)
-            if had_contact or n_act > 0:
+            if event:
+                pass  # finished above
+            elif had_contact or n_act > 0:
                 for j in range(P):
                     pon_now[j] = 1 if act_pair[j] > 0 else 0
                     pon_any[j] = 1 if (pon_start[j] > 0 or act_pair[j] > 0) else 0

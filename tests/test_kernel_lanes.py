@@ -31,8 +31,14 @@ R = (0.0, 0.4, 1.0)
 GAPS = (0.0, 1e-3, 0.02)
 
 
-def implicit(scene, law="classic", duration=None):
-    s = dataclasses.replace(scene, integration=dataclasses.replace(scene.integration, scheme="implicit"),
+SCHEMES = ("implicit", "event")
+
+
+def implicit(scene, law="classic", duration=None, scheme="implicit", dt=None):
+    integ = dataclasses.replace(scene.integration, scheme=scheme)
+    if dt is not None:
+        integ = dataclasses.replace(integ, dt_s=dt)
+    s = dataclasses.replace(scene, integration=integ,
                             contact=dataclasses.replace(scene.contact, law=law))
     if duration is not None:
         s = dataclasses.replace(s, excitation=dataclasses.replace(s.excitation, duration_s=duration))
@@ -72,9 +78,9 @@ def col(metrics, name, floors=(3, 3)):
 
 
 @functools.lru_cache(maxsize=None)
-def harmonic_grid(law):
+def harmonic_grid(law, scheme="implicit"):
     """k_s/k x r x gap, 0.5 s of the 6 Hz table motion at 2 mm and 5 mm."""
-    s = implicit(load_scene(SWEEPS / "paper_6hz.toml"), law, duration=0.5)
+    s = implicit(load_scene(SWEEPS / "paper_6hz.toml"), law, duration=0.5, scheme=scheme)
     s = dataclasses.replace(s, sweep=(Axis("amplitude_m", (0.002, 0.005)), Axis("gap_m", GAPS),
                                       Axis("ks_ratio", KS), Axis("r", R)))
     prep = prepare(s)
@@ -82,9 +88,10 @@ def harmonic_grid(law):
     return (prep, runs, rec) + both(prep, runs, rec)
 
 
+@pytest.mark.parametrize("scheme", SCHEMES)
 @pytest.mark.parametrize("law", ["classic", "no_tension"])
-def test_harmonic_grid_rows_identical(law):
-    prep, runs, rec, lanes, scalar = harmonic_grid(law)
+def test_harmonic_grid_rows_identical(law, scheme):
+    prep, runs, rec, lanes, scalar = harmonic_grid(law, scheme)
     assert driver.kernel_for(prep.sysarr, prep.hist, prep.opts, prep.score) == "lanes"
     assert_rows_identical(lanes, scalar)
     # the grid exercises what the lane kernel does differently: contact in some lanes and not in
@@ -94,13 +101,14 @@ def test_harmonic_grid_rows_identical(law):
     assert (col(scalar, "compression_phases_f1") > 0).any()
     assert (col(scalar, "median_compression_phase_f3_s") > 0).any()
     assert (col(scalar, "status_code").astype(int) & L.STATUS_UNDERRESOLVED).any()
-    assert (col(scalar, "max_contact_iterations") > 1).any()
-    if law == "classic":
+    assert (col(scalar, "max_contact_iterations") > 1).any()  # event scheme: several events in a step
+    if law == "classic" and scheme == "implicit":
         assert (col(scalar, "unsettled_steps") > 0).any()
         assert (col(scalar, "min_force_f3_N") < 0).any()
 
 
-def test_record_grid_with_runs_of_unequal_length_rows_identical(tmp_path):
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_record_grid_with_runs_of_unequal_length_rows_identical(tmp_path, scheme):
     """Duzce DZC180 (similitude 1/15) and a shortened copy in one sweep: groups mix records and
     lengths, so lanes end at different steps and read different ground motions."""
     from pounding_sweep.records import read_record
@@ -110,7 +118,7 @@ def test_record_grid_with_runs_of_unequal_length_rows_identical(tmp_path):
     n = rec.time_s.size // 3
     np.savetxt(short, np.column_stack([rec.time_s[:n], rec.acc_m_s2[:n]]), delimiter=",", header="t_s,acc_m_s2",
                comments="")
-    s = implicit(load_scene(SWEEPS / "paper_duzce.toml"))
+    s = implicit(load_scene(SWEEPS / "paper_duzce.toml"), scheme=scheme)
     s = dataclasses.replace(s, excitation=dataclasses.replace(s.excitation, duration_s=None),
                             sweep=(Axis("ks_ratio", (0.1, 1.0, 10.0)), Axis("r", (0.0, 0.4, 1.0)),
                                    Axis("record", (str(SWEEPS / "records" / "RSN1605_DUZCE_DZC180.AT2"), str(short))),
@@ -123,10 +131,11 @@ def test_record_grid_with_runs_of_unequal_length_rows_identical(tmp_path):
     assert (col(scalar, "impacts_f3") > 0).any()
 
 
-def test_uneven_lengths_and_a_diverging_run_in_one_group():
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_uneven_lengths_and_a_diverging_run_in_one_group(scheme):
     """Hand-made runs: lengths from 1 to 3000 steps (and 0) in one group; one run with a table
     motion of 100 km, which the divergence guard stops: the lane kernel hands it to the scalar kernel."""
-    prep = prepare(implicit(load_scene(SWEEPS / "paper_6hz.toml"), duration=0.3))
+    prep = prepare(implicit(load_scene(SWEEPS / "paper_6hz.toml"), duration=0.3, scheme=scheme))
     params = prep.grid.chunk(0, 1)
     base, rec = chunk_inputs(prep, params)
     n = 40
@@ -145,9 +154,10 @@ def test_uneven_lengths_and_a_diverging_run_in_one_group():
     assert_rows_identical(lanes, scalar)
 
 
-def test_other_floor_counts():
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_other_floor_counts(scheme):
     """A 4-story building beside a 2-story one (two contact pairs): compiled for those sizes."""
-    s = implicit(load_scene(SWEEPS / "paper_6hz.toml"), duration=0.4)
+    s = implicit(load_scene(SWEEPS / "paper_6hz.toml"), duration=0.4, scheme=scheme)
     s = dataclasses.replace(
         s,
         building1=dataclasses.replace(s.building1, masses_kg=(1.7, 1.7, 1.6, 1.5)),
@@ -162,9 +172,10 @@ def test_other_floor_counts():
     assert (col(scalar, "impacts_f2", (4, 2)) > 0).any()
 
 
-def test_a_run_does_not_depend_on_its_lane_group_or_thread():
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_a_run_does_not_depend_on_its_lane_group_or_thread(scheme):
     """Runs permuted (they land in other lanes and groups) and 2 threads: the same rows."""
-    prep, runs, rec, lanes, _ = harmonic_grid("classic")
+    prep, runs, rec, lanes, _ = harmonic_grid("classic", scheme)
     perm = np.random.default_rng(3).permutation(runs.n)
     shuffled = RunArrays(*(np.ascontiguousarray(getattr(runs, f.name)[perm]) for f in dataclasses.fields(RunArrays)))
     again, _ = driver.run_chunk_lanes(prep.sysarr, shuffled, rec, prep.opts, threads=2)
@@ -185,10 +196,12 @@ def test_run_chunk_dispatch_and_the_eligibility_rules():
     score = ScoreSpec(np.array([0.1]), np.zeros((1, 1)), np.array([2]), 0, 0.01)
     assert "scoring" in why(sysarr, none_h, opts, score)
     assert "implicit" in why(sysarr, none_h, dataclasses.replace(opts, scheme=kernel.SCHEMES["paper"]), none_s)
-    for name, code in kernel.SCHEMES.items():  # every other scheme, the event scheme included
-        if name != "implicit":
-            assert why(sysarr, none_h, dataclasses.replace(opts, scheme=code), none_s) is not None
+    for name, code in kernel.SCHEMES.items():  # every scheme but implicit and event
+        ok = why(sysarr, none_h, dataclasses.replace(opts, scheme=code), none_s) is None
+        assert ok == (name in SCHEMES)
     assert why(sysarr, none_h, dataclasses.replace(opts, max_iter=0), none_s) is not None
+    # the event scheme takes no active-set iteration
+    assert why(sysarr, none_h, dataclasses.replace(opts, scheme=kernel.SCHEMES["event"], max_iter=0), none_s) is None
     assert why(sysarr, none_h, dataclasses.replace(opts, law=7), none_s) is not None
     coupled = dataclasses.replace(sysarr, Kinv=sysarr.Kinv + 1e-30)
     assert "couples" in why(coupled, none_h, opts, none_s)
@@ -198,6 +211,7 @@ def test_run_chunk_dispatch_and_the_eligibility_rules():
     assert "facing" in why(swapped, none_h, opts, none_s)
     # the codes the lane kernel repeats agree with the scalar kernel's and the contact module's
     assert kernel_lanes.SCHEME_IMPLICIT == kernel.SCHEMES["implicit"]
+    assert kernel_lanes.SCHEME_EVENT == kernel.SCHEMES["event"]
     assert kernel_lanes.LAW_NO_TENSION == CONTACT_LAWS["no_tension"]
     assert (kernel_lanes.EXC_HARMONIC, kernel_lanes.EXC_RECORD) == (kernel.EXC_HARMONIC, kernel.EXC_RECORD)
 
@@ -231,3 +245,25 @@ def test_excitation_profiles_equal_the_scalar_kernels_ground_acceleration():
     ref = np.array([kernel.ground_acceleration(runs.exc_kind[0], runs.exc_amp[0], runs.exc_omega[0], rec[0], 0, 0, s,
                                                prep.dt) for s in steps])
     assert np.array_equal((coef[0] * prof[pid[0], steps]).view(np.int64), ref.view(np.int64))
+
+
+@pytest.mark.parametrize("law", ["classic", "no_tension"])
+def test_event_scheme_stiff_coarse_steps_rows_identical(law):
+    """Event scheme at dt = 1 ms with k_s/k up to 1e4: contact events every few steps, several in one
+    step, and under the no-tension law with r = 0 chattering switches that reach kernel.MAX_EVENTS
+    (the step taken as it is and counted unsettled): most steps of many lanes go through the scalar
+    fix-up, next to lanes that stay in the vector path."""
+    s = implicit(load_scene(SWEEPS / "paper_6hz.toml"), law, duration=0.5, scheme="event", dt=1e-3)
+    s = dataclasses.replace(s, sweep=(Axis("amplitude_m", (0.002, 0.005)), Axis("gap_m", GAPS),
+                                      Axis("ks_ratio", (0.1, 1.0, 1e3, 3e3, 1e4)), Axis("r", R)))
+    prep = prepare(s)
+    runs, rec = chunk_inputs(prep)
+    lanes, scalar = both(prep, runs, rec)
+    assert_rows_identical(lanes, scalar)
+    events = col(scalar, "max_contact_iterations")
+    assert (events == 0).any() and (events >= 3).any()
+    assert (col(scalar, "impacts_f3") > 10).any()
+    if law == "no_tension":
+        assert (events == kernel.MAX_EVENTS).any() and (col(scalar, "unsettled_steps") > 0).any()
+    again, _ = driver.run_chunk_lanes(prep.sysarr, runs, rec, prep.opts, threads=2)
+    assert_rows_identical(again, lanes)

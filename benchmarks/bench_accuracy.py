@@ -61,7 +61,7 @@ from pounding_sweep.config import load_scene  # noqa: E402
 from pounding_sweep.excitation import Excitation  # noqa: E402
 from pounding_sweep.score_kernel import relative_rms_error_pct  # noqa: E402
 from pounding_sweep.simulate import simulate, with_overrides  # noqa: E402
-from reference import resolve  # noqa: E402
+from reference import contact_force, contact_set_systems, resolve  # noqa: E402
 
 SCENES = {"paper_6hz": REPO / "sweeps" / "paper_6hz.toml", "paper_duzce": REPO / "sweeps" / "paper_duzce.toml"}
 SCHEMES = ("event", "implicit", "paper")
@@ -134,26 +134,11 @@ def continuous_reference(scene, sample_dt=SAMPLE_DT, rtol=REF_RTOL, atol=REF_ATO
         t_end = min(e.duration_s, rec_dur) if e.duration_s is not None else rec_dur
     ag, knots = ground_acceleration_fn(s, t_end)
     stops = np.concatenate([knots, [t_end]])
-    Minv = np.linalg.inv(P.M)
     ones = np.concatenate([np.zeros(n), np.ones(n)])
-    systems = {}
-
-    def system(active):
-        if active not in systems:
-            Ka, Ca, fa = P.K.copy(), P.C.copy(), np.zeros(n)
-            for j in range(p):
-                if active[j]:
-                    g = P.G[:, j]
-                    Ka += ks * np.outer(g, g)
-                    Ca += P.c[j] * np.outer(g, g)
-                    fa += ks * d * g
-            A = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ Ka, -Minv @ Ca]])
-            systems[active] = (A, np.concatenate([np.zeros(n), Minv @ fa]))
-        return systems[active]
+    system = contact_set_systems(P)  # the same first-order systems as tests/reference.py's ivp_reference
 
     def force(j, y):
-        g = P.G[:, j]
-        return ks * (g @ y[:n] - d) + P.c[j] * (g @ y[n:])
+        return contact_force(P, j, y)
 
     def event(j, direction):
         def h(t, y):

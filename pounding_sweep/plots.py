@@ -58,7 +58,6 @@ def _nice_log_ticks(lo: float, hi: float) -> list[float]:
 def scene_of(results: str | Path):
     """The scene a result file was made from, rebuilt from its metadata (paths as in the original)."""
     md = read_metadata(results)
-    import pyarrow.parquet as pq
 
     toml = read_schema(results).metadata[b"scene_toml"].decode()
     src = Path(md["scene_file"])

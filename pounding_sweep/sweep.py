@@ -26,7 +26,7 @@ from . import metrics_layout as L
 from .channels import parse_channel
 from .config import Scene
 from .contact import CONTACT_LAWS, contact_period, damping_ratio_from_restitution, dashpot_coefficient
-from .driver import HistorySpec, KernelOptions, RunArrays, ScoreSpec, compile_kernel, resolve_threads, run_chunk
+from .driver import HistorySpec, KernelOptions, RunArrays, ScoreSpec, compile_kernel, run_chunk
 from .excitation import Excitation
 from .grid import Grid
 from .kernel import SCHEMES

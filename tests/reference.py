@@ -381,6 +381,37 @@ def _event_step(P: Problem, k: int, u, v, a, active, ag, stats, max_events: int 
 # ----------------------------------------------------------------------------- continuous time
 
 
+def contact_set_systems(P: Problem):
+    """system(active) -> (Asys, f0): y' = Asys y + f0 (+ the ground motion term) in y = (u, v) for the
+    contact set `active` (a tuple of bools): the Kelvin-Voigt springs and dashpots of the pairs in
+    contact join K and C, and k_s d g_j the load (eqs. 1-2, 8). Cached per set."""
+    n, p = P.n_dof, P.n_pairs
+    Minv = np.linalg.inv(P.M)  # diagonal (lumped masses): an exact inverse
+    systems: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+
+    def system(active: tuple) -> tuple[np.ndarray, np.ndarray]:
+        if active not in systems:
+            Ka, Ca, fa = P.K.copy(), P.C.copy(), np.zeros(n)
+            for j in range(p):
+                if active[j]:
+                    g = P.G[:, j]
+                    Ka += P.ks * np.outer(g, g)
+                    Ca += P.c[j] * np.outer(g, g)
+                    fa += P.ks * P.gap * g
+            Asys = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ Ka, -Minv @ Ca]])
+            systems[active] = (Asys, np.concatenate([np.zeros(n), Minv @ fa]))
+        return systems[active]
+
+    return system
+
+
+def contact_force(P: Problem, j: int, y: np.ndarray) -> np.ndarray:
+    """Eq. (8) formula for pair j (whether or not in contact); y = (u, v) may be (2n,) or (2n, m)."""
+    g = P.G[:, j]
+    n = P.n_dof
+    return P.ks * (g @ y[:n] - P.gap) + P.c[j] * (g @ y[n:])
+
+
 def ivp_reference(scene, t_end=None, rtol=1e-10, atol=1e-13, method="DOP853", max_step=1e-3, dt_out=None,
                   **overrides) -> dict:
     """The continuous-time problem (eqs. 1-2 and 8) by solve_ivp, one smooth piece per contact set.
@@ -422,28 +453,11 @@ def ivp_reference(scene, t_end=None, rtol=1e-10, atol=1e-13, method="DOP853", ma
         raise NotImplementedError("ivp_reference: harmonic excitation only")
     n, p, ks, d = P.n_dof, P.n_pairs, P.ks, P.gap
     t_end = P.nsteps * P.dt if t_end is None else float(t_end)
-    Minv = np.linalg.inv(P.M)  # diagonal (lumped masses): an exact inverse
     drive = np.concatenate([np.zeros(n), np.ones(n) * P.amp * P.omega**2])  # -1 ag(t) = 1 A w^2 sin(w t)
-    systems: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
-
-    def system(active: tuple) -> tuple[np.ndarray, np.ndarray]:
-        """y' = Asys y + f0 + drive sin(w t) for the contact set `active` (cached per set)."""
-        if active not in systems:
-            Ka, Ca, fa = P.K.copy(), P.C.copy(), np.zeros(n)
-            for j in range(p):
-                if active[j]:
-                    g = P.G[:, j]
-                    Ka += ks * np.outer(g, g)
-                    Ca += P.c[j] * np.outer(g, g)
-                    fa += ks * d * g
-            Asys = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ Ka, -Minv @ Ca]])
-            systems[active] = (Asys, np.concatenate([np.zeros(n), Minv @ fa]))
-        return systems[active]
+    system = contact_set_systems(P)
 
     def force(j: int, y: np.ndarray) -> np.ndarray:
-        """Eq. (8) formula for pair j (whether or not in contact); y may be (2n,) or (2n, m)."""
-        g = P.G[:, j]
-        return ks * (g @ y[:n] - d) + P.c[j] * (g @ y[n:])
+        return contact_force(P, j, y)
 
     def event_function(j: int):
         def h(t, y):
@@ -499,7 +513,7 @@ def ivp_reference(scene, t_end=None, rtol=1e-10, atol=1e-13, method="DOP853", ma
         F[:, j] = np.where(ACT[:, j], force(j, Y.T), 0.0)
     ag = -P.amp * P.omega**2 * np.sin(P.omega * grid)
     # relative acceleration from the equation of motion, M a = -C v - K u - G F - M 1 ag
-    a = (-(v @ P.C.T) - (u @ P.K.T) - F @ P.G.T) @ Minv.T - ag[:, None]
+    a = (-(v @ P.C.T) - (u @ P.K.T) - F @ P.G.T) @ np.linalg.inv(P.M).T - ag[:, None]
     impacts = np.array([sum(1 for e in events if e[1] == j and e[2] == "contact") for j in range(p)])
     return dict(t=grid, u=u, v=v, a=a, F=F, active=ACT, ag=ag, events=events, impacts=impacts, problem=P)
 

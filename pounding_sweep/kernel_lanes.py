@@ -1,6 +1,6 @@
 """Lane-parallel Numba kernel: LANES runs of a grid advanced side by side in SIMD lanes.
 
-The arithmetic of every run is the scalar kernel's (kernel.integrate_batch, scheme "implicit"),
+The arithmetic of every run is the scalar kernel's (kernel.integrate_batch, scheme "implicit" or "event"),
 operation for operation; only the order in which runs are visited changes. The lane loops work on
 explicit SIMD values (F64Vec: LLVM <VW x double>, below), whose operations are LLVM's plain IEEE
 instructions lane by lane (no fast-math flags, no fused multiply-add), so every lane performs the
@@ -24,6 +24,15 @@ Per step and group of LANES runs:
 2. settle (scalar, rare): a lane whose set does not agree (an impact starts or ends) redoes the
    scalar kernel's whole active-set iteration for this step, cycle fallback included.
 3. finish (vector): u, v, a at the end of the step, divergence check, energy increments, metrics.
+Scheme "event": a step in which no pair's end state contradicts the lane's contact set (by the event
+scheme's own test, kernel._switch_tolerance and the no-tension indicator: _event_check) is the same
+arithmetic as the implicit scheme's first solve with the unchanged set, so steps 1 and 3 compute it;
+a lane whose end state contradicts its set is put back to the step start (a copy of its column of W)
+and takes the step in scalar code (_event_lane: kernel._step_pieces locates, switches and integrates
+the pieces between events). kernel._step_pieces is a jitted function of another file: a change to it
+does not invalidate this module's on-disk cache (clear __pycache__/*.nbi after editing it);
+tests/test_kernel_lanes.py would show the drift.
+
 4. events (scalar, rare): compressive phases that end (their durations feed the median), runs
    that end (their metric row is written and the lane parked), runs that diverge (handed back to
    the driver, which reruns them with the scalar kernel).
@@ -974,10 +983,11 @@ def _event_lane(W, l, step, dt, law, harmonic, amp, om, m, C, K, H, S, i1, i2, c
         du = un[i] - u[i]
         vn[i] = b1 * du - v[i]
         an[i] = a1 * du - a2 * v[i] - a[i]
-    finite, n_ev, uns = _kernel._step_pieces(SCHEME_EVENT, law, step, dt, ag, ag_prev, harmonic, amp, om, m, C, K,
-                                             i1, i2, k_s, c, d, u, v, a, un, vn, an, F, active, was_active, just,
-                                             trial, thetas, in_comp, comp_acc, dur_l, nph_l, Sprev, Dprev, pen_prev,
-                                             Cdu, Amat, rvec, en, orow, pbase)
+    finite, n_ev, uns = _kernel._step_pieces(SCHEME_EVENT, law, step, dt, ag, ag_prev, harmonic, amp, om,
+                                             (m, C, K, i1, i2), k_s, c, d, (u, v, a, un, vn, an, F),
+                                             (active, was_active, just, trial), thetas,
+                                             (in_comp, comp_acc, dur_l, nph_l), (Sprev, Dprev, pen_prev),
+                                             (Cdu, Amat, rvec), en, orow, pbase)
     if n_ev > W[(r_s + S_MIT) * LANES + l]:
         W[(r_s + S_MIT) * LANES + l] = n_ev
     W[(r_s + S_UNS) * LANES + l] += uns

@@ -25,7 +25,8 @@ import numpy as np
 
 from . import metrics_layout as L
 from .kernel import integrate_batch
-from .kernel_lanes import LANES, excitation_profiles, integrate_lanes, lanes_ineligible_reason, size_tuples
+from .kernel_lanes import LANES, ST_N, coefficient_table, excitation_profiles, integrate_lanes, lanes_ineligible_reason, size_tuples
+from .modal import modal_arrays
 from .model import SystemArrays
 from .score_kernel import N_SCORES
 
@@ -103,6 +104,8 @@ def kernel_for(sys: SystemArrays, hist: HistorySpec, opts: KernelOptions, score:
 
 #: set to "scalar" to force the scalar kernel everywhere (benchmarks and tests compare the two)
 FORCE_KERNEL: str | None = None
+#: the lane kernel's work counters (kernel_lanes.ST_*) of the last run_chunk_lanes call (benchmarks)
+LAST_LANE_STATS = np.zeros(4, dtype=np.int64)
 
 
 def run_chunk(sys: SystemArrays, runs: RunArrays, rec, hist: HistorySpec, opts: KernelOptions,
@@ -176,12 +179,17 @@ def run_chunk_lanes(sys: SystemArrays, runs: RunArrays, rec, opts: KernelOptions
     order = np.lexsort((runs.gap, pid, -runs.nsteps)).astype(np.int64)
     nt, n1t = size_tuples(sys)
     n_groups = -(-n // LANES)
+    ma = modal_arrays(sys, len(n1t))
+    ms = (ma.phi, ma.psi, ma.om2, ma.dmp, ma.gam, ma.n1)
+    cv = coefficient_table(ma, sys.dt)
+
+    stats = np.zeros((n_groups, ST_N), dtype=np.int64)  # one row per group: no thread shares one
 
     def work(g):
         t0 = time.perf_counter()
-        integrate_lanes(order, g, g + 1, sys.dt, opts.scheme, opts.law, opts.max_iter, nt, n1t,
-                        sys.m, sys.C, sys.K, sys.Kinv, sys.H, sys.S, runs.ks, runs.cdash, runs.gap, runs.status_in, runs.nsteps,
-                        runs.exc_kind, runs.exc_amp, runs.exc_omega, coef, pid, prof, metrics, redo)
+        integrate_lanes(order, g, g + 1, sys.dt, opts.scheme, opts.law, opts.max_iter, nt, n1t, ms,
+                        ma.W, cv, runs.ks, runs.cdash, runs.gap, runs.status_in, runs.nsteps,
+                        runs.exc_kind, runs.exc_amp, runs.exc_omega, coef, pid, prof, metrics, redo, stats[g])
         members = order[g * LANES:(g + 1) * LANES]
         run_time[members] = (time.perf_counter() - t0) / members.size
 
@@ -198,6 +206,7 @@ def run_chunk_lanes(sys: SystemArrays, runs: RunArrays, rec, opts: KernelOptions
         m2, t2, _, _ = run_chunk_scalar(sys, sub, rec, HistorySpec.none(), opts, threads)
         metrics[again] = m2
         run_time[again] = t2
+    LAST_LANE_STATS[:] = stats.sum(axis=0)
     return metrics, run_time
 
 

@@ -50,17 +50,10 @@ SCHEME_EVENT = 2
 SCHEMES = {"implicit": SCHEME_IMPLICIT, "paper": SCHEME_PAPER, "event": SCHEME_EVENT}
 MAX_EVENTS = 16  # contact switches located inside one step before the step is taken as it is (flagged)
 EVENT_MIN_FRACTION = 1e-9  # a sub-step shorter than this fraction of dt is not integrated (rounding)
-# energy accumulators (_switch; _step_pieces): EN_W_RELEASE is the spring energy lost when a no-tension
-# contact lets go while compressed (less what it stores again when it re-engages overlapped); then (only
-# _step_pieces, the lane kernel's fix-up; integrate_batch keeps these in locals) the input work, its
-# absolute sum, structural damping, contact spring and dashpot work
+# energy accumulator changed by _switch: the spring energy lost when a no-tension contact lets go while
+# compressed (less what it stores again when it re-engages overlapped)
 EN_W_RELEASE = 0
-EN_E_IN = 1
-EN_E_IN_ABS = 2
-EN_D_STRUCT = 3
-EN_W_SPRING = 4
-EN_W_DASH = 5
-EN_N = 6
+EN_N = 1
 
 EXC_HARMONIC = 0  # table displacement amp * sin(omega t): ground acceleration -amp omega^2 sin(omega t)
 EXC_RECORD = 1  # ground acceleration amp * record[step] (record resampled to dt beforehand)
@@ -585,149 +578,6 @@ def integrate_batch(
         out[rbase + L.RUN_STEPS] = steps_done
         out[rbase + L.RUN_STATUS] = status
         run_time[run] = _clock() - t_start
-
-
-@njit_kernel
-def _step_pieces(scheme, law, step, dt, ag, ag_prev, harmonic, amp, om, structure, k_s, c, d, state, sets, thetas,
-                 phases, prevs, work, en, out, pbase):
-    """Accept step `step` (from t_s = (step - 1) dt to step dt) of one run, given its trial end state un, vn,
-    an, F (computed with the contact set the scheme chose): energy increments, contact metrics and the new
-    state u, v, a; for the event scheme, the step's pieces between the contact events inside it (located,
-    switched, the rest integrated with the new set). The code of integrate_batch's step, from its
-    `h = dt` on, operation for operation; the lane kernel's scalar fix-up (kernel_lanes._event_lane) calls
-    it. integrate_batch keeps its own copy inline: calling this from its time loop made the scalar
-    kernel 1.6-2.5x slower (a call per step with ~20 arguments; Numba's IR inlining did not recover it).
-    tests/test_kernel_lanes.py compares the two paths bit for bit: edit both together. `c` is the run's dashpot per
-    pair, `en` its accumulators (EN_*), `out` its metric row. Returns (finite, events located, steps
-    flagged unsettled: 0 or 1)."""
-    # arguments grouped in tuples (fewer to pass; a call with more than 30 is compiled as f(*args))
-    m, C, K, i1, i2 = structure
-    u, v, a, un, vn, an, F = state
-    active, was_active, just, trial = sets
-    in_comp, comp_acc, durations, nphase = phases
-    Sprev, Dprev, pen_prev = prevs
-    Cdu, Amat, rvec = work
-    n = m.shape[0]
-    npair = i1.shape[0]
-    h = dt  # what is left of the step
-    t_s = (step - 1) * dt
-    ag_s = ag_prev
-    n_ev = 0
-    uns = 0
-    for j in range(npair):
-        just[j] = False
-    while True:  # the step, or its pieces between contact events (event scheme)
-        finite = True
-        for i in range(n):
-            if not (abs(un[i]) < L.DIVERGED_M) or not (abs(an[i]) < 1e300):
-                finite = False
-        if not finite:
-            break
-        hs = h  # the piece to accept now
-        ag_e = ag
-        last = True
-        if scheme == SCHEME_EVENT:
-            # a pair whose end state contradicts the set means an event inside the piece
-            contradicts = False
-            for j in range(npair):
-                pe = un[i1[j]] - un[i2[j]] - d
-                if law == 1 and pe > 0.0:
-                    pe = min(pe, pe + (c[j] / k_s) * (vn[i1[j]] - vn[i2[j]]))
-                tol = _switch_tolerance(un[i1[j]], un[i2[j]])
-                if (pe < -tol) if active[j] else (pe > tol):
-                    contradicts = True
-            if contradicts:
-                theta = _first_event(h, u, v, un, vn, active, just, law, k_s, c, d, i1, i2,
-                                     npair, thetas, trial)
-                if theta <= 1.0 and n_ev >= MAX_EVENTS:
-                    uns += 1  # events chatter: keep the last trial, say so
-                elif theta <= 1.0:
-                    n_ev += 1
-                    last = False
-                    hs = _locate_event(theta, h, EVENT_MIN_FRACTION * dt, ag_s, ag, harmonic,
-                                       amp, om, t_s, u, v, a, m, C, K, i1, i2, active, just, law, k_s,
-                                       c, d, Amat, rvec, un, vn, an, F, thetas, trial)
-                    if hs <= EVENT_MIN_FRACTION * dt:
-                        hs = 0.0  # switch at the start of what is left
-                    elif h - hs <= EVENT_MIN_FRACTION * dt:
-                        hs = h
-                    ag_e = _ag_inside(hs, h, ag_s, ag, harmonic, amp, om, t_s)
-                    for i in range(n):
-                        if not (abs(un[i]) < L.DIVERGED_M) or not (abs(an[i]) < 1e300):
-                            finite = False
-                    if not finite:
-                        break
-        if hs > 0.0:
-            # accept the piece [t_s, t_s + hs]: energy increments, exact for Newmark average
-            # acceleration (trapezoidal work with du = hs (v_n + v_n+1) / 2): input -du.M1 ag,
-            # structural damping du.C du / hs, the work of the contact's spring and dashpot
-            # parts on the pair's relative displacement; then the contact metrics
-            t_e = t_s + hs
-            s_in = 0.0
-            for i in range(n):
-                s_in += m[i] * (un[i] - u[i])
-                s = 0.0
-                for k in range(n):
-                    s += C[i, k] * (un[k] - u[k])
-                Cdu[i] = s
-            de = -0.5 * (ag_s + ag_e) * s_in
-            en[EN_E_IN] += de
-            en[EN_E_IN_ABS] += abs(de)
-            s = 0.0
-            for i in range(n):
-                s += (un[i] - u[i]) * Cdu[i]
-            en[EN_D_STRUCT] += s / hs
-            for j in range(npair):
-                pen = un[i1[j]] - un[i2[j]] - d
-                sp = k_s * pen if active[j] else 0.0
-                dp = F[j] - sp if active[j] else 0.0
-                en[EN_W_SPRING] += 0.5 * (Sprev[j] + sp) * (pen - pen_prev[j])
-                en[EN_W_DASH] += 0.5 * (Dprev[j] + dp) * (pen - pen_prev[j])
-                if was_active[j] and not active[j] and pen > 0.0:
-                    # released while still compressed (no-tension law): the spring's energy is
-                    # lost to the contact, a physical dissipation, not a numerical residual
-                    en[EN_W_RELEASE] += 0.5 * k_s * pen * pen
-                Sprev[j] = sp
-                Dprev[j] = dp
-                pen_prev[j] = pen
-                base = pbase + L.PER_PAIR * j
-                f = F[j]
-                if active[j]:
-                    if not was_active[j]:
-                        out[base + L.PAIR_IMPACTS] += 1.0
-                    out[base + L.PAIR_CONTACT_TIME] += hs
-                    if pen > out[base + L.PAIR_MAX_PENETRATION]:
-                        out[base + L.PAIR_MAX_PENETRATION] = pen
-                    if f > out[base + L.PAIR_PEAK_FORCE]:
-                        out[base + L.PAIR_PEAK_FORCE] = f
-                        out[base + L.PAIR_PEAK_FORCE_TIME] = t_e
-                    if f < out[base + L.PAIR_MIN_FORCE]:
-                        out[base + L.PAIR_MIN_FORCE] = f
-                comp = active[j] and f > 0.0
-                if comp:
-                    out[base + L.PAIR_COMPRESSION_TIME] += hs
-                    comp_acc[j] = comp_acc[j] + hs if in_comp[j] else hs
-                elif in_comp[j]:
-                    _end_phase(durations, nphase, j, comp_acc[j])
-                in_comp[j] = comp
-                was_active[j] = active[j]
-            for i in range(n):
-                u[i] = un[i]
-                v[i] = vn[i]
-                a[i] = an[i]
-        if last:
-            h = 0.0
-            break
-        t_s += hs
-        h -= hs
-        ag_s = ag_e
-        _switch(trial, t_s, ag_s, n, npair, m, C, K, i1, i2, k_s, c, d, u, v, a, F, active,
-                was_active, just, Sprev, Dprev, en, out, pbase)
-        if h <= 0.0:
-            break
-        _fixed_set_step(h, ag, u, v, a, m, C, K, i1, i2, active, k_s, c, d, Amat, rvec,
-                        un, vn, an, F)
-    return finite, n_ev, uns
 
 
 @njit_kernel

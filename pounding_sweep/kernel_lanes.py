@@ -1,139 +1,1457 @@
-"""Lane-parallel Numba kernel: LANES runs of a grid advanced side by side in SIMD lanes.
+"""Lane kernel: LANES runs of a grid advanced side by side in SIMD lanes, in modal coordinates.
 
-The arithmetic of every run is the scalar kernel's (kernel.integrate_batch, scheme "implicit" or "event"),
-operation for operation; only the order in which runs are visited changes. The lane loops work on
-explicit SIMD values (F64Vec: LLVM <VW x double>, below), whose operations are LLVM's plain IEEE
-instructions lane by lane (no fast-math flags, no fused multiply-add), so every lane performs the
-scalar kernel's sequence of roundings. The metric rows are therefore equal to the scalar
-kernel's (tests/test_kernel_lanes.py asserts equality, not closeness), whichever lane, group,
-batch or thread a run lands in.
+Same model, schemes and metric row as the scalar kernel (kernel.integrate_batch, schemes "event"
+and "implicit"), computed with other algebra: each building's modes (modal.py) turn Newmark's
+2N x 2N solve into N scalar recurrences (mode k: dq = cq q + cr r + cf fsum, two fused
+multiply-adds and two additions), the floors are Phi q, and contact at the step end is solved
+through the lane's precomputed (I + diag(kappa) W)_SS^-1 of its contact set S. Results agree with
+the scalar kernel to rounding (tests/test_kernel_lanes.py states the tolerance), not bit for bit.
 
-What the vector code leaves out is only arithmetic whose operand is an exact zero: the off-block
-entries of Keff^-1 and C (the two buildings are uncoupled without contact; the eligibility check
-verifies these entries are exactly 0.0), the off-band entries of C (tridiagonal shear frames),
-and H F when no lane of the group is in contact. Adding +-0.0 to a finite number does not change
-it, so leaving it out changes no result.
+Per step, for a group of LANES runs (chunks of VW lanes):
+- quiet (no lane in contact at the step start): modes, floors, energy increments, per-floor peaks.
+  A floor peak is written only in the rare steps where it grows in some lane (no store otherwise);
+- contact (some lane in contact): the free step, the contact forces of each lane's set, the end
+  state, the per-pair contact metrics and energies;
+- events: a lane whose end state contradicts its contact set (an impact starts or ends: by the
+  event scheme's test, kernel._switch_tolerance; under the implicit scheme, the active set the end
+  state asks for differs) keeps its start state (q, r are double-buffered; other rows are written
+  only for the other lanes) and takes the step in scalar code (_lane_step): the event scheme's
+  located switches between sub-steps (the pieces of kernel.integrate_batch's event step, in modal form), or the implicit scheme's
+  active-set iteration (kernel.integrate_batch). A quiet chunk first tests only "some pair
+  penetrates" and recomputes with the exact test when one does.
+A run that diverges is handed back to the driver, which reruns it with the scalar kernel.
 
-Per step and group of LANES runs:
-
-1. predict (vector): ag, Newmark effective load, u0 = Keff^-1 rhs0 for every lane; when a lane
-   of the group is in contact, the contact forces of each lane's current active set (the scalar
-   kernel's first active-set iteration; the elimination factors of the lane's active set are kept
-   per lane, since they depend only on the set and the run's constants) and whether the end
-   state agrees with that set. Without contact, only whether a pair penetrates.
-2. settle (scalar, rare): a lane whose set does not agree (an impact starts or ends) redoes the
-   scalar kernel's whole active-set iteration for this step, cycle fallback included.
-3. finish (vector): u, v, a at the end of the step, divergence check, energy increments, metrics.
-Scheme "event": a step in which no pair's end state contradicts the lane's contact set (by the event
-scheme's own test, kernel._switch_tolerance and the no-tension indicator: _event_check) is the same
-arithmetic as the implicit scheme's first solve with the unchanged set, so steps 1 and 3 compute it;
-a lane whose end state contradicts its set is put back to the step start (a copy of its column of W)
-and takes the step in scalar code (_event_lane: kernel._step_pieces locates, switches and integrates
-the pieces between events). kernel._step_pieces is a jitted function of another file: a change to it
-does not invalidate this module's on-disk cache (clear __pycache__/*.nbi after editing it);
-tests/test_kernel_lanes.py would show the drift.
-
-4. events (scalar, rare): compressive phases that end (their durations feed the median), runs
-   that end (their metric row is written and the lane parked), runs that diverge (handed back to
-   the driver, which reruns them with the scalar kernel).
-
-Layout: every per-lane quantity is one row of LANES float64 in a single work array `W`; the floor
-counts are compile-time constants (lengths of the tuples nt, n1t in the signature), so the row
-offsets are too. Why explicit vectors rather than LLVM's loop vectoriser on scalar lane loops (the
-first version): with 8 lanes the vectoriser did not vectorise at all (it unrolled the lane loop;
-the issue's "lane counts under 16" pitfall, seen here too), with 16 it did, but on this Zen 3 it
-turned every kept-or-updated metric into masked loads and stores (microcoded and slow on AMD) and
-left whole loops scalar after innocuous edits; the kernel ran at 20-30 ns per lane-step. Explicit
-vectors take no heuristic's permission.
-
-No factory functions: the flags below are literal, so a change to them changes this file and
-invalidates the on-disk cache (a flag passed into a factory would not: issue 9's pitfall).
+State per lane: modal displacement q and scaled velocity r = (dt / 2) q' (so that r+ = dq - r
+is an addition), contact forces F at the step start and their modal resultant g = Psi F, the
+contact set, the penetrations at the step start; the acceleration is never stored (equilibrium).
+Floor counts are compile-time constants (the lengths of the tuples nt, n1t), so row offsets are too.
 """
 
 from __future__ import annotations
-
-import operator
 
 import numba
 import numpy as np
 from llvmlite import ir
 from numba import types
 from numba.core import cgutils
-from numba.extending import intrinsic, models, overload, register_model
+from numba.extending import intrinsic
 
-from . import kernel as _kernel
 from . import metrics_layout as ML
+from .kernel import _monotonic_ns  # noqa: F401  (libc clock, declared to LLVM there)
+from .simd import SCRATCH, VW, f64v, many, mcount, mconst, mfloat, scratch, sget, sset, vfence, vfma, vsel, vsplat
 
-#: runs per group, fixed at compile time: two SIMD values of VW = 8 lanes.
-LANES = 16
+#: runs per group, fixed at compile time (a multiple of simd.VW)
+LANES = 8
 
-#: strict IEEE (no fastmath: NaN checks and bit-for-bit agreement with the scalar kernel need it),
-#: no GIL, cached on disk. Literal here on purpose (see the module docstring).
+#: strict IEEE (no fastmath: NaN checks need it), no GIL, cached on disk. Literal here on purpose: a
+#: flag passed through a factory would not invalidate Numba's cache when changed.
 LANES_JIT = dict(nogil=True, cache=True, fastmath=False, error_model="numpy", boundscheck=False)
 
 
 def njit_lanes(fn):
-    """Decorate a lane kernel function with the flags above."""
+    """Decorate a lane kernel function that allocates (Numba's reference-counted runtime on)."""
     return numba.njit(**LANES_JIT)(fn)
 
 
-# scheme / law / excitation codes, as in kernel.py (repeated, not imported, so that this module
-# compiles without the scalar kernel; test_kernel_lanes checks they agree)
+def njit_step(fn):
+    """Decorate a function of the time loop: it allocates nothing, so it is compiled without Numba's
+    runtime, whose atomic reference counts on every array argument took a third of the scalar
+    steps' time."""
+    return numba.njit(_nrt=False, **LANES_JIT)(fn)
+
+
+_inline = numba.njit(inline="always", **LANES_JIT)
+
+# codes, as in kernel.py and contact.py (repeated so that this module compiles without the scalar
+# kernel; tests/test_kernel_lanes.py checks they agree)
 SCHEME_IMPLICIT = 0
 SCHEME_EVENT = 2
 LAW_NO_TENSION = 1
 EXC_HARMONIC = 0
 EXC_RECORD = 1
+MAX_EVENTS = 16  # kernel.MAX_EVENTS
+EVENT_MIN_FRACTION = 1e-9  # kernel.EVENT_MIN_FRACTION
+# energy accumulators of a lane (the scalar step's `en`)
+E_IN, E_ABS, E_DST, E_WSP, E_WDA, E_WREL = range(6)
 
-# ------------------------------------------------------------------------------------------ eligibility
+# counters integrate_lanes adds to (the benchmark's profile): scalar steps taken and their time,
+# calls of the vector loops and the steps they advanced
+ST_FIXUPS, ST_FIX_NS, ST_CALLS, ST_VSTEPS = range(4)
+ST_N = 4
 
-
-def lanes_ineligible_reason(sys, hist, opts, score) -> str | None:
-    """Why this chunk must run on the scalar kernel, or None when the lane kernel computes the same rows.
-
-    The lane kernel computes metric rows only (no histories, no scoring against an experiment), for
-    the implicit scheme (with at least one active-set iteration per step) and the event scheme (the
-    paper's scheme and any other go to the scalar kernel), and for the coupled shear-frame structure it exploits:
-    facing floor pairs j <-> n1 + j, Keff^-1 and C block-diagonal (exact zeros between the
-    buildings) and C tridiagonal within each building.
-    """
-    if hist is not None and hist.active:
-        return "histories requested"
-    if score is not None and score.active:
-        return "scoring against an experiment"
-    if opts.scheme not in (SCHEME_IMPLICIT, SCHEME_EVENT):
-        return "scheme is neither 'implicit' nor 'event'"
-    if opts.law not in (0, LAW_NO_TENSION):
-        return "unknown contact law"
-    if opts.scheme == SCHEME_IMPLICIT and opts.max_iter < 1:
-        return "max_contact_iterations < 1"
-    n = sys.m.size
-    p = sys.i1.size
-    if p < 1 or n < 2:
-        return "no contact pair"
-    n1 = int(sys.i2[0]) if p else 0
-    if not (np.array_equal(sys.i1, np.arange(p)) and np.array_equal(sys.i2, n1 + np.arange(p))):
-        return "contact pairs are not floor j of building 1 facing floor j of building 2"
-    if not (1 <= n1 < n and p == min(n1, n - n1)):
-        return "pair count is not min(floors)"
-    band = np.zeros((n, n), dtype=bool)
-    block = np.zeros((n, n), dtype=bool)
-    for lo, hi in ((0, n1), (n1, n)):
-        block[lo:hi, lo:hi] = True
-        for i in range(lo, hi):
-            band[i, max(lo, i - 1):min(hi, i + 2)] = True
-    if np.any(sys.Kinv[~block] != 0.0):
-        return "Keff^-1 couples the buildings"
-    if np.any(sys.C[~band] != 0.0):
-        return "C is not tridiagonal per building"
-    for name in ("m", "C", "K", "Kinv", "H", "S"):
-        if not np.all(np.isfinite(getattr(sys, name))):
-            return f"non-finite {name}"
-    return None
+# per-lane scalar rows, after r_s
+(S_KS, S_GAP, S_COEF, S_AGS, S_AGE, S_EIN, S_EABS, S_DST, S_WSP, S_WDA, S_WREL, S_UNS, S_MIT, S_EVT,
+ S_BAD) = range(15)
+N_SCALARS = 15
 
 
-def lanes_eligible(sys, hist, opts, score) -> bool:
-    return lanes_ineligible_reason(sys, hist, opts, score) is None
+@_inline
+def _layout(N, P):
+    """Row offsets (compile-time constants once N and P are)."""
+    r_q0 = 0  # q (N rows) then r (N rows): buffer 0
+    r_q1 = 2 * N  # buffer 1
+    r_g = 4 * N  # Psi F at the step start
+    r_f = 5 * N  # F at the step start (P rows)
+    r_pen = r_f + P  # penetration at the step start
+    r_act = r_pen + P  # contact set (1.0 / 0.0)
+    r_inc = r_act + P  # in a compressive phase
+    r_cac = r_inc + P  # duration of the compressive phase in progress
+    r_end = r_cac + P  # a compressive phase ended in this step
+    r_cd = r_end + P  # dashpot c_j
+    r_R = r_cd + P  # (I + diag(kappa) W)_SS^-1 of the lane's set, R[i, j] at i * P + j
+    r_s = r_R + P * P  # per-lane scalars (S_*)
+    r_met = r_s + N_SCALARS  # metric slots before the per-run ones (metrics_layout order)
+    return r_q0, r_q1, r_g, r_f, r_pen, r_act, r_inc, r_cac, r_end, r_cd, r_R, r_s, r_met
+
+
+def n_rows(n: int, p: int) -> int:
+    return 5 * n + 7 * p + p * p + N_SCALARS + ML.PER_DOF * n + ML.PER_PAIR * p
+
+
+# ------------------------------------------------------------------------------------------ scalar parts
+# One lane's step in scalar code, for the rare steps with a contact event: the scalar kernel's
+# algorithms (kernel.integrate_batch's event step: _first_event, _locate_event, _switch, _fixed_set_step; and the
+# implicit scheme's active-set iteration), written for modal state.
+
+
+# Work arrays of one lane's scalar step, flat so that calls pass a few arrays (each array argument
+# or tuple member that Numba unpacks costs an atomic reference count, which dominated this code):
+# Z (float64, ZR rows of max(N, P, 6) columns), B (bool, BR rows of P), I (int64: pair indices and
+# the active-set iteration's history), A (P x 2P: small solves).
+(Z_Q, Z_QD, Z_QE, Z_QDE, Z_F, Z_FE, Z_FS, Z_CF, Z_CQ, Z_CR, Z_DQF, Z_DF, Z_DDF, Z_B, Z_TH, Z_CAC, Z_SP, Z_DP, Z_PP,
+ Z_EN, Z_C, Z_OM2, Z_DMP, Z_GAM) = range(24)
+ZR = 24
+(B_ACT, B_WAS, B_JUST, B_TRIAL, B_PREV, B_INC) = range(6)
+BR = 6
+I_IDX, I_SEEN = 0, 1
+
+
+@njit_step
+def _floor_u(Z, row, i, phi, N):
+    s = 0.0
+    for k in range(N):
+        s += phi[i, k] * Z[row, k]
+    return s
+
+
+@njit_step
+def _pair(Z, rq, rqd, j, psi, gap, N):
+    """(penetration, its rate) of pair j in the state (Z[rq], Z[rqd])."""
+    s = 0.0
+    v = 0.0
+    for k in range(N):
+        s += psi[k, j] * Z[rq, k]
+        v += psi[k, j] * Z[rqd, k]
+    return s - gap, v
+
+
+@njit_step
+def _switch_tolerance(up, uq):
+    """kernel._switch_tolerance."""
+    return 1e-15 + 1e-12 * (abs(up) + abs(uq))
+
+
+@njit_step
+def _want_contact(p0, p1, m0, m1, tau, h, law, k_s, c):
+    """kernel._want_contact: the contact indicator on the step's cubic Hermite interpolant."""
+    t2 = tau * tau
+    t3 = t2 * tau
+    p = (2 * t3 - 3 * t2 + 1) * p0 + (t3 - 2 * t2 + tau) * m0 + (-2 * t3 + 3 * t2) * p1 + (t3 - t2) * m1
+    if law == 0:
+        return p
+    dp = (6 * t2 - 6 * tau) * p0 + (3 * t2 - 4 * tau + 1) * m0 + (-6 * t2 + 6 * tau) * p1 + (3 * t2 - 2 * tau) * m1
+    f = p + (c / k_s) * dp / h
+    return min(p, f)
+
+
+@njit_step
+def _indicator(Z, B, rq, rqd, j, law, k_s, gap, psi, N):
+    """kernel._indicator: >= 0 where pair j's state contradicts its contact state."""
+    pen, vr = _pair(Z, rq, rqd, j, psi, gap, N)
+    want = pen
+    if law == LAW_NO_TENSION:
+        want = min(pen, pen + (Z[Z_C, j] / k_s) * vr)
+    return -want if B[B_ACT, j] else want
+
+
+@njit_step
+def _keff_coefs(Z, h, N):
+    """Newmark coefficients of each mode for a step of length h (modal.py)."""
+    for k in range(N):
+        f = 1.0 / (Z[Z_OM2, k] + 2.0 * Z[Z_DMP, k] / h + 4.0 / (h * h))
+        Z[Z_CF, k] = f
+        Z[Z_CQ, k] = -2.0 * Z[Z_OM2, k] * f
+        Z[Z_CR, k] = 8.0 / (h * h) * f
+
+
+@njit_step
+def _free_step(Z, h, ag_s, ag_e, gap, psi, N, P):
+    """The step of length h with no contact force at its end (the start forces Z_F in the load): its
+    increment Z_DQF, and the pairs' free end penetration Z_DF and rate Z_DDF."""
+    for k in range(N):
+        g = 0.0
+        for j in range(P):
+            g += psi[k, j] * Z[Z_F, j]
+        fsum = -Z[Z_GAM, k] * (ag_s + ag_e) - g
+        Z[Z_DQF, k] = Z[Z_CF, k] * fsum + Z[Z_CQ, k] * Z[Z_Q, k] + Z[Z_CR, k] * (0.5 * h * Z[Z_QD, k])
+    for j in range(P):
+        s = 0.0
+        v = 0.0
+        for k in range(N):
+            s += psi[k, j] * (Z[Z_Q, k] + Z[Z_DQF, k])
+            v += psi[k, j] * ((2.0 / h) * Z[Z_DQF, k] - Z[Z_QD, k])
+        Z[Z_DF, j] = s - gap
+        Z[Z_DDF, j] = v
+
+
+@njit_step
+def _set_forces(Z, B, I, A, h, k_s, psi, N, P):
+    """Contact forces Z_FS at the end of a step of length h with the set B_ACT (others 0): the SPD
+    system (W_SS + diag(1/kappa)) F_S = (k_s delta + c delta')_S / kappa of the free end state,
+    W = Psi^T diag(cf) Psi, kappa = k_s + 2 c / h (kernel._contact_forces' system in modal form)."""
+    na = 0
+    for j in range(P):
+        Z[Z_FS, j] = 0.0
+        if B[B_ACT, j]:
+            I[I_IDX, na] = j
+            na += 1
+    if na == 0:
+        return
+    for p in range(na):
+        j = I[I_IDX, p]
+        kap = k_s + 2.0 * Z[Z_C, j] / h
+        for p2 in range(na):
+            j2 = I[I_IDX, p2]
+            s = 0.0
+            for k in range(N):
+                s += psi[k, j] * Z[Z_CF, k] * psi[k, j2]
+            A[p, p2] = s
+        A[p, p] += 1.0 / kap
+        Z[Z_B, p] = (k_s * Z[Z_DF, j] + Z[Z_C, j] * Z[Z_DDF, j]) / kap
+    for k in range(na):  # Gaussian elimination (SPD: no pivoting)
+        piv = A[k, k]
+        for i in range(k + 1, na):
+            f = A[i, k] / piv
+            for j in range(k, na):
+                A[i, j] -= f * A[k, j]
+            Z[Z_B, i] -= f * Z[Z_B, k]
+    for i in range(na - 1, -1, -1):
+        s = Z[Z_B, i]
+        for j in range(i + 1, na):
+            s -= A[i, j] * Z[Z_B, j]
+        Z[Z_B, i] = s / A[i, i]
+    for p in range(na):
+        Z[Z_FS, I[I_IDX, p]] = Z[Z_B, p]
+
+
+@njit_step
+def _end_state(Z, h, psi, N, P):
+    """End state of a step with forces Z_FS: dq = dqf - cf Psi F, q+ = q + dq, q'+ = (2/h) dq - q'."""
+    for k in range(N):
+        g = 0.0
+        for j in range(P):
+            g += psi[k, j] * Z[Z_FS, j]
+        dq = Z[Z_DQF, k] - Z[Z_CF, k] * g
+        Z[Z_QE, k] = Z[Z_Q, k] + dq
+        Z[Z_QDE, k] = (2.0 / h) * dq - Z[Z_QD, k]
+
+
+@njit_step
+def _fixed_set_step(Z, B, I, A, h, ag_s, ag_e, k_s, gap, psi, N, P):
+    """kernel._fixed_set_step in modal form: one Newmark step of length h from (Z_Q, Z_QD, Z_F) with
+    the pairs in B_ACT in contact at its end; end state in Z_QE, Z_QDE, its Kelvin-Voigt forces (eq. 8)
+    in Z_FE."""
+    _keff_coefs(Z, h, N)
+    _free_step(Z, h, ag_s, ag_e, gap, psi, N, P)
+    _set_forces(Z, B, I, A, h, k_s, psi, N, P)
+    _end_state(Z, h, psi, N, P)
+    for j in range(P):
+        Z[Z_FE, j] = 0.0
+        if B[B_ACT, j]:
+            pen, vr = _pair(Z, Z_QE, Z_QDE, j, psi, gap, N)
+            Z[Z_FE, j] = k_s * pen + Z[Z_C, j] * vr
+
+
+@njit_step
+def _modal_acc(Z, rq, rqd, rf, psi, N, P):
+    """Modal absolute accelerations of the state (rq, rqd) with forces in row rf into row Z_B:
+    -d q' - w^2 q - Psi F (equilibrium; the ground term cancels in absolute acceleration)."""
+    for k in range(N):
+        g = 0.0
+        for j in range(P):
+            g += psi[k, j] * Z[rf, j]
+        Z[Z_B, k] = -Z[Z_DMP, k] * Z[rqd, k] - Z[Z_OM2, k] * Z[rq, k] - g
+
+
+@njit_step
+def _finite(Z, rq, rqd, rf, phi, psi, N, P):
+    """kernel's divergence guard on a state: floors within DIVERGED_M, accelerations below 1e300."""
+    _modal_acc(Z, rq, rqd, rf, psi, N, P)
+    for i in range(N):
+        u = 0.0
+        a = 0.0
+        for k in range(N):
+            u += phi[i, k] * Z[rq, k]
+            a += phi[i, k] * Z[Z_B, k]
+        if not (abs(u) < ML.DIVERGED_M) or not (abs(a) < 1e300):
+            return False
+    return True
+
+
+@njit_step
+def _ag_inside(hs, h, ag_s, ag_e, harmonic, amp, om, t_s):
+    """kernel._ag_inside: exact for harmonic motion, linear between record samples."""
+    if harmonic:
+        return -amp * om * om * np.sin(om * (t_s + hs))
+    return ag_s + (ag_e - ag_s) * (hs / h)
+
+
+@njit_step
+def _hermite_root(p0, p1, m0, m1, h, law, k_s, c, sign, f_lo, f_hi):
+    """The crossing in (0, 1] of sign * indicator on the interpolant, bracketed by f_lo < 0 <= f_hi:
+    Illinois false position, then bisection steps when it stalls; the smallest bracket end where the
+    indicator is >= 0, to 1e-15 (the scalar kernel bisects 60 times; this takes ~10 evaluations)."""
+    lo, hi = 0.0, 1.0
+    side = 0
+    for _ in range(100):
+        if hi - lo <= 1e-15:
+            break
+        t = hi - f_hi * (hi - lo) / (f_hi - f_lo)
+        if not (lo < t < hi) or _ % 4 == 3:
+            t = 0.5 * (lo + hi)
+        f = sign * _want_contact(p0, p1, m0, m1, t, h, law, k_s, c)
+        if f >= 0.0:
+            hi, f_hi = t, f
+            if side == 1:
+                f_lo *= 0.5
+            side = 1
+            if f == 0.0:
+                break
+        else:
+            lo, f_lo = t, f
+            if side == -1:
+                f_hi *= 0.5
+            side = -1
+    return hi
+
+
+@njit_step
+def _first_event(Z, B, h, law, k_s, gap, phi, psi, N, N1, P):
+    """kernel._first_event: fraction of the step at which the first pair leaves its contact state
+    (2.0: none), from each pair's cubic Hermite interpolant between (Z_Q, Z_QD) and (Z_QE, Z_QDE);
+    marks the pairs switching there in B_TRIAL."""
+    first = 2.0
+    for j in range(P):
+        Z[Z_TH, j] = 2.0
+        p0, v0 = _pair(Z, Z_Q, Z_QD, j, psi, gap, N)
+        p1, v1 = _pair(Z, Z_QE, Z_QDE, j, psi, gap, N)
+        m0 = v0 * h
+        m1 = v1 * h
+        c = Z[Z_C, j]
+        sign = -1.0 if B[B_ACT, j] else 1.0
+        tol = _switch_tolerance(_floor_u(Z, Z_QE, j, phi, N), _floor_u(Z, Z_QE, N1 + j, phi, N))
+        if sign * _want_contact(p0, p1, m0, m1, 1.0, h, law, k_s, c) <= tol:
+            continue
+        f0 = sign * _want_contact(p0, p1, m0, m1, 0.0, h, law, k_s, c)
+        if not B[B_JUST, j] and f0 >= 0.0:
+            Z[Z_TH, j] = 0.0
+        else:
+            Z[Z_TH, j] = _hermite_root(p0, p1, m0, m1, h, law, k_s, c, sign, min(f0, -1e-300),
+                                       sign * _want_contact(p0, p1, m0, m1, 1.0, h, law, k_s, c))
+        if Z[Z_TH, j] < first:
+            first = Z[Z_TH, j]
+    for j in range(P):
+        B[B_TRIAL, j] = Z[Z_TH, j] <= first + 1e-9
+    return first
+
+
+@njit_step
+def _locate_event(Z, B, I, A, theta, h, hmin, ag_s, ag_e, harmonic, amp, om, t_s, law, k_s, gap, phi, psi, N, N1, P):
+    """kernel._locate_event in modal form: length hs (0 <= hs <= h) of the sub-step that ends where the
+    first pair switches (Illinois false position on real sub-steps, started at the interpolant's
+    estimate); leaves that sub-step's end state in Z_QE, Z_QDE, Z_FE and the pairs to switch in B_TRIAL."""
+    if theta * h < hmin:
+        return 0.0
+    target = 0
+    for j in range(P):
+        if Z[Z_TH, j] < Z[Z_TH, target]:
+            target = j
+    hi = h
+    f_hi = _indicator(Z, B, Z_QE, Z_QDE, target, law, k_s, gap, psi, N)
+    hs = h
+    for _ in range(P + 1):
+        lo = 0.0
+        f_lo = min(_indicator(Z, B, Z_Q, Z_QD, target, law, k_s, gap, psi, N), -1e-300)
+        if theta * hi < hmin:
+            return 0.0
+        hs = min(max(theta * hi, hmin), hi)
+        side = 0
+        scale = 0.0
+        h_eval = hs
+        p_start, _v = _pair(Z, Z_Q, Z_QD, target, psi, gap, N)
+        for _it in range(100):
+            _fixed_set_step(Z, B, I, A, hs, ag_s, _ag_inside(hs, h, ag_s, ag_e, harmonic, amp, om, t_s), k_s, gap,
+                            psi, N, P)
+            h_eval = hs
+            ph = _indicator(Z, B, Z_QE, Z_QDE, target, law, k_s, gap, psi, N)
+            p_end, _v = _pair(Z, Z_QE, Z_QDE, target, psi, gap, N)
+            scale = max(scale, abs(p_end) + abs(p_start))
+            if ph >= 0.0:
+                hi, f_hi = hs, ph
+                if side == 1:
+                    f_lo *= 0.5
+                side = 1
+            else:
+                lo, f_lo = hs, ph
+                if side == -1:
+                    f_hi *= 0.5
+                side = -1
+            if abs(ph) <= 1e-13 * scale or hi - lo <= 1e-13 * h or (hs <= hmin and ph >= 0.0):
+                break
+            hs = hi - f_hi * (hi - lo) / (f_hi - f_lo)
+            if not (lo < hs < hi):
+                hs = 0.5 * (lo + hi)
+            hs = max(hs, hmin)
+        hs = h_eval
+        _first_event(Z, B, hs, law, k_s, gap, phi, psi, N, N1, P)
+        earlier = -1
+        for j in range(P):
+            if j != target and Z[Z_TH, j] < 1.0 - 1e-9 and (earlier < 0 or Z[Z_TH, j] < Z[Z_TH, earlier]):
+                earlier = j
+        if earlier < 0:
+            break
+        target = earlier
+        theta = Z[Z_TH, earlier]
+        f_hi = _indicator(Z, B, Z_QE, Z_QDE, target, law, k_s, gap, psi, N)
+        hi = hs
+    for j in range(P):
+        B[B_TRIAL, j] = j == target or Z[Z_TH, j] <= 1.0
+    return hs
+
+
+@njit_step
+def _force_extremes(orow, base, f, t):
+    if f > orow[base + ML.PAIR_PEAK_FORCE]:
+        orow[base + ML.PAIR_PEAK_FORCE] = f
+        orow[base + ML.PAIR_PEAK_FORCE_TIME] = t
+    if f < orow[base + ML.PAIR_MIN_FORCE]:
+        orow[base + ML.PAIR_MIN_FORCE] = f
+
+
+@njit_step
+def _switch(Z, B, orow, t, k_s, gap, psi, N, P, pbase):
+    """kernel._switch: switch the pairs in B_TRIAL at an event (time t, state Z_Q, Z_QD); every force
+    from the Kelvin-Voigt law at this instant (the acceleration follows from equilibrium)."""
+    for j in range(P):
+        B[B_JUST, j] = B[B_TRIAL, j]
+        if not B[B_TRIAL, j]:
+            continue
+        pen, vr = _pair(Z, Z_Q, Z_QD, j, psi, gap, N)
+        base = pbase + ML.PER_PAIR * j
+        if B[B_ACT, j]:
+            B[B_ACT, j] = False
+            if pen > 0.0:
+                Z[Z_EN, E_WREL] += 0.5 * k_s * pen * pen
+            Z[Z_F, j] = 0.0
+            Z[Z_SP, j] = 0.0
+            Z[Z_DP, j] = 0.0
+        else:
+            B[B_ACT, j] = True
+            if pen > 0.0:
+                Z[Z_EN, E_WREL] -= 0.5 * k_s * pen * pen
+            orow[base + ML.PAIR_IMPACTS] += 1.0
+            f = k_s * pen + Z[Z_C, j] * vr
+            Z[Z_F, j] = f
+            Z[Z_SP, j] = k_s * pen
+            Z[Z_DP, j] = f - k_s * pen
+            _force_extremes(orow, base, f, t)
+        B[B_WAS, j] = B[B_ACT, j]
+    for j in range(P):
+        Z[Z_F, j] = 0.0
+        if B[B_ACT, j]:
+            pen, vr = _pair(Z, Z_Q, Z_QD, j, psi, gap, N)
+            Z[Z_F, j] = k_s * pen + Z[Z_C, j] * vr
+
+
+@njit_step
+def _end_phase(dur, nph, l, j, duration):
+    """kernel._end_phase for lane l."""
+    k = nph[l, j]
+    if k < dur.shape[2]:
+        dur[l, j, k] = duration
+    nph[l, j] = k + 1
+
+
+@njit_step
+def _accept(Z, B, orow, dur, nph, l, hs, t_e, ag_s, ag_e, k_s, gap, psi, N, P, pbase, rf):
+    """Accept the piece [t_e - hs, t_e] (kernel.integrate_batch's accepted piece), end state Z_QE, Z_QDE with forces in row
+    rf: energy increments, exact for Newmark average acceleration (input -Gamma.dq ag, structural
+    damping sum d_k dq_k^2 / hs, the contact spring and dashpot work on each pair's penetration),
+    contact metrics; then the state and forces move to Z_Q, Z_QD, Z_F."""
+    s_in = 0.0
+    s_d = 0.0
+    for k in range(N):
+        dq = Z[Z_QE, k] - Z[Z_Q, k]
+        s_in += Z[Z_GAM, k] * dq
+        s_d += Z[Z_DMP, k] * dq * dq
+    de = -0.5 * (ag_s + ag_e) * s_in
+    Z[Z_EN, E_IN] += de
+    Z[Z_EN, E_ABS] += abs(de)
+    Z[Z_EN, E_DST] += s_d / hs
+    for j in range(P):
+        act = B[B_ACT, j]
+        was = B[B_WAS, j]
+        pen, _v = _pair(Z, Z_QE, Z_QDE, j, psi, gap, N)
+        f = Z[rf, j]
+        sp = k_s * pen if act else 0.0
+        dp = f - sp if act else 0.0
+        Z[Z_EN, E_WSP] += 0.5 * (Z[Z_SP, j] + sp) * (pen - Z[Z_PP, j])
+        Z[Z_EN, E_WDA] += 0.5 * (Z[Z_DP, j] + dp) * (pen - Z[Z_PP, j])
+        if was and not act and pen > 0.0:
+            Z[Z_EN, E_WREL] += 0.5 * k_s * pen * pen
+        Z[Z_SP, j] = sp
+        Z[Z_DP, j] = dp
+        Z[Z_PP, j] = pen
+        base = pbase + ML.PER_PAIR * j
+        if act:
+            if not was:
+                orow[base + ML.PAIR_IMPACTS] += 1.0
+            orow[base + ML.PAIR_CONTACT_TIME] += hs
+            if pen > orow[base + ML.PAIR_MAX_PENETRATION]:
+                orow[base + ML.PAIR_MAX_PENETRATION] = pen
+            _force_extremes(orow, base, f, t_e)
+        comp = act and f > 0.0
+        if comp:
+            orow[base + ML.PAIR_COMPRESSION_TIME] += hs
+            Z[Z_CAC, j] = Z[Z_CAC, j] + hs if B[B_INC, j] else hs
+        elif B[B_INC, j]:
+            _end_phase(dur, nph, l, j, Z[Z_CAC, j])
+        B[B_INC, j] = comp
+        B[B_WAS, j] = act
+    for k in range(N):
+        Z[Z_Q, k] = Z[Z_QE, k]
+        Z[Z_QD, k] = Z[Z_QDE, k]
+    for j in range(P):
+        Z[Z_F, j] = Z[rf, j]
+
+
+@njit_step
+def _event_step(Z, B, I, A, orow, dur, nph, l, step, dt, law, ag_prev, ag, harmonic, amp, om, k_s, gap, phi, psi, N,
+                N1, P, pbase):
+    """Event scheme, one lane, one step (kernel.integrate_batch's trial with the start set, then
+    its pieces between located events). Returns (finite, events located, 1 if the events chattered else 0)."""
+    hmin = EVENT_MIN_FRACTION * dt
+    _fixed_set_step(Z, B, I, A, dt, ag_prev, ag, k_s, gap, psi, N, P)
+    h = dt
+    t_s = (step - 1) * dt
+    ag_s = ag_prev
+    n_ev = 0
+    uns = 0
+    for j in range(P):
+        B[B_JUST, j] = False
+    finite = True
+    while True:
+        finite = _finite(Z, Z_QE, Z_QDE, Z_FE, phi, psi, N, P)
+        if not finite:
+            break
+        hs = h
+        ag_e = ag
+        last = True
+        contradicts = False
+        for j in range(P):
+            pe, vr = _pair(Z, Z_QE, Z_QDE, j, psi, gap, N)
+            if law == LAW_NO_TENSION and pe > 0.0:
+                pe = min(pe, pe + (Z[Z_C, j] / k_s) * vr)
+            tol = _switch_tolerance(_floor_u(Z, Z_QE, j, phi, N), _floor_u(Z, Z_QE, N1 + j, phi, N))
+            if (pe < -tol) if B[B_ACT, j] else (pe > tol):
+                contradicts = True
+        if contradicts:
+            theta = _first_event(Z, B, h, law, k_s, gap, phi, psi, N, N1, P)
+            if theta <= 1.0 and n_ev >= MAX_EVENTS:
+                uns = 1
+            elif theta <= 1.0:
+                n_ev += 1
+                last = False
+                hs = _locate_event(Z, B, I, A, theta, h, hmin, ag_s, ag, harmonic, amp, om, t_s, law, k_s, gap, phi,
+                                   psi, N, N1, P)
+                if hs <= hmin:
+                    hs = 0.0
+                elif h - hs <= hmin:
+                    hs = h
+                ag_e = _ag_inside(hs, h, ag_s, ag, harmonic, amp, om, t_s)
+                finite = _finite(Z, Z_QE, Z_QDE, Z_FE, phi, psi, N, P)
+                if not finite:
+                    break
+        if hs > 0.0:
+            _accept(Z, B, orow, dur, nph, l, hs, t_s + hs, ag_s, ag_e, k_s, gap, psi, N, P, pbase, Z_FE)
+        if last:
+            break
+        t_s += hs
+        h -= hs
+        ag_s = ag_e
+        _switch(Z, B, orow, t_s, k_s, gap, psi, N, P, pbase)
+        if h <= 0.0:
+            break
+        _fixed_set_step(Z, B, I, A, h, ag_s, ag, k_s, gap, psi, N, P)
+    return finite, n_ev, uns
+
+
+@njit_step
+def _mask(B, row, P):
+    mk = 0
+    for j in range(min(P, 62)):
+        if B[row, j]:
+            mk |= 1 << j
+    return mk
+
+
+@njit_step
+def _implicit_step(Z, B, I, A, orow, dur, nph, l, step, dt, law, max_iter, ag_prev, ag, k_s, gap, phi, psi, N, P, pbase):
+    """Implicit scheme, one lane, one step: kernel.integrate_batch's active-set iteration from the
+    start set (cycle detection, the union fallback), then the accepted step. Returns (finite,
+    iterations, 1 if the set cycled else 0)."""
+    _keff_coefs(Z, dt, N)
+    _free_step(Z, dt, ag_prev, ag, gap, psi, N, P)
+    it = 0
+    settled = False
+    cycled = False
+    while it < max_iter and not cycled:
+        I[I_SEEN, it] = _mask(B, B_ACT, P)
+        it += 1
+        _set_forces(Z, B, I, A, dt, k_s, psi, N, P)
+        changed = False
+        for j in range(P):
+            wf = 0.0
+            for m in range(P):
+                s = 0.0
+                for k in range(N):
+                    s += psi[k, j] * Z[Z_CF, k] * psi[k, m]
+                wf += s * Z[Z_FS, m]
+            pen = Z[Z_DF, j] - wf
+            want = pen > 0.0
+            if want and law == LAW_NO_TENSION:
+                want = (k_s * pen + Z[Z_C, j] * (Z[Z_DDF, j] - (2.0 / dt) * wf)) > 0.0
+            B[B_TRIAL, j] = want
+            if want != B[B_ACT, j]:
+                changed = True
+        if not changed:
+            settled = True
+            break
+        for j in range(P):
+            B[B_PREV, j] = B[B_ACT, j]
+            B[B_ACT, j] = B[B_TRIAL, j]
+        mk = _mask(B, B_ACT, P)
+        for z in range(it):
+            if I[I_SEEN, z] == mk and P <= 62:
+                cycled = True
+    uns = 0
+    if not settled:
+        uns = 1
+        for j in range(P):
+            B[B_ACT, j] = B[B_PREV, j] or B[B_TRIAL, j]
+        _set_forces(Z, B, I, A, dt, k_s, psi, N, P)
+    _end_state(Z, dt, psi, N, P)
+    if not _finite(Z, Z_QE, Z_QDE, Z_FS, phi, psi, N, P):
+        return False, it, uns
+    _accept(Z, B, orow, dur, nph, l, dt, (step - 1) * dt + dt, ag_prev, ag, k_s, gap, psi, N, P, pbase, Z_FS)
+    return True, it, uns
+
+
+@njit_step
+def _lane_factors(W, l, P, k_s, cdash, run, dt, Wm, B, I, A, r_R):
+    """Lane l's R = (I + diag(kappa) W)_SS^-1 for its set S (B_ACT), in full P x P (zeros outside S)."""
+    for z in range(P * P):
+        W[(r_R + z) * LANES + l] = 0.0
+    na = 0
+    for j in range(P):
+        if B[B_ACT, j]:
+            I[I_IDX, na] = j
+            na += 1
+    if na == 0:
+        return
+    # Gauss-Jordan on [I + diag(kappa) W_SS | I] (no pivoting: similar to I + SPD, positive pivots)
+    for p in range(na):
+        kap = k_s + 2.0 * cdash[run, I[I_IDX, p]] / dt
+        for p2 in range(na):
+            A[p, p2] = kap * Wm[I[I_IDX, p], I[I_IDX, p2]] + (1.0 if p == p2 else 0.0)
+            A[p, na + p2] = 1.0 if p == p2 else 0.0
+    for k in range(na):
+        piv = A[k, k]
+        for z in range(2 * na):
+            A[k, z] /= piv
+        for i in range(na):
+            if i != k:
+                f = A[i, k]
+                for z in range(2 * na):
+                    A[i, z] -= f * A[k, z]
+    for p in range(na):
+        for p2 in range(na):
+            W[(r_R + I[I_IDX, p] * P + I[I_IDX, p2]) * LANES + l] = A[p, na + p2]
+
+
+@njit_step
+def _lane_step(W, l, src, dst, step, dt, scheme, law, max_iter, harmonic, amp, om, phi, psi, Wm, cdash, run, N, N1,
+               P, Z, B, I, A, orow, dur, nph):
+    """One lane's whole step in scalar code, from its start state (buffer src) to buffer dst, with
+    its metric and energy rows updated. Returns False when the state is no longer finite."""
+    r_q0, r_q1, r_g, r_f, r_pen, r_act, r_inc, r_cac, r_end, r_cd, r_R, r_s, r_met = _layout(N, P)
+    k_s = W[(r_s + S_KS) * LANES + l]
+    gap = W[(r_s + S_GAP) * LANES + l]
+    ag_s = W[(r_s + S_AGS) * LANES + l]
+    ag = W[(r_s + S_AGE) * LANES + l]
+    for k in range(N):
+        Z[Z_Q, k] = W[(src + k) * LANES + l]
+        Z[Z_QD, k] = (2.0 / dt) * W[(src + N + k) * LANES + l]
+    start = 0
+    for j in range(P):
+        Z[Z_C, j] = cdash[run, j]
+        Z[Z_F, j] = W[(r_f + j) * LANES + l]
+        act = W[(r_act + j) * LANES + l] > 0.5
+        B[B_ACT, j] = act
+        B[B_WAS, j] = act
+        B[B_INC, j] = W[(r_inc + j) * LANES + l] > 0.5
+        Z[Z_CAC, j] = W[(r_cac + j) * LANES + l]
+        pen, vr = _pair(Z, Z_Q, Z_QD, j, psi, gap, N)
+        Z[Z_PP, j] = pen
+        Z[Z_SP, j] = k_s * pen if act else 0.0
+        Z[Z_DP, j] = Z[Z_F, j] - Z[Z_SP, j] if act else 0.0
+        if act and j < 62:
+            start |= 1 << j
+    Z[Z_EN, E_IN] = W[(r_s + S_EIN) * LANES + l]
+    Z[Z_EN, E_ABS] = W[(r_s + S_EABS) * LANES + l]
+    Z[Z_EN, E_DST] = W[(r_s + S_DST) * LANES + l]
+    Z[Z_EN, E_WSP] = W[(r_s + S_WSP) * LANES + l]
+    Z[Z_EN, E_WDA] = W[(r_s + S_WDA) * LANES + l]
+    Z[Z_EN, E_WREL] = W[(r_s + S_WREL) * LANES + l]
+    nmet = ML.PER_DOF * N + ML.PER_PAIR * P
+    for z in range(nmet):
+        orow[z] = W[(r_met + z) * LANES + l]
+    pbase = ML.PER_DOF * N
+    if scheme == SCHEME_EVENT:
+        finite, count, uns = _event_step(Z, B, I, A, orow, dur, nph, l, step, dt, law, ag_s, ag, harmonic, amp, om, k_s,
+                                         gap, phi, psi, N, N1, P, pbase)
+    else:
+        finite, count, uns = _implicit_step(Z, B, I, A, orow, dur, nph, l, step, dt, law, max_iter, ag_s, ag, k_s, gap,
+                                            phi, psi, N, P, pbase)
+    if count > W[(r_s + S_MIT) * LANES + l]:
+        W[(r_s + S_MIT) * LANES + l] = count
+    W[(r_s + S_UNS) * LANES + l] += uns
+    if not finite:
+        W[(r_s + S_BAD) * LANES + l] = 1.0
+        return False
+    t = step * dt
+    _modal_acc(Z, Z_Q, Z_QD, Z_F, psi, N, P)
+    for i in range(N):  # per-floor peaks at the step end
+        u = 0.0
+        a = 0.0
+        for k in range(N):
+            u += phi[i, k] * Z[Z_Q, k]
+            a += phi[i, k] * Z[Z_B, k]
+        base = ML.PER_DOF * i
+        if abs(u) > orow[base + ML.DOF_PEAK_DISP]:
+            orow[base + ML.DOF_PEAK_DISP] = abs(u)
+            orow[base + ML.DOF_PEAK_DISP_TIME] = t
+        if abs(a) > orow[base + ML.DOF_PEAK_ABS_ACC]:
+            orow[base + ML.DOF_PEAK_ABS_ACC] = abs(a)
+    for k in range(N):
+        W[(dst + k) * LANES + l] = Z[Z_Q, k]
+        W[(dst + N + k) * LANES + l] = (0.5 * dt) * Z[Z_QD, k]
+        g = 0.0
+        for j in range(P):
+            g += psi[k, j] * Z[Z_F, j]
+        W[(r_g + k) * LANES + l] = g
+    mk = 0
+    for j in range(P):
+        W[(r_f + j) * LANES + l] = Z[Z_F, j]
+        W[(r_act + j) * LANES + l] = 1.0 if B[B_ACT, j] else 0.0
+        W[(r_inc + j) * LANES + l] = 1.0 if B[B_INC, j] else 0.0
+        W[(r_cac + j) * LANES + l] = Z[Z_CAC, j]
+        W[(r_pen + j) * LANES + l] = Z[Z_PP, j]
+        if B[B_ACT, j] and j < 62:
+            mk |= 1 << j
+    W[(r_s + S_EIN) * LANES + l] = Z[Z_EN, E_IN]
+    W[(r_s + S_EABS) * LANES + l] = Z[Z_EN, E_ABS]
+    W[(r_s + S_DST) * LANES + l] = Z[Z_EN, E_DST]
+    W[(r_s + S_WSP) * LANES + l] = Z[Z_EN, E_WSP]
+    W[(r_s + S_WDA) * LANES + l] = Z[Z_EN, E_WDA]
+    W[(r_s + S_WREL) * LANES + l] = Z[Z_EN, E_WREL]
+    for z in range(nmet):
+        W[(r_met + z) * LANES + l] = orow[z]
+    if mk != start:
+        _lane_factors(W, l, P, k_s, cdash, run, dt, Wm, B, I, A, r_R)
+    return True
+
+
+# ------------------------------------------------------------------------------------------ vector parts
+
+
+def _vec_ptr(context, builder, sig, args, stride):
+    """Pointer to arr[r * stride + c] as a vector pointer."""
+    i64 = ir.IntType(64)
+    idx = builder.mul(context.cast(builder, args[1], sig.args[1], types.int64), ir.Constant(i64, stride))
+    if len(args) > 2 and stride == LANES:
+        idx = builder.add(idx, context.cast(builder, args[2], sig.args[2], types.int64))
+    a = context.make_array(sig.args[0])(context, builder, args[0])
+    vt = ir.VectorType(ir.DoubleType(), VW)
+    return builder.bitcast(builder.gep(a.data, [idx], inbounds=True), vt.as_pointer())
+
+
+@intrinsic
+def _row(typingctx, W, r, c):
+    """W[r * LANES + c : ... + VW] as a vector (row r, lanes c..c+VW-1)."""
+    def codegen(context, builder, sig, args):
+        return builder.load(_vec_ptr(context, builder, sig, args, LANES), align=8)
+    return f64v(W, r, c), codegen
+
+
+@intrinsic
+def _put(typingctx, W, r, c, v):
+    """Row r, lanes c..c+VW-1 := v."""
+    def codegen(context, builder, sig, args):
+        builder.store(args[3], _vec_ptr(context, builder, sig, args, LANES), align=8)
+        return context.get_dummy_value()
+    return types.none(W, r, c, v), codegen
+
+
+@intrinsic
+def _cv(typingctx, Cv, r):
+    """Coefficient r of the table in every lane (one broadcast load: on AMD Zen 1 a full-width
+    coefficient row would cost as many load slots as the data it multiplies)."""
+    def codegen(context, builder, sig, args):
+        a = context.make_array(sig.args[0])(context, builder, args[0])
+        idx = context.cast(builder, args[1], sig.args[1], types.intp)
+        x = builder.load(builder.gep(a.data, [idx], inbounds=True))
+        vt = ir.VectorType(ir.DoubleType(), VW)
+        i32 = ir.IntType(32)
+        v = builder.insert_element(ir.Constant(vt, ir.Undefined), x, ir.Constant(i32, 0))
+        return builder.shuffle_vector(v, v, ir.Constant(ir.VectorType(i32, VW), [0] * VW))
+    return f64v(Cv, r), codegen
+
+
+@intrinsic
+def _keep(typingctx, W, r, c, cond, new):
+    """Row r := new where cond, else unchanged (the old value through an arithmetic fence, so that
+    LLVM does not turn the select and store into a masked store: microcoded and slow on AMD Zen)."""
+    def codegen(context, builder, sig, args):
+        ptr = _vec_ptr(context, builder, sig, args, LANES)
+        vt = ir.VectorType(ir.DoubleType(), VW)
+        old = builder.load(ptr, align=8)
+        fence = cgutils.get_or_insert_function(builder.module, ir.FunctionType(vt, [vt]),
+                                               f"llvm.arithmetic.fence.v{VW}f64")
+        old = builder.call(fence, [old])
+        truth = builder.icmp_signed("<", args[3], ir.Constant(ir.VectorType(ir.IntType(64), VW), [0] * VW))
+        builder.store(builder.select(truth, args[4], old), ptr, align=8)
+        return context.get_dummy_value()
+    return types.none(W, r, c, cond, new), codegen
+
+
+# coefficient table Cv (coefficient_table): per mode k / floor i / pair j
+C_CQ, C_CR, C_EK, C_NCF, C_NDA, C_NW2, C_DH, C_GAM = range(8)  # row C_X * N + k
+
+
+@_inline
+def _tab(N, P):
+    """Entries of the stack scratch T: modal accelerations, floors, free increments, forces, Psi F."""
+    t_qa = 0
+    t_u = N
+    t_dq = 2 * N
+    t_f = 3 * N
+    t_g = 3 * N + P
+    return t_qa, t_u, t_dq, t_f, t_g
+
+
+@_inline
+def _ctab(N, P):
+    """Row offsets of Phi (i * N + k) and Psi, (2/dt) Psi (k * P + j) in the coefficient table."""
+    c_phi = 8 * N
+    c_psi = c_phi + N * N
+    c_psv = c_psi + N * P
+    return c_phi, c_psi, c_psv
+
+
+def coefficient_table(ma, dt: float) -> np.ndarray:
+    """The vector code's coefficients (modal.ModalArrays at dt), in _ctab's order."""
+    n = ma.om2.size
+    rows = [ma.cq, ma.cr, -ma.cf * ma.gam, -ma.cf, (-2.0 / dt) * ma.dmp, -ma.om2, ma.dmp / dt, ma.gam,
+            ma.phi.ravel(), ma.psi.ravel(), (2.0 / dt) * ma.psi.ravel()]
+    flat = np.concatenate([np.asarray(r, dtype=np.float64).ravel() for r in rows])
+    assert flat.size == 8 * n + n * n + 2 * n * ma.psi.shape[1]
+    return np.ascontiguousarray(flat)
+
+
+@_inline
+def _floors(T, N, N1, t_u, t_q, Cv, c_phi):
+    """Floor values Phi x of the modal values x = T[t_q:t_q + N] into T[t_u:t_u + N]."""
+    for i in range(N):
+        lo = 0 if i < N1 else N1
+        hi = N1 if i < N1 else N
+        u = _cv(Cv, c_phi + i * N + lo) * sget(T, t_q + lo)
+        for k in range(lo + 1, hi):
+            u = vfma(_cv(Cv, c_phi + i * N + k), sget(T, t_q + k), u)
+        sset(T, t_u + i, u)
+
+
+@_inline
+def _floor_acc(T, i, N, N1, t_qa, Cv, c_phi):
+    """Absolute acceleration of floor i: Phi applied to the modal accelerations T[t_qa:]."""
+    lo = 0 if i < N1 else N1
+    hi = N1 if i < N1 else N
+    a = _cv(Cv, c_phi + i * N + lo) * sget(T, t_qa + lo)
+    for k in range(lo + 1, hi):
+        a = vfma(_cv(Cv, c_phi + i * N + k), sget(T, t_qa + k), a)
+    return a
+
+
+@_inline
+def _floor_peaks(W, c, T, N, N1, t_u, t_qa, r_met, Cv, c_phi, vt, ok_mask):
+    """Per-floor peaks of |u| (and its time) and of |absolute acceleration|. One test for all floors;
+    rows are written only in the rare steps where some peak grows in some lane of `ok_mask`.
+    Returns the lanes that diverged (|u| >= DIVERGED_M or |a| >= 1e300; a NaN never grows a peak
+    and is caught by the energy rows instead)."""
+    grow = mconst(False)
+    for i in range(N):
+        base = r_met + ML.PER_DOF * i
+        grow = grow | (abs(sget(T, t_u + i)) > _row(W, base + ML.DOF_PEAK_DISP, c))
+        grow = grow | (abs(_floor_acc(T, i, N, N1, t_qa, Cv, c_phi)) > _row(W, base + ML.DOF_PEAK_ABS_ACC, c))
+    bad = mconst(False)
+    if many(grow & ok_mask):
+        for i in range(N):
+            base = r_met + ML.PER_DOF * i
+            ad = abs(sget(T, t_u + i))
+            up = (ad > _row(W, base + ML.DOF_PEAK_DISP, c)) & ok_mask
+            _keep(W, base + ML.DOF_PEAK_DISP, c, up, ad)
+            _keep(W, base + ML.DOF_PEAK_DISP_TIME, c, up, vt)
+            bad = bad | (up & (ad >= ML.DIVERGED_M))
+            aa = abs(_floor_acc(T, i, N, N1, t_qa, Cv, c_phi))
+            up = (aa > _row(W, base + ML.DOF_PEAK_ABS_ACC, c)) & ok_mask
+            _keep(W, base + ML.DOF_PEAK_ABS_ACC, c, up, aa)
+            bad = bad | (up & (aa >= 1e300))
+    return bad
+
+
+@_inline
+def _exact_events(W, c, T, N, N1, P, t_u, r_act, r_cd, dst, Cv, c_psv, law, scheme, ks, gap):
+    """The lanes whose end state contradicts their contact set, by the scheme's own test (event:
+    kernel._switch_tolerance, the no-tension indicator min(pen, pen + c/k_s v_rel); implicit: the set
+    the end state asks for)."""
+    evt = mconst(False)
+    zero = vsplat(0.0)
+    for j in range(P):
+        up = sget(T, t_u + j)
+        uq = sget(T, t_u + N1 + j)
+        pe = (up - uq) - gap
+        act = _row(W, r_act + j, c) > 0.5
+        alt = pe
+        if law == LAW_NO_TENSION:
+            vr = zero
+            for k in range(N):
+                vr = vfma(_cv(Cv, c_psv + k * P + j), _row(W, dst + N + k, c), vr)
+            alt = pe + (_row(W, r_cd + j, c) / ks) * vr
+        if scheme == SCHEME_EVENT:
+            if law == LAW_NO_TENSION:
+                pe = vsel(pe > 0.0, vsel(alt < pe, alt, pe), pe)
+            tol = 1e-15 + 1e-12 * (abs(up) + abs(uq))
+            evt = evt | (act & (zero - tol > pe)) | (~act & (pe > tol))
+        else:
+            want = pe > 0.0
+            if law == LAW_NO_TENSION:
+                want = want & (alt > 0.0)  # k_s pen + c v_rel > 0, divided by k_s > 0
+            evt = evt | (want != act)
+    return evt
+
+
+@_inline
+def _energy(W, c, r_s, s, pin, dsum, keep):
+    """Input work (trapezoid), its absolute sum and structural damping; returns the lanes whose
+    accumulators are no longer finite (a NaN or inf anywhere in the state reaches dsum)."""
+    de = -0.5 * s * pin
+    ein = _row(W, r_s + S_EIN, c) + de
+    eab = _row(W, r_s + S_EABS, c) + abs(de)
+    dst_ = _row(W, r_s + S_DST, c) + dsum
+    _keep(W, r_s + S_EIN, c, keep, ein)
+    _keep(W, r_s + S_EABS, c, keep, eab)
+    _keep(W, r_s + S_DST, c, keep, dst_)
+    return keep & (~(abs(dst_) < 1e300) | ~(abs(eab) < 1e300))
+
+
+@_inline
+def _fill_ag(W, r_s, prof, pid_lane, step, uniform, pid0):
+    """Ground acceleration rows: AGS at the step start, AGE at its end (coef * prof[pid, step])."""
+    if uniform:
+        p0 = prof[pid0, step - 1]
+        p1 = prof[pid0, step]
+        for c in range(0, LANES, VW):
+            cf = _row(W, r_s + S_COEF, c)
+            _put(W, r_s + S_AGS, c, cf * p0)
+            _put(W, r_s + S_AGE, c, cf * p1)
+    else:
+        for l in range(LANES):
+            cf = W[(r_s + S_COEF) * LANES + l]
+            W[(r_s + S_AGS) * LANES + l] = cf * prof[pid_lane[l], step - 1]
+            W[(r_s + S_AGE) * LANES + l] = cf * prof[pid_lane[l], step]
+
+
+@njit_step
+def _quiet(W, step0, step1, dt, scheme, law, nt, n1t, Cv, prof, pid_lane, uniform, pid0):
+    """Steps step0..step1 with no lane in contact at their start: the free step of every lane. Returns
+    at the first step with an event or a divergence: (that step, lanes with an event, lanes diverged);
+    event lanes are left for _lane_step (only their dst rows were written)."""
+    N = len(nt)
+    N1 = len(n1t)
+    P = min(N1, N - N1)
+    lay = _layout(N, P)
+    T = scratch()
+    for step in range(step0, step1 + 1):
+        src = lay[0] if (step - 1) % 2 == 0 else lay[1]
+        dst = lay[1] if (step - 1) % 2 == 0 else lay[0]
+        _fill_ag(W, lay[11], prof, pid_lane, step, uniform, pid0)
+        nevt, nbad = _quiet_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, lay)
+        if nevt > 0 or nbad > 0:
+            return step, nevt, nbad
+    return step1, 0, 0
+
+
+@_inline
+def _quiet_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, lay):
+    """One quiet step of every chunk of lanes: modes (Newmark, modal.py), floors, the cheap test
+    "some pair penetrates" (then the exact event test), energy increments, peaks."""
+    r_q0, r_q1, r_g, r_f, r_pen, r_act, r_inc, r_cac, r_end, r_cd, r_R, r_s, r_met = lay
+    c_phi, c_psi, c_psv = _ctab(N, P)
+    t_qa, t_u, t_dq, t_f, t_g = _tab(N, P)
+    vt = vsplat(step * dt)
+    nevt = 0
+    nbad = 0
+    for c in range(0, LANES, VW):
+        s = _row(W, r_s + S_AGS, c) + _row(W, r_s + S_AGE, c)
+        pin = vsplat(0.0)
+        dsum = vsplat(0.0)
+        for k in range(N):
+            q = _row(W, src + k, c)
+            r = _row(W, src + N + k, c)
+            dq = vfma(_cv(Cv, C_CQ * N + k), q, vfma(_cv(Cv, C_CR * N + k), r, _cv(Cv, C_EK * N + k) * s))
+            qn = q + dq
+            rn = dq - r
+            _put(W, dst + k, c, qn)
+            _put(W, dst + N + k, c, rn)
+            sset(T, t_dq + k, qn)
+            pin = vfma(_cv(Cv, C_GAM * N + k), dq, pin)
+            dsum = vfma(_cv(Cv, C_DH * N + k) * dq, dq, dsum)
+            sset(T, t_qa + k, vfma(_cv(Cv, C_NDA * N + k), rn, _cv(Cv, C_NW2 * N + k) * qn))
+        _floors(T, N, N1, t_u, t_dq, Cv, c_phi)
+        gap = _row(W, r_s + S_GAP, c)
+        pen_any = mconst(False)
+        for j in range(P):
+            pen_any = pen_any | ((sget(T, t_u + j) - sget(T, t_u + N1 + j)) - gap > 0.0)
+        evt = mconst(False)
+        if many(pen_any):
+            evt = _exact_events(W, c, T, N, N1, P, t_u, r_act, r_cd, dst, Cv, c_psv, law, scheme,
+                                _row(W, r_s + S_KS, c), gap)
+            if many(evt):
+                _put(W, r_s + S_EVT, c, mfloat(evt))
+                nevt += mcount(evt)
+        ok = ~evt
+        bad = _energy(W, c, r_s, s, pin, dsum, ok)
+        bad = bad | _floor_peaks(W, c, T, N, N1, t_u, t_qa, r_met, Cv, c_phi, vt, ok)
+        if many(bad):
+            _keep(W, r_s + S_BAD, c, bad, vsplat(1.0))
+            nbad += mcount(bad)
+    return nevt, nbad
+
+
+@njit_step
+def _contact(W, step0, step1, dt, scheme, law, nt, n1t, Cv, pon, prof, pid_lane, uniform, pid0):
+    """Steps step0..step1 with some lane in contact: the step with each lane's contact set (forces from
+    its R), contact metrics and energies. Pairs in contact in no lane (bit j of pon clear) have zero
+    force in every lane. Returns at the first step with an event, a divergence or the end of a
+    compressive phase: (that step, lanes with an event, lanes diverged, lanes whose phase ended)."""
+    N = len(nt)
+    N1 = len(n1t)
+    P = min(N1, N - N1)
+    lay = _layout(N, P)
+    T = scratch()
+    for step in range(step0, step1 + 1):
+        src = lay[0] if (step - 1) % 2 == 0 else lay[1]
+        dst = lay[1] if (step - 1) % 2 == 0 else lay[0]
+        _fill_ag(W, lay[11], prof, pid_lane, step, uniform, pid0)
+        nevt, nbad, nend = _contact_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, pon, lay)
+        if nevt > 0 or nbad > 0 or nend > 0:
+            return step, nevt, nbad, nend
+    return step1, 0, 0, 0
+
+
+@_inline
+def _contact_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, pon, lay):
+    """One step of every chunk of lanes, some lane in contact."""
+    r_q0, r_q1, r_g, r_f, r_pen, r_act, r_inc, r_cac, r_end, r_cd, r_R, r_s, r_met = lay
+    c_phi, c_psi, c_psv = _ctab(N, P)
+    t_qa, t_u, t_dq, t_f, t_g = _tab(N, P)
+    vt = vsplat(step * dt)
+    te = vsplat((step - 1) * dt + dt)
+    vdt = vsplat(dt)
+    zero = vsplat(0.0)
+    half = vsplat(0.5)
+    pbase = r_met + ML.PER_DOF * N
+    nevt = 0
+    nbad = 0
+    nend = 0
+    for c in range(0, LANES, VW):
+        s = _row(W, r_s + S_AGS, c) + _row(W, r_s + S_AGE, c)
+        ks = _row(W, r_s + S_KS, c)
+        gap = _row(W, r_s + S_GAP, c)
+        # the free step (start forces in the load): its end q, r into dst, its increment into T
+        for k in range(N):
+            q = _row(W, src + k, c)
+            r = _row(W, src + N + k, c)
+            dq = vfma(_cv(Cv, C_CQ * N + k), q,
+                      vfma(_cv(Cv, C_CR * N + k), r,
+                           vfma(_cv(Cv, C_EK * N + k), s, _cv(Cv, C_NCF * N + k) * _row(W, r_g + k, c))))
+            _put(W, dst + k, c, q + dq)
+            _put(W, dst + N + k, c, dq - r)
+            sset(T, t_dq + k, dq)
+        # each lane's forces: F = R (k_s delta_free + c delta'_free), R zero outside its contact set
+        for i in range(P):
+            sset(T, t_f + i, zero)
+        for j in range(P):
+            if (pon >> j) & 1 == 0:
+                continue
+            d = zero
+            v = zero
+            for k in range(N):
+                d = vfma(_cv(Cv, c_psi + k * P + j), _row(W, dst + k, c), d)
+                v = vfma(_cv(Cv, c_psv + k * P + j), _row(W, dst + N + k, c), v)
+            y = vfma(ks, d - gap, _row(W, r_cd + j, c) * v)
+            for i in range(P):
+                if (pon >> i) & 1:
+                    sset(T, t_f + i, vfma(_row(W, r_R + i * P + j, c), y, sget(T, t_f + i)))
+        # the end state: dq = dq_free - cf Psi F
+        pin = zero
+        dsum = zero
+        for k in range(N):
+            g = zero
+            for j in range(P):
+                if (pon >> j) & 1:
+                    g = vfma(_cv(Cv, c_psi + k * P + j), sget(T, t_f + j), g)
+            sset(T, t_g + k, g)
+            corr = _cv(Cv, C_NCF * N + k) * g
+            dq = sget(T, t_dq + k) + corr
+            qn = _row(W, dst + k, c) + corr
+            rn = _row(W, dst + N + k, c) + corr
+            _put(W, dst + k, c, qn)
+            _put(W, dst + N + k, c, rn)
+            sset(T, t_dq + k, qn)
+            pin = vfma(_cv(Cv, C_GAM * N + k), dq, pin)
+            dsum = vfma(_cv(Cv, C_DH * N + k) * dq, dq, dsum)
+            sset(T, t_qa + k, vfma(_cv(Cv, C_NDA * N + k), rn, _cv(Cv, C_NW2 * N + k) * qn) - g)
+        _floors(T, N, N1, t_u, t_dq, Cv, c_phi)
+        evt = _exact_events(W, c, T, N, N1, P, t_u, r_act, r_cd, dst, Cv, c_psv, law, scheme, ks, gap)
+        if many(evt):
+            _put(W, r_s + S_EVT, c, mfloat(evt))
+            nevt += mcount(evt)
+        ok = ~evt
+        bad = _energy(W, c, r_s, s, pin, dsum, ok)
+        bad = bad | _floor_peaks(W, c, T, N, N1, t_u, t_qa, r_met, Cv, c_phi, vt, ok)
+        if many(bad):
+            _keep(W, r_s + S_BAD, c, bad, vsplat(1.0))
+            nbad += mcount(bad)
+        # contact spring and dashpot work on each pair's penetration, contact metrics (kernel.py's order)
+        wsp = _row(W, r_s + S_WSP, c)
+        wda = _row(W, r_s + S_WDA, c)
+        ended = mconst(False)
+        for j in range(P):
+            if (pon >> j) & 1 == 0:
+                continue
+            f = sget(T, t_f + j)
+            pen = (sget(T, t_u + j) - sget(T, t_u + N1 + j)) - gap
+            act = _row(W, r_act + j, c) > 0.5
+            pen0 = _row(W, r_pen + j, c)
+            sp0 = vsel(act, ks * pen0, zero)
+            dp0 = vsel(act, _row(W, r_f + j, c) - sp0, zero)
+            sp = vsel(act, ks * pen, zero)
+            dp = vsel(act, f - sp, zero)
+            dpen = pen - pen0
+            wsp = vsel(ok, wsp + half * (sp0 + sp) * dpen, wsp)
+            wda = vsel(ok, wda + half * (dp0 + dp) * dpen, wda)
+            _keep(W, r_pen + j, c, ok, pen)
+            _keep(W, r_f + j, c, ok, f)
+            base = pbase + ML.PER_PAIR * j
+            ak = act & ok
+            x = _row(W, base + ML.PAIR_CONTACT_TIME, c)
+            _keep(W, base + ML.PAIR_CONTACT_TIME, c, ak, x + vdt)
+            x = _row(W, base + ML.PAIR_MAX_PENETRATION, c)
+            _keep(W, base + ML.PAIR_MAX_PENETRATION, c, ak & (pen > x), pen)
+            x = _row(W, base + ML.PAIR_PEAK_FORCE, c)
+            upf = ak & (f > x)
+            _keep(W, base + ML.PAIR_PEAK_FORCE, c, upf, f)
+            _keep(W, base + ML.PAIR_PEAK_FORCE_TIME, c, upf, te)
+            x = _row(W, base + ML.PAIR_MIN_FORCE, c)
+            _keep(W, base + ML.PAIR_MIN_FORCE, c, ak & (f < x), f)
+            comp = ak & (f > 0.0)
+            x = _row(W, base + ML.PAIR_COMPRESSION_TIME, c)
+            _keep(W, base + ML.PAIR_COMPRESSION_TIME, c, comp, x + vdt)
+            inc = _row(W, r_inc + j, c) > 0.5
+            x = _row(W, r_cac + j, c)
+            _keep(W, r_cac + j, c, comp, vsel(inc, x + vdt, vdt))
+            end = inc & ~comp & ok
+            if many(end):
+                _put(W, r_end + j, c, mfloat(end))
+                ended = ended | end
+            _keep(W, r_inc + j, c, ok, mfloat(comp))
+        _put(W, r_s + S_WSP, c, wsp)
+        _put(W, r_s + S_WDA, c, wda)
+        nend += mcount(ended)
+        for k in range(N):
+            _keep(W, r_g + k, c, ok, sget(T, t_g + k))
+    return nevt, nbad, nend
+
+
+# ------------------------------------------------------------------------------------------ group driver
+
+
+@njit_step
+def _park(W, l, nrows, r_s):
+    """Lane l at rest, out of contact, with no excitation, far from its neighbour: it computes zeros
+    until the group ends and never has an event."""
+    for z in range(nrows):
+        W[z * LANES + l] = 0.0
+    W[(r_s + S_GAP) * LANES + l] = 1.0
+    W[(r_s + S_KS) * LANES + l] = 1.0
+
+
+@njit_lanes
+def _finalize_lane(W, l, buf, metrics, run, status, steps_done, dt, om2, psi, N, P, dur, nph):
+    """Write lane l's metric row (kernel.integrate_batch's end-of-run code), its state in buffer buf."""
+    r_q0, r_q1, r_g, r_f, r_pen, r_act, r_inc, r_cac, r_end, r_cd, r_R, r_s, r_met = _layout(N, P)
+    nm = metrics.shape[1]
+    pbase = ML.PER_DOF * N
+    rbase = pbase + ML.PER_PAIR * P
+    for z in range(rbase):
+        metrics[run, z] = W[(r_met + z) * LANES + l]
+    for z in range(rbase, nm):
+        metrics[run, z] = 0.0
+    for j in range(P):
+        if W[(r_inc + j) * LANES + l] > 0.5:
+            _end_phase(dur, nph, l, j, W[(r_cac + j) * LANES + l])
+        base = pbase + ML.PER_PAIR * j
+        k = nph[l, j]
+        metrics[run, base + ML.PAIR_COMPRESSION_PHASES] = k
+        if k > ML.MEDIAN_BUFFER:
+            status |= ML.STATUS_MEDIAN_TRUNCATED
+            k = ML.MEDIAN_BUFFER
+        metrics[run, base + ML.PAIR_MEDIAN_COMPRESSION] = np.median(dur[l, j, :k]) if k > 0 else 0.0
+    unsettled = W[(r_s + S_UNS) * LANES + l]
+    if unsettled > 0:
+        status |= ML.STATUS_UNSETTLED
+    # kinetic and strain energy at the end: modes are mass-normalised (1/2 q'^2, 1/2 w^2 q^2)
+    ke_end = 0.0
+    se_end = 0.0
+    for k in range(N):
+        qk = W[(buf + k) * LANES + l]
+        vk = (2.0 / dt) * W[(buf + N + k) * LANES + l]
+        ke_end += 0.5 * vk * vk
+        se_end += 0.5 * om2[k] * qk * qk
+    ks = W[(r_s + S_KS) * LANES + l]
+    gap = W[(r_s + S_GAP) * LANES + l]
+    e_spring = 0.0
+    for j in range(P):
+        if W[(r_act + j) * LANES + l] > 0.5:
+            pp = -gap
+            for k in range(N):
+                pp += psi[k, j] * W[(buf + k) * LANES + l]
+            e_spring += 0.5 * ks * pp * pp
+    w_release = W[(r_s + S_WREL) * LANES + l]
+    residual = W[(r_s + S_WSP) * LANES + l] - e_spring - w_release
+    e_in_abs = W[(r_s + S_EABS) * LANES + l]
+    metrics[run, rbase + ML.RUN_E_IN] = W[(r_s + S_EIN) * LANES + l]
+    metrics[run, rbase + ML.RUN_E_IN_ABS] = e_in_abs
+    metrics[run, rbase + ML.RUN_KE] = ke_end
+    metrics[run, rbase + ML.RUN_SE] = se_end
+    metrics[run, rbase + ML.RUN_D_STRUCT] = W[(r_s + S_DST) * LANES + l]
+    metrics[run, rbase + ML.RUN_D_CONTACT] = W[(r_s + S_WDA) * LANES + l] + w_release
+    metrics[run, rbase + ML.RUN_E_SPRING] = e_spring
+    metrics[run, rbase + ML.RUN_E_RESIDUAL] = residual
+    if not (abs(residual) <= ML.ENERGY_TOL * e_in_abs):
+        status |= ML.STATUS_ENERGY
+    metrics[run, rbase + ML.RUN_UNSETTLED] = unsettled
+    metrics[run, rbase + ML.RUN_MAX_ITER] = W[(r_s + S_MIT) * LANES + l]
+    metrics[run, rbase + ML.RUN_STEPS] = steps_done
+    metrics[run, rbase + ML.RUN_STATUS] = status
+
+
+@njit_step
+def _count_act(W, l, P, r_act, act_pair, sign):
+    """Add (sign 1) or remove (-1) lane l's contact set from the per-pair counts; returns the change
+    of the total."""
+    n = 0
+    for j in range(P):
+        if W[(r_act + j) * LANES + l] > 0.5:
+            act_pair[j] += sign
+            n += sign
+    return n
+
+
+@njit_lanes
+def integrate_lanes(
+    order,  # run indices, grouped LANES at a time: group g is order[g * LANES:(g + 1) * LANES]
+    g_start,
+    g_stop,
+    dt,
+    scheme,
+    law,
+    max_iter,
+    # structure: nt, n1t are tuples of length N and N1 (floor counts fixed at compile time)
+    nt,
+    n1t,
+    ms,  # (phi, psi, om2, dmp, gam, N1): modal.ModalArrays, for the scalar steps
+    Wm,  # W = Psi^T diag(cf) Psi at dt
+    Cv,  # coefficient_table: the vector code's coefficients
+    # per run
+    ks,
+    cdash,
+    gap,
+    status_in,
+    nsteps,
+    exc_kind,
+    exc_amp,
+    exc_omega,
+    coef,
+    pid,
+    prof,
+    # outputs
+    metrics,
+    redo,
+    stats,  # int64[ST_N]: work counters of this call (ST_*), added to
+):
+    """Integrate groups g_start..g_stop-1 of `order`; fill metrics[run] (metrics_layout), or set
+    redo[run] = 1 for a run that diverged (the driver reruns it with the scalar kernel, which decides
+    where it stops and what its row holds)."""
+    N = len(nt)
+    N1 = len(n1t)
+    P = min(N1, N - N1)
+    lay = _layout(N, P)
+    r_q0, r_q1, r_g, r_f, r_pen, r_act, r_inc, r_cac, r_end, r_cd, r_R, r_s, r_met = lay
+    nrows = r_met + ML.PER_DOF * N + ML.PER_PAIR * P
+    W = np.zeros(nrows * LANES)
+    dur = np.empty((LANES, P, ML.MEDIAN_BUFFER))
+    nph = np.zeros((LANES, P), dtype=np.int64)
+    lane_run = np.zeros(LANES, dtype=np.int64)
+    lane_nst = np.zeros(LANES, dtype=np.int64)
+    lane_status = np.zeros(LANES, dtype=np.int64)
+    live = np.zeros(LANES, dtype=np.bool_)
+    pid_lane = np.zeros(LANES, dtype=np.int64)
+    act_pair = np.zeros(P, dtype=np.int64)
+    # the scalar step's work arrays (see Z_*, B_*, I_*)
+    phi, psi, om2, dmp, gam, N1_ = ms
+    Z = np.zeros((ZR, max(N, P, 6)))
+    for k in range(N):
+        Z[Z_OM2, k] = om2[k]
+        Z[Z_DMP, k] = dmp[k]
+        Z[Z_GAM, k] = gam[k]
+    B = np.zeros((BR, P), dtype=np.bool_)
+    I = np.zeros((2, max(P, max_iter + 1)), dtype=np.int64)
+    A = np.zeros((P, 2 * P))
+    orow = np.zeros(ML.PER_DOF * N + ML.PER_PAIR * P)
+    n_runs = order.size
+    for g in range(g_start, g_stop):
+        base = g * LANES
+        nl = min(LANES, n_runs - base)
+        max_nst = 0
+        uniform = True
+        pid0 = pid[order[base]] if nl > 0 else 0
+        for l in range(LANES):
+            _park(W, l, nrows, r_s)
+            live[l] = False
+            nph[l, :] = 0
+            if l >= nl:
+                continue
+            run = order[base + l]
+            lane_run[l] = run
+            lane_nst[l] = nsteps[run]
+            lane_status[l] = status_in[run]
+            live[l] = True
+            pid_lane[l] = pid[run]
+            if pid[run] != pid0:
+                uniform = False
+            max_nst = max(max_nst, nsteps[run])
+            W[(r_s + S_KS) * LANES + l] = ks[run]
+            W[(r_s + S_GAP) * LANES + l] = gap[run]
+            W[(r_s + S_COEF) * LANES + l] = coef[run]
+            for j in range(P):
+                W[(r_cd + j) * LANES + l] = cdash[run, j]
+                W[(r_pen + j) * LANES + l] = -gap[run]
+            W[(r_s + S_MIT) * LANES + l] = 1.0 if (nsteps[run] >= 1 and scheme != SCHEME_EVENT) else 0.0
+        for l in range(nl):
+            if lane_nst[l] == 0:
+                _finalize_lane(W, l, r_q0, metrics, lane_run[l], lane_status[l], 0, dt, om2, psi, N, P, dur, nph)
+                _park(W, l, nrows, r_s)
+                live[l] = False
+        next_end = max_nst + 1
+        for l in range(nl):
+            if live[l] and lane_nst[l] < next_end:
+                next_end = lane_nst[l]
+        n_act = 0
+        act_pair[:] = 0
+        step = 0
+        while step < max_nst:
+            # the vector code runs until a step that needs the scalar side (or a lane's last step)
+            step_before = step
+            if n_act == 0:
+                step, nevt, nbad = _quiet(W, step + 1, next_end if next_end <= max_nst else max_nst, dt, scheme, law,
+                                          nt, n1t, Cv, prof, pid_lane, uniform, pid0)
+                nend = 0
+            else:
+                pon = 0
+                for j in range(P):
+                    if act_pair[j] > 0:
+                        pon |= 1 << j
+                step, nevt, nbad, nend = _contact(W, step + 1, next_end if next_end <= max_nst else max_nst, dt, scheme,
+                                                  law, nt, n1t, Cv, pon, prof, pid_lane, uniform, pid0)
+            stats[ST_CALLS] += 1
+            stats[ST_VSTEPS] += step - step_before
+            src = r_q0 if (step - 1) % 2 == 0 else r_q1
+            dst = r_q1 if (step - 1) % 2 == 0 else r_q0
+            if nevt > 0:
+                for l in range(LANES):
+                    if W[(r_s + S_EVT) * LANES + l] > 0.5:
+                        W[(r_s + S_EVT) * LANES + l] = 0.0
+                        if not live[l]:
+                            continue
+                        run = lane_run[l]
+                        n_act += _count_act(W, l, P, r_act, act_pair, -1)
+                        t0_ = _monotonic_ns()
+                        ok = _lane_step(W, l, src, dst, step, dt, scheme, law, max_iter,
+                                        exc_kind[run] == EXC_HARMONIC, exc_amp[run], exc_omega[run], phi, psi, Wm,
+                                        cdash, run, N, N1, P, Z, B, I, A, orow, dur, nph)
+                        stats[ST_FIX_NS] += _monotonic_ns() - t0_
+                        stats[ST_FIXUPS] += 1
+                        n_act += _count_act(W, l, P, r_act, act_pair, 1)
+                        if not ok:
+                            nbad += 1
+            if nend > 0:
+                for l in range(LANES):
+                    for j in range(P):
+                        if W[(r_end + j) * LANES + l] > 0.5:
+                            W[(r_end + j) * LANES + l] = 0.0
+                            if live[l]:
+                                _end_phase(dur, nph, l, j, W[(r_cac + j) * LANES + l])
+            if nbad > 0:
+                for l in range(LANES):
+                    if W[(r_s + S_BAD) * LANES + l] > 0.5:
+                        if live[l]:
+                            redo[lane_run[l]] = 1
+                            n_act += _count_act(W, l, P, r_act, act_pair, -1)
+                            live[l] = False
+                        _park(W, l, nrows, r_s)
+            if step == next_end:
+                next_end = max_nst + 1
+                for l in range(LANES):
+                    if live[l] and lane_nst[l] == step:
+                        _finalize_lane(W, l, dst, metrics, lane_run[l], lane_status[l], step, dt, om2, psi, N, P, dur,
+                                       nph)
+                        n_act += _count_act(W, l, P, r_act, act_pair, -1)
+                        _park(W, l, nrows, r_s)
+                        live[l] = False
+                    elif live[l] and lane_nst[l] < next_end:
+                        next_end = lane_nst[l]
 
 
 # ------------------------------------------------------------------------------------------ excitation
@@ -180,1193 +1498,44 @@ def size_tuples(sys):
     return (0,) * sys.m.size, (0,) * n1
 
 
-# ------------------------------------------------------------------------------------------ SIMD values
-# A float64 vector of VW lanes (LLVM <VW x double>) and a lane mask (<VW x i1>), with the arithmetic
-# the kernel needs. Every operation is LLVM's plain IEEE instruction on each lane (no fast-math
-# flags, no fused multiply-add), so a lane computes exactly what scalar code computes; writing the
-# vectors out, instead of relying on LLVM's loop vectoriser, keeps the code vectorised whatever the
-# vectoriser's heuristics decide (on this Zen 3 it turned selected stores into slow masked stores,
-# or left whole loops scalar after innocuous edits). VW = 8: two AVX2 registers per vector (two
-# independent instruction streams), one AVX-512 register.
-
-VW = 8
-_VT = ir.VectorType(ir.DoubleType(), VW)
-_MT = ir.VectorType(ir.IntType(64), VW)  # all ones / all zeros per lane, as AVX compares give
+# ------------------------------------------------------------------------------------------ eligibility
 
 
-class F64Vec(types.Type):
-    def __init__(self):
-        super().__init__(name=f"f64x{VW}")
+def lanes_ineligible_reason(sys, hist, opts, score) -> str | None:
+    """Why this chunk must run on the scalar kernel, or None when the lane kernel computes its rows.
 
+    The lane kernel computes metric rows only (no histories, no scoring against an experiment), for
+    the event and implicit schemes, for two shear frames facing floor by floor (pair j: floor j of
+    building 1 and floor j of building 2, min(N1, N2) pairs) with classical damping in each.
+    """
+    from .modal import modal_arrays
 
-class MaskVec(types.Type):
-    def __init__(self):
-        super().__init__(name=f"maskx{VW}")
-
-
-f64v = F64Vec()
-maskv = MaskVec()
-
-
-@register_model(F64Vec)
-class _F64VecModel(models.PrimitiveModel):
-    def __init__(self, dmm, fe_type):
-        super().__init__(dmm, fe_type, _VT)
-
-
-@register_model(MaskVec)
-class _MaskVecModel(models.PrimitiveModel):
-    def __init__(self, dmm, fe_type):
-        super().__init__(dmm, fe_type, _MT)
-
-
-def _elem_ptr(context, builder, aryty, ary, idx):
-    a = context.make_array(aryty)(context, builder, ary)
-    return builder.bitcast(builder.gep(a.data, [idx], inbounds=True), _VT.as_pointer())
-
-
-@intrinsic
-def vload(typingctx, arr, idx):
-    """arr[idx:idx + VW] as a vector (no bounds check)."""
-    def codegen(context, builder, sig, args):
-        return builder.load(_elem_ptr(context, builder, sig.args[0], args[0], args[1]), align=8)
-    return f64v(arr, idx), codegen
-
-
-@intrinsic
-def vstore(typingctx, arr, idx, v):
-    """arr[idx:idx + VW] = v (no bounds check)."""
-    def codegen(context, builder, sig, args):
-        builder.store(args[2], _elem_ptr(context, builder, sig.args[0], args[0], args[1]), align=8)
-        return context.get_dummy_value()
-    return types.none(arr, idx, v), codegen
-
-
-@intrinsic
-def vsplat(typingctx, x):
-    """A vector with x in every lane."""
-    def codegen(context, builder, sig, args):
-        v = builder.insert_element(ir.Constant(_VT, ir.Undefined), args[0], ir.Constant(ir.IntType(32), 0))
-        return builder.shuffle_vector(v, v, ir.Constant(ir.VectorType(ir.IntType(32), VW), [0] * VW))
-    return f64v(types.float64), codegen
-
-
-def _vv_intrinsic(build, restype):
-    @intrinsic
-    def fn(typingctx, a, b):
-        def codegen(context, builder, sig, args):
-            return build(builder, args[0], args[1])
-        return restype(a, b), codegen
-    return fn
-
-
-_vadd = _vv_intrinsic(lambda b, x, y: b.fadd(x, y), f64v)
-_vsub = _vv_intrinsic(lambda b, x, y: b.fsub(x, y), f64v)
-_vmul = _vv_intrinsic(lambda b, x, y: b.fmul(x, y), f64v)
-_vdiv = _vv_intrinsic(lambda b, x, y: b.fdiv(x, y), f64v)
-_vgt = _vv_intrinsic(lambda b, x, y: b.sext(b.fcmp_ordered(">", x, y), _MT), maskv)
-_vlt = _vv_intrinsic(lambda b, x, y: b.sext(b.fcmp_ordered("<", x, y), _MT), maskv)
-_mand = _vv_intrinsic(lambda b, x, y: b.and_(x, y), maskv)
-_mor = _vv_intrinsic(lambda b, x, y: b.or_(x, y), maskv)
-_mne = _vv_intrinsic(lambda b, x, y: b.xor(x, y), maskv)
-
-
-@intrinsic
-def mnot(typingctx, m):
-    def codegen(context, builder, sig, args):
-        return builder.xor(args[0], ir.Constant(_MT, [-1] * VW))
-    return maskv(m), codegen
-
-
-@intrinsic
-def mconst(typingctx, value):
-    """Every lane true (value True) or false."""
-    def codegen(context, builder, sig, args):
-        return builder.select(args[0], ir.Constant(_MT, [-1] * VW), ir.Constant(_MT, [0] * VW))
-    return maskv(types.boolean), codegen
-
-
-def _truth(builder, m):
-    return builder.icmp_signed("<", m, ir.Constant(_MT, [0] * VW))
-
-
-@intrinsic
-def vsel(typingctx, m, a, b):
-    """a where m, else b (lane by lane)."""
-    def codegen(context, builder, sig, args):
-        return builder.select(_truth(builder, args[0]), args[1], args[2])
-    return f64v(m, a, b), codegen
-
-
-@intrinsic
-def vabs(typingctx, a):
-    def codegen(context, builder, sig, args):
-        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(_VT, [_VT]), f"llvm.fabs.v{VW}f64")
-        return builder.call(fn, [args[0]])
-    return f64v(a), codegen
-
-
-@intrinsic
-def mcount(typingctx, m):
-    """Number of true lanes."""
-    def codegen(context, builder, sig, args):
-        it = ir.IntType(VW)
-        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(it, [it]), f"llvm.ctpop.i{VW}")
-        return builder.zext(builder.call(fn, [builder.bitcast(_truth(builder, args[0]), it)]), ir.IntType(64))
-    return types.int64(m), codegen
-
-
-@intrinsic
-def mfloat(typingctx, m):
-    """1.0 where m, else 0.0."""
-    def codegen(context, builder, sig, args):
-        return builder.uitofp(_truth(builder, args[0]), _VT)
-    return f64v(m), codegen
-
-
-@intrinsic
-def vfence(typingctx, a):
-    """a, through llvm.arithmetic.fence: no code, but LLVM no longer sees where the value came from.
-    Used on the kept operand of vkeep: given store(select(c, x, load p), p), LLVM would otherwise
-    emit a masked store, which is microcoded and slow on AMD Zen."""
-    def codegen(context, builder, sig, args):
-        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(_VT, [_VT]),
-                                            f"llvm.arithmetic.fence.v{VW}f64")
-        return builder.call(fn, [args[0]])
-    return f64v(a), codegen
-
-
-def _is_vec(t):
-    return isinstance(t, F64Vec)
-
-
-def _is_num(t):
-    return isinstance(t, (types.Float, types.Integer))
-
-
-def _overload_vector_op(op, fn):
-    def typer(a, b):
-        if _is_vec(a) and _is_vec(b):
-            return lambda a, b: fn(a, b)
-        if _is_num(a) and _is_vec(b):
-            return lambda a, b: fn(vsplat(float(a)), b)
-        if _is_vec(a) and _is_num(b):
-            return lambda a, b: fn(a, vsplat(float(b)))
-        return None
-    overload(op, inline="always")(typer)
-
-
-def _overload_mask_op(op, fn):
-    def typer(a, b):
-        if isinstance(a, MaskVec) and isinstance(b, MaskVec):
-            return lambda a, b: fn(a, b)
-        return None
-    overload(op, inline="always")(typer)
-
-
-for _op, _fn in ((operator.add, _vadd), (operator.sub, _vsub), (operator.mul, _vmul), (operator.truediv, _vdiv),
-                 (operator.gt, _vgt), (operator.lt, _vlt)):
-    _overload_vector_op(_op, _fn)
-for _op, _fn in ((operator.and_, _mand), (operator.or_, _mor), (operator.ne, _mne)):
-    _overload_mask_op(_op, _fn)
-
-
-@overload(operator.invert, inline="always")
-def _ov_invert(m):
-    if isinstance(m, MaskVec):
-        return lambda m: mnot(m)
+    if hist is not None and hist.active:
+        return "histories requested"
+    if score is not None and score.active:
+        return "scoring against an experiment"
+    if opts.scheme not in (SCHEME_IMPLICIT, SCHEME_EVENT):
+        return "scheme is neither 'implicit' nor 'event'"
+    if opts.law not in (0, LAW_NO_TENSION):
+        return "unknown contact law"
+    if opts.scheme == SCHEME_IMPLICIT and opts.max_iter < 1:
+        return "max_contact_iterations < 1"
+    n = sys.m.size
+    p = sys.i1.size
+    if p < 1 or n < 2:
+        return "no contact pair"
+    n1 = int(sys.i2[0])
+    if not (np.array_equal(sys.i1, np.arange(p)) and np.array_equal(sys.i2, n1 + np.arange(p))):
+        return "contact pairs are not floor j of building 1 facing floor j of building 2"
+    if not (1 <= n1 < n and p == min(n1, n - n1)):
+        return "pair count is not min(floors)"
+    for name in ("m", "C", "K"):
+        if not np.all(np.isfinite(getattr(sys, name))):
+            return f"non-finite {name}"
+    if np.any(sys.C[:n1, n1:] != 0.0) or np.any(sys.K[:n1, n1:] != 0.0):
+        return "the buildings are coupled outside the contact pairs"
+    try:
+        modal_arrays(sys, n1)
+    except ValueError as e:
+        return str(e)
     return None
-
-
-@overload(abs, inline="always")
-def _ov_abs(a):
-    if _is_vec(a):
-        return lambda a: vabs(a)
-    return None
-
-
-# ------------------------------------------------------------------------------------------ row layout
-
-_inline = numba.njit(inline="always", **LANES_JIT)
-
-# per-lane scalar rows, after r_s
-(S_KS, S_D, S_KSD, S_COEF, S_AG, S_AGP, S_EIN, S_EINA, S_DST, S_WSP, S_WDA, S_WREL, S_UNS, S_MIT, S_EVT,
- S_BAD) = range(16)
-N_SCALARS = 16
-
-
-@_inline
-def _layout(N, P):
-    """Row offsets in W (compile-time constants once N and P are)."""
-    r_u = 0
-    r_v = r_u + N
-    r_a = r_v + N
-    r_w = r_a + N  # b1 u + v, then du (scratch)
-    r_rh = r_w + N  # effective load, then the new u (scratch)
-    r_u0 = r_rh + N  # end state without contact (scratch)
-    r_f = r_u0 + N  # contact forces of the step
-    r_act = r_f + P  # active set (1.0 / 0.0)
-    r_was = r_act + P  # active set at the step start
-    r_inc = r_was + P  # in a compressive phase
-    r_cac = r_inc + P  # duration of the compressive phase in progress (a sum of dt, as kernel.py)
-    r_end = r_cac + P  # a compressive phase ended in this step (event)
-    r_sp = r_end + P  # spring and dashpot parts of F at the step start (energy)
-    r_dp = r_sp + P
-    r_ke = r_dp + P  # k_s + 2 c_j / dt
-    r_cd = r_ke + P  # dashpot c_j
-    r_z0 = r_cd + P  # g_j . u0 (scratch)
-    r_bb = r_z0 + P  # k_s d + c_j g_j . w (scratch)
-    r_x = r_bb + P  # contact solve / penetration at the step start (scratch)
-    r_ff = r_x + P  # elimination multipliers of the lane's active set, f[i, k] at i * P + k
-    r_fu = r_ff + P * P  # eliminated matrix, U[i, j] at i * P + j (identity rows for inactive pairs)
-    r_s = r_fu + P * P  # per-lane scalars (S_*)
-    r_met = r_s + N_SCALARS  # the metric row, in metrics_layout order
-    return (r_u, r_v, r_a, r_w, r_rh, r_u0, r_f, r_act, r_was, r_inc, r_cac, r_end, r_sp, r_dp, r_ke, r_cd,
-            r_z0, r_bb, r_x, r_ff, r_fu, r_s, r_met)
-
-
-def n_rows(n: int, p: int) -> int:
-    return 6 * n + 13 * p + 2 * p * p + N_SCALARS + ML.n_metrics(n, p)
-
-
-# ------------------------------------------------------------------------------------------ vector loops
-# Each runs over the group in chunks of VW lanes; row r of lane chunk c is W[r * LANES + c:... + VW].
-# nt and n1t are tuples of length N (all floors) and N1 (building 1's floors): their lengths are
-# compile-time constants, so the row offsets are too and LLVM unrolls the short loops over floors.
-
-
-@_inline
-def vkeep(cond, new, old):
-    """new where cond, else old (old fenced: see vfence)."""
-    return vsel(cond, new, vfence(old))
-
-
-@njit_lanes
-def _fill_ag(W, r_ag, r_coef, prof, pid_lane, step, uniform, pid0):
-    """AG row = coef * prof[pid, step]."""
-    if uniform:
-        p = prof[pid0, step]
-        for c in range(0, LANES, VW):
-            vstore(W, r_ag * LANES + c, vload(W, r_coef * LANES + c) * p)
-    else:
-        for l in range(LANES):
-            W[r_ag * LANES + l] = W[r_coef * LANES + l] * prof[pid_lane[l], step]
-
-
-@_inline
-def _effective_load(W, c, ag, a1, a2, b1, m, C, Kinv, N, N1, r_u, r_v, r_a, r_w, r_rh, r_u0):
-    """w = b1 u + v; rhs0 = -M ag + M (a1 u + a2 v + a) + C w; u0 = Keff^-1 rhs0 (kernel.py's order;
-    terms with an exact zero of C or Keff^-1 left out: they add +-0)."""
-    for i in range(N):
-        vstore(W, (r_w + i) * LANES + c, b1 * vload(W, (r_u + i) * LANES + c) + vload(W, (r_v + i) * LANES + c))
-    for i in range(N):
-        lo = 0 if i < N1 else N1
-        hi = N1 if i < N1 else N
-        mi = m[i]
-        s = -mi * ag + mi * (a1 * vload(W, (r_u + i) * LANES + c) + a2 * vload(W, (r_v + i) * LANES + c)
-                              + vload(W, (r_a + i) * LANES + c))
-        if i - 1 >= lo:
-            s = s + C[i, i - 1] * vload(W, (r_w + i - 1) * LANES + c)
-        s = s + C[i, i] * vload(W, (r_w + i) * LANES + c)
-        if i + 1 < hi:
-            s = s + C[i, i + 1] * vload(W, (r_w + i + 1) * LANES + c)
-        vstore(W, (r_rh + i) * LANES + c, s)
-    for i in range(N):
-        lo = 0 if i < N1 else N1
-        hi = N1 if i < N1 else N
-        s = vsplat(0.0)
-        for k in range(lo, hi):
-            s = s + Kinv[i, k] * vload(W, (r_rh + k) * LANES + c)
-        vstore(W, (r_u0 + i) * LANES + c, s)
-
-
-@njit_lanes
-def _predict_quiet(W, dt, nt, n1t, m, C, Kinv):
-    """No lane in contact at the step start: the end state without contact; EVT = 1 where a pair
-    penetrates it (the lane then needs the active-set iteration). Returns the number of such lanes."""
-    N = len(nt)
-    N1 = len(n1t)
-    P = min(N1, N - N1)
-    (r_u, r_v, r_a, r_w, r_rh, r_u0, r_f, r_act, r_was, r_inc, r_cac, r_end, r_sp, r_dp, r_ke, r_cd,
-     r_z0, r_bb, r_x, r_ff, r_fu, r_s, r_met) = _layout(N, P)
-    a1 = 4.0 / (dt * dt)
-    a2 = 4.0 / dt
-    b1 = 2.0 / dt
-    nevt = 0
-    for c in range(0, LANES, VW):
-        ag = vload(W, (r_s + S_AG) * LANES + c)
-        _effective_load(W, c, ag, a1, a2, b1, m, C, Kinv, N, N1, r_u, r_v, r_a, r_w, r_rh, r_u0)
-        d = vload(W, (r_s + S_D) * LANES + c)
-        e = mconst(False)
-        for j in range(P):
-            pen = (vload(W, (r_u0 + j) * LANES + c) - vload(W, (r_u0 + N1 + j) * LANES + c)) - d
-            e = e | (pen > 0.0)
-        vstore(W, (r_s + S_EVT) * LANES + c, mfloat(e))
-        nevt += mcount(e)
-    return nevt
-
-
-@njit_lanes
-def _predict_contact(W, dt, law, nt, n1t, m, C, Kinv, S, pon):
-    """Some lane in contact: the end state without contact, then for every lane the forces of its
-    current active set (the scalar kernel's first active-set iteration, through the lane's stored
-    elimination factors) and EVT = 1 where the end state asks for another set. Pairs no lane has
-    in contact (pon[j] == 0) have zero force in every lane: their rows of the solve are skipped."""
-    N = len(nt)
-    N1 = len(n1t)
-    P = min(N1, N - N1)
-    (r_u, r_v, r_a, r_w, r_rh, r_u0, r_f, r_act, r_was, r_inc, r_cac, r_end, r_sp, r_dp, r_ke, r_cd,
-     r_z0, r_bb, r_x, r_ff, r_fu, r_s, r_met) = _layout(N, P)
-    a1 = 4.0 / (dt * dt)
-    a2 = 4.0 / dt
-    b1 = 2.0 / dt
-    pull_ok = mconst(law != LAW_NO_TENSION)
-    zero = vsplat(0.0)
-    nevt = 0
-    for c in range(0, LANES, VW):
-        ag = vload(W, (r_s + S_AG) * LANES + c)
-        _effective_load(W, c, ag, a1, a2, b1, m, C, Kinv, N, N1, r_u, r_v, r_a, r_w, r_rh, r_u0)
-        d = vload(W, (r_s + S_D) * LANES + c)
-        ksd = vload(W, (r_s + S_KSD) * LANES + c)
-        for j in range(P):
-            z0 = vload(W, (r_u0 + j) * LANES + c) - vload(W, (r_u0 + N1 + j) * LANES + c)
-            wrel = vload(W, (r_w + j) * LANES + c) - vload(W, (r_w + N1 + j) * LANES + c)
-            bb = ksd + vload(W, (r_cd + j) * LANES + c) * wrel
-            vstore(W, (r_z0 + j) * LANES + c, z0)
-            vstore(W, (r_bb + j) * LANES + c, bb)
-            if pon[j] > 0:
-                act = vload(W, (r_act + j) * LANES + c) > 0.5
-                vstore(W, (r_x + j) * LANES + c, vsel(act, z0 - bb / vload(W, (r_ke + j) * LANES + c), zero))
-            else:
-                vstore(W, (r_x + j) * LANES + c, zero)
-        # forward elimination, then back substitution (kernel._solve_spd's order on the active pairs;
-        # inactive pairs are identity rows with zero multipliers, which change nothing)
-        for k in range(P):
-            if pon[k] > 0:
-                for i in range(k + 1, P):
-                    if pon[i] > 0:
-                        vstore(W, (r_x + i) * LANES + c, vload(W, (r_x + i) * LANES + c)
-                               - vload(W, (r_ff + i * P + k) * LANES + c) * vload(W, (r_x + k) * LANES + c))
-        for ii in range(P):
-            i = P - 1 - ii
-            if pon[i] > 0:
-                s = vload(W, (r_x + i) * LANES + c)
-                for j in range(i + 1, P):
-                    if pon[j] > 0:
-                        s = s - vload(W, (r_fu + i * P + j) * LANES + c) * vload(W, (r_x + j) * LANES + c)
-                vstore(W, (r_x + i) * LANES + c, s / vload(W, (r_fu + i * P + i) * LANES + c))
-        e = mconst(False)
-        for j in range(P):
-            vstore(W, (r_f + j) * LANES + c, vload(W, (r_x + j) * LANES + c))
-        for j in range(P):
-            z = vload(W, (r_z0 + j) * LANES + c)
-            for q in range(P):
-                if pon[q] > 0:
-                    z = z - S[j, q] * vload(W, (r_x + q) * LANES + c)
-            pen = z - d
-            want = (pen > 0.0) & (pull_ok | ((vload(W, (r_ke + j) * LANES + c) * z - vload(W, (r_bb + j) * LANES + c)) > 0.0))
-            act = vload(W, (r_act + j) * LANES + c) > 0.5
-            e = e | (want != act)
-        vstore(W, (r_s + S_EVT) * LANES + c, mfloat(e))
-        nevt += mcount(e)
-    return nevt
-
-
-@njit_lanes
-def _event_check(W, dt, law, nt, n1t, H, pon):
-    """Event scheme: EVT = 1 where the end state of the step taken with the lane's start set (u0 - H F,
-    F from _predict_contact, or u0 when no lane is in contact) contradicts that set, by the scalar
-    kernel's test (kernel._step_pieces, operation for operation): penetration beyond
-    kernel._switch_tolerance for a pair out of contact, below minus it for a pair in contact, the
-    no-tension law's indicator min(pen, pen + c/k_s v_rel) in place of a positive penetration. Those
-    lanes take the step in scalar code (_event_lane); the others' step is the scalar kernel's step
-    without an event, which the vector finish computes. Returns the number of EVT lanes."""
-    N = len(nt)
-    N1 = len(n1t)
-    P = min(N1, N - N1)
-    (r_u, r_v, r_a, r_w, r_rh, r_u0, r_f, r_act, r_was, r_inc, r_cac, r_end, r_sp, r_dp, r_ke, r_cd,
-     r_z0, r_bb, r_x, r_ff, r_fu, r_s, r_met) = _layout(N, P)
-    b1 = 2.0 / dt
-    nevt = 0
-    for c in range(0, LANES, VW):
-        d = vload(W, (r_s + S_D) * LANES + c)
-        ks = vload(W, (r_s + S_KS) * LANES + c)
-        e = mconst(False)
-        for j in range(P):
-            p = j
-            q = N1 + j
-            unp = vload(W, (r_u0 + p) * LANES + c)
-            unq = vload(W, (r_u0 + q) * LANES + c)
-            for k in range(P):
-                if pon[k] > 0:
-                    fk = vload(W, (r_f + k) * LANES + c)
-                    unp = unp - H[p, k] * fk
-            for k in range(P):
-                if pon[k] > 0:
-                    fk = vload(W, (r_f + k) * LANES + c)
-                    unq = unq - H[q, k] * fk
-            pe = (unp - unq) - d
-            if law == LAW_NO_TENSION:
-                vnp = b1 * (unp - vload(W, (r_u + p) * LANES + c)) - vload(W, (r_v + p) * LANES + c)
-                vnq = b1 * (unq - vload(W, (r_u + q) * LANES + c)) - vload(W, (r_v + q) * LANES + c)
-                alt = pe + (vload(W, (r_cd + j) * LANES + c) / ks) * (vnp - vnq)
-                pe = vsel(pe > 0.0, vsel(alt < pe, alt, pe), pe)  # min(pe, alt) where pe > 0
-            tol = 1e-15 + 1e-12 * (abs(unp) + abs(unq))
-            act = vload(W, (r_act + j) * LANES + c) > 0.5
-            e = e | (act & (pe < 0.0 - tol)) | (~act & (pe > tol))
-        vstore(W, (r_s + S_EVT) * LANES + c, mfloat(e))
-        nevt += mcount(e)
-    return nevt
-
-
-@_inline
-def _finish_dofs(W, c, ag, t, a1, a2, b1, dt, m, C, N, N1, r_u, r_v, r_a, r_w, r_rh, r_s, r_met):
-    """End state (the new u is in the rh rows): velocity, acceleration, divergence check, input and
-    structural-damping work, per-floor metrics. Returns the mask of lanes finite and bounded."""
-    ok = mconst(True)
-    s_in = vsplat(0.0)
-    vt = vsplat(t)
-    for i in range(N):
-        un = vload(W, (r_rh + i) * LANES + c)
-        uo = vload(W, (r_u + i) * LANES + c)
-        vo = vload(W, (r_v + i) * LANES + c)
-        du = un - uo
-        vn = b1 * du - vo
-        an = a1 * du - a2 * vo - vload(W, (r_a + i) * LANES + c)
-        ok = ok & (abs(un) < ML.DIVERGED_M) & (abs(an) < 1e300)
-        s_in = s_in + m[i] * du
-        vstore(W, (r_w + i) * LANES + c, du)
-        vstore(W, (r_u + i) * LANES + c, un)
-        vstore(W, (r_v + i) * LANES + c, vn)
-        vstore(W, (r_a + i) * LANES + c, an)
-        base = r_met + ML.PER_DOF * i
-        ad = abs(un)
-        pk = vload(W, (base + ML.DOF_PEAK_DISP) * LANES + c)
-        better = ad > pk
-        vstore(W, (base + ML.DOF_PEAK_DISP) * LANES + c, vkeep(better, ad, pk))
-        vstore(W, (base + ML.DOF_PEAK_DISP_TIME) * LANES + c,
-               vkeep(better, vt, vload(W, (base + ML.DOF_PEAK_DISP_TIME) * LANES + c)))
-        aa = abs(an + ag)
-        pa = vload(W, (base + ML.DOF_PEAK_ABS_ACC) * LANES + c)
-        vstore(W, (base + ML.DOF_PEAK_ABS_ACC) * LANES + c, vkeep(aa > pa, aa, pa))
-    ds = vsplat(0.0)
-    for i in range(N):
-        lo = 0 if i < N1 else N1
-        hi = N1 if i < N1 else N
-        s = vsplat(0.0)
-        if i - 1 >= lo:
-            s = s + C[i, i - 1] * vload(W, (r_w + i - 1) * LANES + c)
-        s = s + C[i, i] * vload(W, (r_w + i) * LANES + c)
-        if i + 1 < hi:
-            s = s + C[i, i + 1] * vload(W, (r_w + i + 1) * LANES + c)
-        ds = ds + vload(W, (r_w + i) * LANES + c) * s
-    de = -0.5 * (vload(W, (r_s + S_AGP) * LANES + c) + ag) * s_in
-    vstore(W, (r_s + S_EIN) * LANES + c, vload(W, (r_s + S_EIN) * LANES + c) + de)
-    vstore(W, (r_s + S_EINA) * LANES + c, vload(W, (r_s + S_EINA) * LANES + c) + abs(de))
-    vstore(W, (r_s + S_DST) * LANES + c, vload(W, (r_s + S_DST) * LANES + c) + ds / dt)
-    vstore(W, (r_s + S_AGP) * LANES + c, ag)
-    return ok
-
-
-@njit_lanes
-def _finish_quiet(W, dt, step, nt, n1t, m, C):
-    """No lane in contact at the step start or end: u = u0, then _finish_dofs. Returns the number
-    of lanes whose state is not finite (BAD = 1)."""
-    N = len(nt)
-    N1 = len(n1t)
-    P = min(N1, N - N1)
-    (r_u, r_v, r_a, r_w, r_rh, r_u0, r_f, r_act, r_was, r_inc, r_cac, r_end, r_sp, r_dp, r_ke, r_cd,
-     r_z0, r_bb, r_x, r_ff, r_fu, r_s, r_met) = _layout(N, P)
-    a1 = 4.0 / (dt * dt)
-    a2 = 4.0 / dt
-    b1 = 2.0 / dt
-    t = step * dt
-    nbad = 0
-    for c in range(0, LANES, VW):
-        ag = vload(W, (r_s + S_AG) * LANES + c)
-        ok = _finish_dofs(W, c, ag, t, a1, a2, b1, dt, m, C, N, N1, r_u, r_v, r_a, r_w, r_u0, r_s, r_met)
-        bad = ~ok
-        vstore(W, (r_s + S_BAD) * LANES + c, mfloat(bad))
-        nbad += mcount(bad)
-    return nbad
-
-
-@njit_lanes
-def _finish_contact(W, dt, step, nt, n1t, m, C, H, pon_now, pon_any):
-    """Some lane in contact: u = u0 - H F, _finish_dofs, the work of the contact's spring and
-    dashpot parts and the per-pair metrics (kernel.py's order of comparisons; times as kernel.py
-    takes them: step * dt for floors, (step - 1) * dt + dt for the force peak). Returns (lanes not
-    finite, lanes where a compressive phase ended: END rows). Pairs in contact in no lane now
-    (pon_now[j] == 0) have F = 0: H F leaves them out; pairs in contact in no lane now nor at the step
-    start (pon_any[j] == 0) change no energy term or metric: skipped."""
-    N = len(nt)
-    N1 = len(n1t)
-    P = min(N1, N - N1)
-    (r_u, r_v, r_a, r_w, r_rh, r_u0, r_f, r_act, r_was, r_inc, r_cac, r_end, r_sp, r_dp, r_ke, r_cd,
-     r_z0, r_bb, r_x, r_ff, r_fu, r_s, r_met) = _layout(N, P)
-    a1 = 4.0 / (dt * dt)
-    a2 = 4.0 / dt
-    b1 = 2.0 / dt
-    t = step * dt
-    te = vsplat((step - 1) * dt + dt)
-    vdt = vsplat(dt)
-    zero = vsplat(0.0)
-    pbase = r_met + ML.PER_DOF * N
-    nbad = 0
-    nend = 0
-    for c in range(0, LANES, VW):
-        ag = vload(W, (r_s + S_AG) * LANES + c)
-        d = vload(W, (r_s + S_D) * LANES + c)
-        ks = vload(W, (r_s + S_KS) * LANES + c)
-        for j in range(P):  # penetration at the step start (the scalar kernel's pen_prev)
-            if pon_any[j] > 0:
-                vstore(W, (r_x + j) * LANES + c, (vload(W, (r_u + j) * LANES + c) - vload(W, (r_u + N1 + j) * LANES + c)) - d)
-        for i in range(N):
-            s = vload(W, (r_u0 + i) * LANES + c)
-            for j in range(P):
-                if pon_now[j] > 0:
-                    s = s - H[i, j] * vload(W, (r_f + j) * LANES + c)
-            vstore(W, (r_rh + i) * LANES + c, s)
-        ok = _finish_dofs(W, c, ag, t, a1, a2, b1, dt, m, C, N, N1, r_u, r_v, r_a, r_w, r_rh, r_s, r_met)
-        bad = ~ok
-        vstore(W, (r_s + S_BAD) * LANES + c, mfloat(bad))
-        nbad += mcount(bad)
-        wsp = vload(W, (r_s + S_WSP) * LANES + c)
-        wda = vload(W, (r_s + S_WDA) * LANES + c)
-        wrel = vload(W, (r_s + S_WREL) * LANES + c)
-        ended = mconst(False)
-        for j in range(P):
-            if pon_any[j] == 0:
-                continue
-            pen = (vload(W, (r_u + j) * LANES + c) - vload(W, (r_u + N1 + j) * LANES + c)) - d
-            act = vload(W, (r_act + j) * LANES + c) > 0.5
-            was = vload(W, (r_was + j) * LANES + c) > 0.5
-            f = vload(W, (r_f + j) * LANES + c)
-            sp = vsel(act, ks * pen, zero)
-            dp = vsel(act, f - sp, zero)
-            dpen = pen - vload(W, (r_x + j) * LANES + c)
-            wsp = wsp + 0.5 * (vload(W, (r_sp + j) * LANES + c) + sp) * dpen
-            wda = wda + 0.5 * (vload(W, (r_dp + j) * LANES + c) + dp) * dpen
-            wrel = vkeep(was & ~act & (pen > 0.0), wrel + 0.5 * ks * pen * pen, wrel)
-            vstore(W, (r_sp + j) * LANES + c, sp)
-            vstore(W, (r_dp + j) * LANES + c, dp)
-            base = pbase + ML.PER_PAIR * j
-            q = vload(W, (base + ML.PAIR_IMPACTS) * LANES + c)
-            vstore(W, (base + ML.PAIR_IMPACTS) * LANES + c, vkeep(act & ~was, q + 1.0, q))
-            q = vload(W, (base + ML.PAIR_CONTACT_TIME) * LANES + c)
-            vstore(W, (base + ML.PAIR_CONTACT_TIME) * LANES + c, vkeep(act, q + vdt, q))
-            q = vload(W, (base + ML.PAIR_MAX_PENETRATION) * LANES + c)
-            vstore(W, (base + ML.PAIR_MAX_PENETRATION) * LANES + c, vkeep(act & (pen > q), pen, q))
-            q = vload(W, (base + ML.PAIR_PEAK_FORCE) * LANES + c)
-            up = act & (f > q)
-            vstore(W, (base + ML.PAIR_PEAK_FORCE) * LANES + c, vkeep(up, f, q))
-            vstore(W, (base + ML.PAIR_PEAK_FORCE_TIME) * LANES + c,
-                   vkeep(up, te, vload(W, (base + ML.PAIR_PEAK_FORCE_TIME) * LANES + c)))
-            q = vload(W, (base + ML.PAIR_MIN_FORCE) * LANES + c)
-            vstore(W, (base + ML.PAIR_MIN_FORCE) * LANES + c, vkeep(act & (f < q), f, q))
-            comp = act & (f > 0.0)
-            q = vload(W, (base + ML.PAIR_COMPRESSION_TIME) * LANES + c)
-            vstore(W, (base + ML.PAIR_COMPRESSION_TIME) * LANES + c, vkeep(comp, q + vdt, q))
-            inc = vload(W, (r_inc + j) * LANES + c) > 0.5
-            q = vload(W, (r_cac + j) * LANES + c)
-            vstore(W, (r_cac + j) * LANES + c, vkeep(comp, vsel(inc, q + vdt, vdt), q))
-            end = inc & ~comp
-            vstore(W, (r_end + j) * LANES + c, mfloat(end))
-            ended = ended | end
-            vstore(W, (r_inc + j) * LANES + c, mfloat(comp))
-            vstore(W, (r_was + j) * LANES + c, mfloat(act))
-        vstore(W, (r_s + S_WSP) * LANES + c, wsp)
-        vstore(W, (r_s + S_WDA) * LANES + c, wda)
-        vstore(W, (r_s + S_WREL) * LANES + c, wrel)
-        nend += mcount(ended)
-    return nbad, nend
-
-
-# ------------------------------------------------------------------------------------------ scalar parts
-# (copies of kernel.py's helpers, operation for operation: a cached caller does not see changes to a
-# jitted callee in another file, so the lane kernel does not call into kernel.py; the equality tests
-# catch any drift between the two)
-
-
-@njit_lanes
-def _solve_spd(A, b, n):
-    """kernel._solve_spd: Gaussian elimination of A[:n, :n] x = b[:n] in place."""
-    for k in range(n):
-        piv = A[k, k]
-        for i in range(k + 1, n):
-            f = A[i, k] / piv
-            for j in range(k, n):
-                A[i, j] -= f * A[k, j]
-            b[i] -= f * b[k]
-    for i in range(n - 1, -1, -1):
-        s = b[i]
-        for j in range(i + 1, n):
-            s -= A[i, j] * b[j]
-        b[i] = s / A[i, i]
-
-
-@njit_lanes
-def _contact_forces(S, z0, bb, ke, active, n_pairs, idx, Asmall, rhs, F):
-    """kernel._contact_forces: forces of the pairs in `active` (others 0)."""
-    na = 0
-    for j in range(n_pairs):
-        F[j] = 0.0
-        if active[j]:
-            idx[na] = j
-            na += 1
-    if na == 0:
-        return
-    for p in range(na):
-        jp = idx[p]
-        for q in range(na):
-            Asmall[p, q] = S[jp, idx[q]]
-        Asmall[p, p] += 1.0 / ke[jp]
-        rhs[p] = z0[jp] - bb[jp] / ke[jp]
-    _solve_spd(Asmall, rhs, na)
-    for p in range(na):
-        F[idx[p]] = rhs[p]
-
-
-@njit_lanes
-def _mask(active, npair):
-    """kernel._mask."""
-    mk = 0
-    for j in range(min(npair, 62)):
-        if active[j]:
-            mk |= 1 << j
-    return mk
-
-
-@njit_lanes
-def _lane_factors(W, l, S, P, r_ke, r_act, r_ff, r_fu, idx, Asmall):
-    """Store the elimination of lane l's active set (kernel._solve_spd's multipliers and eliminated
-    matrix on the active pairs) in full P x P positions: identity rows for inactive pairs."""
-    na = 0
-    for j in range(P):
-        if W[(r_act + j) * LANES + l] > 0.5:
-            idx[na] = j
-            na += 1
-    for q in range(P * P):
-        W[(r_ff + q) * LANES + l] = 0.0
-        W[(r_fu + q) * LANES + l] = 0.0
-    for j in range(P):
-        W[(r_fu + j * P + j) * LANES + l] = 1.0
-    for p in range(na):
-        jp = idx[p]
-        for q in range(na):
-            Asmall[p, q] = S[jp, idx[q]]
-        Asmall[p, p] += 1.0 / W[(r_ke + jp) * LANES + l]
-    for k in range(na):
-        piv = Asmall[k, k]
-        for i in range(k + 1, na):
-            f = Asmall[i, k] / piv
-            W[(r_ff + idx[i] * P + idx[k]) * LANES + l] = f
-            for j in range(k, na):
-                Asmall[i, j] -= f * Asmall[k, j]
-    for i in range(na):
-        for j in range(i, na):
-            W[(r_fu + idx[i] * P + idx[j]) * LANES + l] = Asmall[i, j]
-
-
-@njit_lanes
-def _settle_lane(W, l, law, max_iter, S, N1, P, r_w, r_u0, r_f, r_act, r_ke, r_cd, r_s,
-                 z0, bb, ke, active, trial, prev, seen, idx, Asmall, rsmall, F):
-    """The scalar kernel's active-set iteration for lane l in this step, from the set the lane had at
-    the step start (kernel.integrate_batch, scheme implicit, operation for operation). Writes the
-    forces and the set; returns (iterations, 1 if the set cycled else 0, 1 if the set changed else 0)."""
-    d = W[(r_s + S_D) * LANES + l]
-    ksd = W[(r_s + S_KSD) * LANES + l]
-    for j in range(P):
-        z0[j] = W[(r_u0 + j) * LANES + l] - W[(r_u0 + N1 + j) * LANES + l]
-        wrel = W[(r_w + j) * LANES + l] - W[(r_w + N1 + j) * LANES + l]
-        bb[j] = ksd + W[(r_cd + j) * LANES + l] * wrel
-        ke[j] = W[(r_ke + j) * LANES + l]
-        active[j] = W[(r_act + j) * LANES + l] > 0.5
-        prev[j] = active[j]
-    start = _mask(active, P)
-    it = 0
-    settled = False
-    cycled = False
-    while it < max_iter and not cycled:
-        seen[it] = _mask(active, P)
-        it += 1
-        _contact_forces(S, z0, bb, ke, active, P, idx, Asmall, rsmall, F)
-        changed = False
-        for j in range(P):
-            z = z0[j]
-            for q in range(P):
-                z -= S[j, q] * F[q]
-            pen = z - d
-            want = pen > 0.0
-            if want and law == LAW_NO_TENSION:
-                want = (ke[j] * z - bb[j]) > 0.0
-            trial[j] = want
-            if want != active[j]:
-                changed = True
-        if not changed:
-            settled = True
-            break
-        for j in range(P):
-            prev[j] = active[j]
-            active[j] = trial[j]
-        mk = _mask(active, P)
-        for q in range(it):
-            if seen[q] == mk and P <= 62:
-                cycled = True
-    unsettled = 0
-    if not settled:
-        unsettled = 1
-        for j in range(P):
-            active[j] = prev[j] or trial[j]
-        _contact_forces(S, z0, bb, ke, active, P, idx, Asmall, rsmall, F)
-    for j in range(P):
-        W[(r_f + j) * LANES + l] = F[j]
-        W[(r_act + j) * LANES + l] = 1.0 if active[j] else 0.0
-    return it, unsettled, (1 if _mask(active, P) != start else 0)
-
-
-@njit_lanes
-def _event_lane(W, l, step, dt, law, harmonic, amp, om, m, C, K, H, S, i1, i2, c, N1, r_u, r_v, r_a, r_w, r_u0,
-                r_f, r_act, r_was, r_inc, r_cac, r_sp, r_dp, r_ke, r_s, r_met, dur_l, nph_l, u, v, a, u0, un, vn, an,
-                F, z0, bb, ke, active, was_active, just, trial, thetas, in_comp, comp_acc, Sprev, Dprev, pen_prev,
-                Cdu, Amat, rvec, en, orow, idx, Asmall, rsmall):
-    """Event scheme, lane l (whose end state contradicts its contact set): the scalar kernel's step,
-    operation for operation (kernel.integrate_batch: the forces of the start set, the trial end state,
-    then kernel._step_pieces, which locates and handles the events, and the per-floor peaks), on the
-    lane's state gathered from W and written back to it. Returns True when the state stays finite
-    (else the lane goes back to the driver, which reruns the run with the scalar kernel)."""
-    N = m.shape[0]
-    P = i1.shape[0]
-    a1 = 4.0 / (dt * dt)
-    a2 = 4.0 / dt
-    b1 = 2.0 / dt
-    k_s = W[(r_s + S_KS) * LANES + l]
-    d = W[(r_s + S_D) * LANES + l]
-    ksd = W[(r_s + S_KSD) * LANES + l]
-    ag = W[(r_s + S_AG) * LANES + l]
-    ag_prev = W[(r_s + S_AGP) * LANES + l]
-    for i in range(N):
-        u[i] = W[(r_u + i) * LANES + l]
-        v[i] = W[(r_v + i) * LANES + l]
-        a[i] = W[(r_a + i) * LANES + l]
-        u0[i] = W[(r_u0 + i) * LANES + l]
-    for j in range(P):
-        z0[j] = u0[i1[j]] - u0[i2[j]]
-        wrel = W[(r_w + i1[j]) * LANES + l] - W[(r_w + i2[j]) * LANES + l]
-        bb[j] = ksd + c[j] * wrel
-        ke[j] = W[(r_ke + j) * LANES + l]
-        active[j] = W[(r_act + j) * LANES + l] > 0.5
-        was_active[j] = W[(r_was + j) * LANES + l] > 0.5
-        in_comp[j] = W[(r_inc + j) * LANES + l] > 0.5
-        comp_acc[j] = W[(r_cac + j) * LANES + l]
-        Sprev[j] = W[(r_sp + j) * LANES + l]
-        Dprev[j] = W[(r_dp + j) * LANES + l]
-        pen_prev[j] = u[i1[j]] - u[i2[j]] - d  # the scalar kernel's pen_prev: set from u at every accepted piece
-    en[_kernel.EN_W_RELEASE] = W[(r_s + S_WREL) * LANES + l]
-    en[_kernel.EN_E_IN] = W[(r_s + S_EIN) * LANES + l]
-    en[_kernel.EN_E_IN_ABS] = W[(r_s + S_EINA) * LANES + l]
-    en[_kernel.EN_D_STRUCT] = W[(r_s + S_DST) * LANES + l]
-    en[_kernel.EN_W_SPRING] = W[(r_s + S_WSP) * LANES + l]
-    en[_kernel.EN_W_DASH] = W[(r_s + S_WDA) * LANES + l]
-    pbase = ML.PER_DOF * N
-    rbase = pbase + ML.PER_PAIR * P
-    for q in range(rbase):
-        orow[q] = W[(r_met + q) * LANES + l]
-    # kernel.integrate_batch, event scheme: the step with the start set, then its pieces
-    _contact_forces(S, z0, bb, ke, active, P, idx, Asmall, rsmall, F)
-    for i in range(N):
-        s = u0[i]
-        for j in range(P):
-            s -= H[i, j] * F[j]
-        un[i] = s
-    for i in range(N):
-        du = un[i] - u[i]
-        vn[i] = b1 * du - v[i]
-        an[i] = a1 * du - a2 * v[i] - a[i]
-    finite, n_ev, uns = _kernel._step_pieces(SCHEME_EVENT, law, step, dt, ag, ag_prev, harmonic, amp, om,
-                                             (m, C, K, i1, i2), k_s, c, d, (u, v, a, un, vn, an, F),
-                                             (active, was_active, just, trial), thetas,
-                                             (in_comp, comp_acc, dur_l, nph_l), (Sprev, Dprev, pen_prev),
-                                             (Cdu, Amat, rvec), en, orow, pbase)
-    if n_ev > W[(r_s + S_MIT) * LANES + l]:
-        W[(r_s + S_MIT) * LANES + l] = n_ev
-    W[(r_s + S_UNS) * LANES + l] += uns
-    if not finite:
-        W[(r_s + S_BAD) * LANES + l] = 1.0
-        return False
-    W[(r_s + S_BAD) * LANES + l] = 0.0
-    W[(r_s + S_AGP) * LANES + l] = ag
-    t = step * dt
-    for i in range(N):  # per-floor metrics at the step end (kernel.integrate_batch)
-        base = ML.PER_DOF * i
-        ad = abs(u[i])
-        if ad > orow[base + ML.DOF_PEAK_DISP]:
-            orow[base + ML.DOF_PEAK_DISP] = ad
-            orow[base + ML.DOF_PEAK_DISP_TIME] = t
-        aa = abs(a[i] + ag)
-        if aa > orow[base + ML.DOF_PEAK_ABS_ACC]:
-            orow[base + ML.DOF_PEAK_ABS_ACC] = aa
-    for i in range(N):
-        W[(r_u + i) * LANES + l] = u[i]
-        W[(r_v + i) * LANES + l] = v[i]
-        W[(r_a + i) * LANES + l] = a[i]
-    for j in range(P):
-        W[(r_f + j) * LANES + l] = F[j]
-        W[(r_act + j) * LANES + l] = 1.0 if active[j] else 0.0
-        W[(r_was + j) * LANES + l] = 1.0 if was_active[j] else 0.0
-        W[(r_inc + j) * LANES + l] = 1.0 if in_comp[j] else 0.0
-        W[(r_cac + j) * LANES + l] = comp_acc[j]
-        W[(r_sp + j) * LANES + l] = Sprev[j]
-        W[(r_dp + j) * LANES + l] = Dprev[j]
-    W[(r_s + S_WREL) * LANES + l] = en[_kernel.EN_W_RELEASE]
-    W[(r_s + S_EIN) * LANES + l] = en[_kernel.EN_E_IN]
-    W[(r_s + S_EINA) * LANES + l] = en[_kernel.EN_E_IN_ABS]
-    W[(r_s + S_DST) * LANES + l] = en[_kernel.EN_D_STRUCT]
-    W[(r_s + S_WSP) * LANES + l] = en[_kernel.EN_W_SPRING]
-    W[(r_s + S_WDA) * LANES + l] = en[_kernel.EN_W_DASH]
-    for q in range(rbase):
-        W[(r_met + q) * LANES + l] = orow[q]
-    return True
-
-
-@njit_lanes
-def _end_phase(dur, nph, l, j, duration):
-    """kernel._end_phase for lane l."""
-    k = nph[l, j]
-    if k < dur.shape[2]:
-        dur[l, j, k] = duration
-    nph[l, j] = k + 1
-
-
-@njit_lanes
-def _park(W, l, N, P, nrows, r_u, r_v, r_a, r_f, r_fu, r_s):
-    """Put lane l at rest, out of contact, with no excitation, far from its neighbour: it computes
-    zeros until the group ends and never asks for the active-set iteration."""
-    for q in range(nrows):
-        W[q * LANES + l] = 0.0
-    for j in range(P):
-        W[(r_fu + j * P + j) * LANES + l] = 1.0
-    W[(r_s + S_D) * LANES + l] = 1.0
-
-
-@njit_lanes
-def _finalize_lane(W, l, out, status, steps_done, dt, m, K, N, N1, P, dur, nph,
-                   r_u, r_v, r_act, r_inc, r_cac, r_s, r_met):
-    """Write lane l's metric row (kernel.integrate_batch's end-of-run code)."""
-    nm = out.size
-    pbase = ML.PER_DOF * N
-    rbase = pbase + ML.PER_PAIR * P
-    for q in range(rbase):
-        out[q] = W[(r_met + q) * LANES + l]
-    for q in range(rbase, nm):
-        out[q] = 0.0
-    for j in range(P):
-        if W[(r_inc + j) * LANES + l] > 0.5:
-            _end_phase(dur, nph, l, j, W[(r_cac + j) * LANES + l])
-        base = pbase + ML.PER_PAIR * j
-        k = nph[l, j]
-        out[base + ML.PAIR_COMPRESSION_PHASES] = k
-        if k > ML.MEDIAN_BUFFER:
-            status |= ML.STATUS_MEDIAN_TRUNCATED
-            k = ML.MEDIAN_BUFFER
-        out[base + ML.PAIR_MEDIAN_COMPRESSION] = np.median(dur[l, j, :k]) if k > 0 else 0.0
-    unsettled = W[(r_s + S_UNS) * LANES + l]
-    if unsettled > 0:
-        status |= ML.STATUS_UNSETTLED
-    ke_end = 0.0
-    se_end = 0.0
-    for i in range(N):
-        vi = W[(r_v + i) * LANES + l]
-        ke_end += 0.5 * m[i] * vi * vi
-        s = 0.0
-        for k in range(N):
-            s += K[i, k] * W[(r_u + k) * LANES + l]
-        se_end += 0.5 * W[(r_u + i) * LANES + l] * s
-    d = W[(r_s + S_D) * LANES + l]
-    ks = W[(r_s + S_KS) * LANES + l]
-    e_spring = 0.0
-    for j in range(P):
-        if W[(r_act + j) * LANES + l] > 0.5:
-            pp = (W[(r_u + j) * LANES + l] - W[(r_u + N1 + j) * LANES + l]) - d
-            e_spring += 0.5 * ks * pp * pp
-    w_release = W[(r_s + S_WREL) * LANES + l]
-    residual = W[(r_s + S_WSP) * LANES + l] - e_spring - w_release
-    e_in_abs = W[(r_s + S_EINA) * LANES + l]
-    out[rbase + ML.RUN_E_IN] = W[(r_s + S_EIN) * LANES + l]
-    out[rbase + ML.RUN_E_IN_ABS] = e_in_abs
-    out[rbase + ML.RUN_KE] = ke_end
-    out[rbase + ML.RUN_SE] = se_end
-    out[rbase + ML.RUN_D_STRUCT] = W[(r_s + S_DST) * LANES + l]
-    out[rbase + ML.RUN_D_CONTACT] = W[(r_s + S_WDA) * LANES + l] + w_release
-    out[rbase + ML.RUN_E_SPRING] = e_spring
-    out[rbase + ML.RUN_E_RESIDUAL] = residual
-    if not (abs(residual) <= ML.ENERGY_TOL * e_in_abs):
-        status |= ML.STATUS_ENERGY
-    out[rbase + ML.RUN_UNSETTLED] = unsettled
-    out[rbase + ML.RUN_MAX_ITER] = W[(r_s + S_MIT) * LANES + l]
-    out[rbase + ML.RUN_STEPS] = steps_done
-    out[rbase + ML.RUN_STATUS] = status
-
-
-# ------------------------------------------------------------------------------------------ entry point
-
-
-@njit_lanes
-def integrate_lanes(
-    order,  # run indices, grouped LANES at a time: group g is order[g * LANES:(g + 1) * LANES]
-    g_start,
-    g_stop,
-    dt,
-    scheme,
-    law,
-    max_iter,
-    # structure: nt, n1t are tuples of length N and N1 (floor counts fixed at compile time)
-    nt,
-    n1t,
-    m,
-    C,
-    K,
-    Kinv,
-    H,
-    S,
-    # per run
-    ks,
-    cdash,
-    gap,
-    status_in,
-    nsteps,
-    exc_kind,
-    exc_amp,
-    exc_omega,
-    coef,
-    pid,
-    prof,
-    # outputs
-    metrics,
-    redo,
-):
-    """Integrate groups g_start..g_stop-1 of `order`; fill metrics[run] (metrics_layout), or set
-    redo[run] = 1 for a run that diverged (the caller reruns it with the scalar kernel, which
-    decides where it stops and what its row holds)."""
-    N = len(nt)
-    N1 = len(n1t)
-    P = min(N1, N - N1)
-    (r_u, r_v, r_a, r_w, r_rh, r_u0, r_f, r_act, r_was, r_inc, r_cac, r_end, r_sp, r_dp, r_ke, r_cd,
-     r_z0, r_bb, r_x, r_ff, r_fu, r_s, r_met) = _layout(N, P)
-    nrows = r_met + ML.PER_DOF * N + ML.PER_PAIR * P + ML.PER_RUN
-    b1 = 2.0 / dt
-    W = np.zeros(nrows * LANES)
-    dur = np.empty((LANES, P, ML.MEDIAN_BUFFER))
-    nph = np.zeros((LANES, P), dtype=np.int64)
-    lane_run = np.empty(LANES, dtype=np.int64)
-    lane_nst = np.empty(LANES, dtype=np.int64)
-    lane_status = np.empty(LANES, dtype=np.int64)
-    live = np.zeros(LANES, dtype=np.bool_)
-    act_pair = np.zeros(P, dtype=np.int64)
-    pon_start = np.zeros(P, dtype=np.int64)  # pairs some lane has in contact at the step start
-    pon_now = np.zeros(P, dtype=np.int64)  # ... at the step end
-    pon_any = np.zeros(P, dtype=np.int64)  # either
-    pid_lane = np.zeros(LANES, dtype=np.int64)
-    # scalar work arrays of the active-set iteration
-    z0 = np.empty(P)
-    bb = np.empty(P)
-    ke = np.empty(P)
-    Fw = np.empty(P)
-    active = np.zeros(P, dtype=np.bool_)
-    trial = np.zeros(P, dtype=np.bool_)
-    prev = np.zeros(P, dtype=np.bool_)
-    seen = np.zeros(max_iter + 1, dtype=np.int64)
-    idx = np.empty(P, dtype=np.int64)
-    Asmall = np.empty((P, P))
-    rsmall = np.empty(P)
-    n_runs = order.size
-    # event scheme: the lanes whose step has an event (state at the step start kept in snap), and the
-    # scalar work arrays of their step (kernel.integrate_batch's)
-    event = scheme == SCHEME_EVENT
-    snap = np.empty((LANES, nrows))
-    fix = np.zeros(LANES, dtype=np.bool_)
-    i1 = np.arange(P)
-    i2 = N1 + np.arange(P)
-    eu = np.empty(N)
-    ev = np.empty(N)
-    ea = np.empty(N)
-    eu0 = np.empty(N)
-    eun = np.empty(N)
-    evn = np.empty(N)
-    ean = np.empty(N)
-    ecdu = np.empty(N)
-    was_e = np.zeros(P, dtype=np.bool_)
-    just = np.zeros(P, dtype=np.bool_)
-    thetas = np.empty(P)
-    inc_e = np.zeros(P, dtype=np.bool_)
-    cac_e = np.zeros(P)
-    sp_e = np.zeros(P)
-    dp_e = np.zeros(P)
-    penp = np.zeros(P)
-    Amat = np.empty((N, N))
-    rvec = np.empty(N)
-    en = np.zeros(_kernel.EN_N)
-    orow = np.zeros(ML.PER_DOF * N + ML.PER_PAIR * P + ML.PER_RUN)
-
-    for g in range(g_start, g_stop):
-        base = g * LANES
-        nl = min(LANES, n_runs - base)
-        max_nst = 0
-        uniform = True
-        for l in range(LANES):
-            _park(W, l, N, P, nrows, r_u, r_v, r_a, r_f, r_fu, r_s)
-            live[l] = False
-            nph[l, :] = 0
-            if l >= nl:
-                continue
-            run = order[base + l]
-            lane_run[l] = run
-            lane_nst[l] = nsteps[run]
-            lane_status[l] = status_in[run]
-            live[l] = True
-            pid_lane[l] = pid[run]
-            if pid[run] != pid[order[base]]:
-                uniform = False
-            max_nst = max(max_nst, nsteps[run])
-            k_s = ks[run]
-            d = gap[run]
-            W[(r_s + S_KS) * LANES + l] = k_s
-            W[(r_s + S_D) * LANES + l] = d
-            W[(r_s + S_KSD) * LANES + l] = k_s * d
-            W[(r_s + S_COEF) * LANES + l] = coef[run]
-            for j in range(P):
-                W[(r_cd + j) * LANES + l] = cdash[run, j]
-                W[(r_ke + j) * LANES + l] = k_s + b1 * cdash[run, j]
-            # at rest relative to the table; a0 = -ag(0) (kernel.py, eq. 11)
-            ag0 = coef[run] * prof[pid[run], 0]
-            for i in range(N):
-                W[(r_a + i) * LANES + l] = -ag0
-            W[(r_s + S_AGP) * LANES + l] = ag0
-            W[(r_s + S_MIT) * LANES + l] = 1.0 if (nsteps[run] >= 1 and not event) else 0.0
-        for l in range(nl):
-            if lane_nst[l] == 0:
-                _finalize_lane(W, l, metrics[lane_run[l]], lane_status[l], 0, dt, m, K, N, N1, P, dur, nph,
-                               r_u, r_v, r_act, r_inc, r_cac, r_s, r_met)
-                _park(W, l, N, P, nrows, r_u, r_v, r_a, r_f, r_fu, r_s)
-                live[l] = False
-        next_end = max_nst + 1
-        for l in range(nl):
-            if live[l] and lane_nst[l] < next_end:
-                next_end = lane_nst[l]
-        n_act = 0  # active (lane, pair) entries
-        act_pair[:] = 0  # lanes with pair j active
-        pid0 = pid[order[base]] if nl > 0 else 0
-        for step in range(1, max_nst + 1):
-            _fill_ag(W, r_s + S_AG, r_s + S_COEF, prof, pid_lane, step, uniform, pid0)
-            had_contact = n_act > 0
-            if had_contact:
-                for j in range(P):
-                    pon_start[j] = 1 if act_pair[j] > 0 else 0
-                nevt = _predict_contact(W, dt, law, nt, n1t, m, C, Kinv, S, pon_start)
-            else:
-                nevt = _predict_quiet(W, dt, nt, n1t, m, C, Kinv)
-                pon_start[:] = 0
-            if event:
-                # the step with each lane's start set; lanes where it ends contradicting the set are
-                # redone below in scalar code, from the state kept here
-                for j in range(P):
-                    pon_start[j] = 1 if act_pair[j] > 0 else 0
-                nevt = _event_check(W, dt, law, nt, n1t, H, pon_start)
-                nfix = 0
-                if nevt > 0:
-                    for l in range(LANES):
-                        fix[l] = live[l] and W[(r_s + S_EVT) * LANES + l] > 0.5
-                        if fix[l]:
-                            nfix += 1
-                            for q in range(nrows):
-                                snap[l, q] = W[q * LANES + l]
-                if had_contact:
-                    nbad, nend = _finish_contact(W, dt, step, nt, n1t, m, C, H, pon_start, pon_start)
-                else:
-                    nbad = _finish_quiet(W, dt, step, nt, n1t, m, C)
-                    nend = 0
-                if nfix > 0:
-                    for l in range(LANES):
-                        if not fix[l]:
-                            continue
-                        for q in range(nrows):
-                            W[q * LANES + l] = snap[l, q]
-                        for j in range(P):
-                            if W[(r_act + j) * LANES + l] > 0.5:
-                                act_pair[j] -= 1
-                                n_act -= 1
-                        run = lane_run[l]
-                        _event_lane(W, l, step, dt, law, exc_kind[run] == EXC_HARMONIC, exc_amp[run], exc_omega[run],
-                                    m, C, K, H, S, i1, i2, cdash[run], N1, r_u, r_v, r_a, r_w, r_u0, r_f, r_act,
-                                    r_was, r_inc, r_cac, r_sp, r_dp, r_ke, r_s, r_met, dur[l], nph[l], eu, ev, ea,
-                                    eu0, eun, evn, ean, Fw, z0, bb, ke, active, was_e, just, trial, thetas, inc_e,
-                                    cac_e, sp_e, dp_e, penp, ecdu, Amat, rvec, en, orow, idx, Asmall, rsmall)
-                        for j in range(P):
-                            if W[(r_act + j) * LANES + l] > 0.5:
-                                act_pair[j] += 1
-                                n_act += 1
-                        _lane_factors(W, l, S, P, r_ke, r_act, r_ff, r_fu, idx, Asmall)  # the set may have changed
-                    nbad = 0
-                    for l in range(LANES):
-                        if live[l] and W[(r_s + S_BAD) * LANES + l] > 0.5:
-                            nbad += 1
-            elif nevt > 0:
-                for l in range(LANES):
-                    if live[l] and W[(r_s + S_EVT) * LANES + l] > 0.5:
-                        for j in range(P):
-                            if W[(r_act + j) * LANES + l] > 0.5:
-                                act_pair[j] -= 1
-                                n_act -= 1
-                        it, uns, changed = _settle_lane(W, l, law, max_iter, S, N1, P, r_w, r_u0, r_f, r_act, r_ke,
-                                                        r_cd, r_s, z0, bb, ke, active, trial, prev, seen, idx,
-                                                        Asmall, rsmall, Fw)
-                        if it > W[(r_s + S_MIT) * LANES + l]:
-                            W[(r_s + S_MIT) * LANES + l] = it
-                        W[(r_s + S_UNS) * LANES + l] += uns
-                        for j in range(P):
-                            if W[(r_act + j) * LANES + l] > 0.5:
-                                act_pair[j] += 1
-                                n_act += 1
-                        if changed:
-                            _lane_factors(W, l, S, P, r_ke, r_act, r_ff, r_fu, idx, Asmall)
-            if event:
-                pass  # finished above
-            elif had_contact or n_act > 0:
-                for j in range(P):
-                    pon_now[j] = 1 if act_pair[j] > 0 else 0
-                    pon_any[j] = 1 if (pon_start[j] > 0 or act_pair[j] > 0) else 0
-                nbad, nend = _finish_contact(W, dt, step, nt, n1t, m, C, H, pon_now, pon_any)
-            else:
-                nbad = _finish_quiet(W, dt, step, nt, n1t, m, C)
-                nend = 0
-            if nend > 0:
-                for l in range(LANES):
-                    for j in range(P):
-                        if W[(r_end + j) * LANES + l] > 0.5:
-                            W[(r_end + j) * LANES + l] = 0.0
-                            if live[l]:
-                                _end_phase(dur, nph, l, j, W[(r_cac + j) * LANES + l])
-            if nbad > 0:
-                for l in range(LANES):
-                    if live[l] and W[(r_s + S_BAD) * LANES + l] > 0.5:
-                        redo[lane_run[l]] = 1
-                        for j in range(P):
-                            if W[(r_act + j) * LANES + l] > 0.5:
-                                act_pair[j] -= 1
-                                n_act -= 1
-                        _park(W, l, N, P, nrows, r_u, r_v, r_a, r_f, r_fu, r_s)
-                        live[l] = False
-            if step == next_end:
-                next_end = max_nst + 1
-                for l in range(LANES):
-                    if live[l] and lane_nst[l] == step:
-                        _finalize_lane(W, l, metrics[lane_run[l]], lane_status[l], step, dt, m, K, N, N1, P, dur,
-                                       nph, r_u, r_v, r_act, r_inc, r_cac, r_s, r_met)
-                        for j in range(P):
-                            if W[(r_act + j) * LANES + l] > 0.5:
-                                act_pair[j] -= 1
-                                n_act -= 1
-                        _park(W, l, N, P, nrows, r_u, r_v, r_a, r_f, r_fu, r_s)
-                        live[l] = False
-                    elif live[l] and lane_nst[l] < next_end:
-                        next_end = lane_nst[l]

@@ -1,13 +1,24 @@
 """The lane kernel (kernel_lanes.integrate_lanes) against the scalar kernel (kernel.integrate_batch).
 
-The lane kernel performs each run's floating-point operations in the scalar kernel's order (see
-kernel_lanes' docstring), so the claim tested here is equality of every metric slot, bit for bit,
-not closeness: peaks, times, counts, median compression phase, energy terms and status bits.
-Tolerance: none. The grids span k_s/k 0.01..1e4, r 0/0.4/1, gaps 0/1/20 mm, harmonic and recorded
-excitation, both contact laws, runs of unequal length in one group, a diverging run (rerun by the
-scalar kernel), and a model with other floor counts. Then: the result of a run does not depend on
-the lane, group or thread it lands in (permuted run order, 1 and 2 threads), and run_chunk picks
-the scalar kernel whenever the lane kernel cannot compute the same thing.
+The two integrate the same scheme with different algebra (modal coordinates and fused multiply-adds
+in the lanes, the floors' Newmark solve in the scalar kernel), so they agree to rounding, not bit for
+bit. The contract tested here (assert_rows_agree), on every run the scalar kernel does not flag
+`contact_underresolved` or `contact_unsettled`:
+- counts (impacts, compression phases, steps, located events) and status codes equal;
+- peaks, their times, penetrations and forces within 1e-6 relative (1e-9 of the column's largest
+  value for values near zero); the most negative force within 1e-7 of the pair's peak force;
+- energy terms within 1e-7 of the run's absolute input work;
+- contact and compression times within one step per phase, the median phase within one step (a
+  phase ends where F = 0, and whether the last piece before it counts as compressive depends on the
+  sign of a force of 1e-10 N).
+Measured: 1.6e-8, 2.1e-9, 1.7e-9 and 2.2 steps over 5-8 phases. Flagged runs (a contact period of
+less than a step, or an active set that cycles) are not trustworthy in either kernel: rounding
+changes their discrete contact decisions. For them the flags agree and the rows are finite.
+The grids span k_s/k 0.01..1e4, r 0/0.4/1, gaps 0/1/20 mm, harmonic and recorded excitation, both
+contact laws, runs of unequal length in one group, a diverging run (rerun by the scalar kernel), and
+other floor counts. Then: the result of a run does not depend on the lane, group or thread it lands
+in (bit for bit), and run_chunk picks the scalar kernel whenever the lane kernel cannot compute the
+same thing.
 """
 
 from __future__ import annotations
@@ -62,15 +73,55 @@ def both(prep, runs, rec, threads=1):
     return lanes, scalar
 
 
-def assert_rows_identical(lanes, scalar, floors=(3, 3)):
-    """Bitwise equality of every slot; on failure, name the first differing runs and columns."""
-    assert lanes.shape == scalar.shape
-    same = lanes.view(np.int64) == scalar.view(np.int64)
+def assert_rows_identical(a, b, floors=(3, 3)):
+    """Equality of every slot (0.0 == -0.0); on failure, name the first differing runs and columns."""
+    assert a.shape == b.shape
+    same = (a == b) | (np.isnan(a) & np.isnan(b))
     if not same.all():
         cols = L.metric_columns(floors, min(floors))
         bad = np.argwhere(~same)[:8]
-        lines = [f"run {r}: {cols[c]} lanes {lanes[r, c]!r} scalar {scalar[r, c]!r}" for r, c in bad]
-        raise AssertionError(f"{(~same.all(axis=1)).sum()} of {len(lanes)} rows differ:\n" + "\n".join(lines))
+        lines = [f"run {r}: {cols[c]} {a[r, c]!r} != {b[r, c]!r}" for r, c in bad]
+        raise AssertionError(f"{(~same.all(axis=1)).sum()} of {len(a)} rows differ:\n" + "\n".join(lines))
+
+
+FLAGGED = L.STATUS_UNSETTLED | L.STATUS_UNDERRESOLVED
+COUNTS = ("impacts_", "compression_phases_", "steps", "status_code", "max_contact_iterations", "unsettled_steps")
+
+
+def assert_rows_agree(lanes, scalar, dt, floors=(3, 3)):
+    """The module docstring's contract; returns the mask of the runs it holds to the tolerances."""
+    assert lanes.shape == scalar.shape
+    cols = L.metric_columns(floors, min(floors))
+    col = {n: i for i, n in enumerate(cols)}
+    status = scalar[:, col["status_code"]].astype(np.int64)
+    lstatus = lanes[:, col["status_code"]].astype(np.int64)
+    assert np.array_equal(status & L.STATUS_UNDERRESOLVED, lstatus & L.STATUS_UNDERRESOLVED)
+    assert np.isfinite(lanes).all()
+    good = (status & FLAGGED) == 0
+    a, b = lanes[good], scalar[good]
+    e_abs = b[:, col["input_work_abs_J"]]
+    problems = []
+    for name, ci in col.items():
+        x, y = a[:, ci], b[:, ci]
+        if name.startswith(COUNTS):
+            err, tol = np.abs(x - y), np.zeros_like(y)
+        elif name.startswith("min_force"):
+            err, tol = np.abs(x - y), 1e-7 * b[:, col[name.replace("min_force", "peak_force")]] + 1e-300
+        elif name.endswith("_J"):
+            err, tol = np.abs(x - y), 1e-7 * e_abs + 1e-300
+        elif name.startswith(("contact_time", "compression_time")):
+            j = name.split("_f")[1].split("_")[0]
+            err, tol = np.abs(x - y), dt * (b[:, col[f"compression_phases_f{j}"]] + b[:, col[f"impacts_f{j}"]] + 1)
+        elif name.startswith("median_compression"):
+            err, tol = np.abs(x - y), np.full_like(y, 1.01 * dt)
+        else:
+            err, tol = np.abs(x - y), 1e-6 * np.maximum(np.abs(y), 1e-3 * np.abs(y).max()) + 1e-300
+        for r in np.flatnonzero(err > tol)[:3]:
+            run = np.flatnonzero(good)[r]
+            problems.append(f"run {run}: {name} lanes {x[r]!r} scalar {y[r]!r} (tolerance {tol[r]:.3g})")
+    if problems:
+        raise AssertionError(f"{len(problems)} disagreements:\n" + "\n".join(problems[:12]))
+    return good
 
 
 def col(metrics, name, floors=(3, 3)):
@@ -90,10 +141,11 @@ def harmonic_grid(law, scheme="implicit"):
 
 @pytest.mark.parametrize("scheme", SCHEMES)
 @pytest.mark.parametrize("law", ["classic", "no_tension"])
-def test_harmonic_grid_rows_identical(law, scheme):
+def test_harmonic_grid_rows_agree(law, scheme):
     prep, runs, rec, lanes, scalar = harmonic_grid(law, scheme)
     assert driver.kernel_for(prep.sysarr, prep.hist, prep.opts, prep.score) == "lanes"
-    assert_rows_identical(lanes, scalar)
+    good = assert_rows_agree(lanes, scalar, prep.dt)
+    assert good.sum() >= 80  # the flagged runs are k_s/k = 1e4 (and cycling sets under the implicit scheme)
     # the grid exercises what the lane kernel does differently: contact in some lanes and not in
     # others, impacts, long and short compressive phases, the active-set fallback (classic law)
     impacts = col(scalar, "impacts_f3")
@@ -108,7 +160,7 @@ def test_harmonic_grid_rows_identical(law, scheme):
 
 
 @pytest.mark.parametrize("scheme", SCHEMES)
-def test_record_grid_with_runs_of_unequal_length_rows_identical(tmp_path, scheme):
+def test_record_grid_with_runs_of_unequal_length_rows_agree(tmp_path, scheme):
     """Duzce DZC180 (similitude 1/15) and a shortened copy in one sweep: groups mix records and
     lengths, so lanes end at different steps and read different ground motions."""
     from pounding_sweep.records import read_record
@@ -127,7 +179,7 @@ def test_record_grid_with_runs_of_unequal_length_rows_identical(tmp_path, scheme
     runs, recarr = chunk_inputs(prep)
     assert len(set(runs.nsteps.tolist())) == 2
     lanes, scalar = both(prep, runs, recarr)
-    assert_rows_identical(lanes, scalar)
+    assert assert_rows_agree(lanes, scalar, prep.dt).sum() >= 24  # of 36: r = 0 at k_s/k = 10 cycles (implicit)
     assert (col(scalar, "impacts_f3") > 0).any()
 
 
@@ -151,7 +203,8 @@ def test_uneven_lengths_and_a_diverging_run_in_one_group(scheme):
     lanes, scalar = both(prep, runs, rec)
     assert col(scalar, "status_code")[5] == L.STATUS_NONFINITE
     assert col(scalar, "steps")[3] == 0 and col(scalar, "steps")[7] == runs.nsteps[7]
-    assert_rows_identical(lanes, scalar)
+    assert_rows_identical(lanes[5:6], scalar[5:6])  # the diverged run: the scalar kernel's own row
+    assert assert_rows_agree(lanes, scalar, prep.dt).all()
 
 
 @pytest.mark.parametrize("scheme", SCHEMES)
@@ -168,7 +221,7 @@ def test_other_floor_counts(scheme):
     assert prep.model.floors == (4, 2)
     runs, rec = chunk_inputs(prep)
     lanes, scalar = both(prep, runs, rec)
-    assert_rows_identical(lanes, scalar, floors=(4, 2))
+    assert assert_rows_agree(lanes, scalar, prep.dt, floors=(4, 2)).sum() >= 12
     assert (col(scalar, "impacts_f2", (4, 2)) > 0).any()
 
 
@@ -203,10 +256,11 @@ def test_run_chunk_dispatch_and_the_eligibility_rules():
     # the event scheme takes no active-set iteration
     assert why(sysarr, none_h, dataclasses.replace(opts, scheme=kernel.SCHEMES["event"], max_iter=0), none_s) is None
     assert why(sysarr, none_h, dataclasses.replace(opts, law=7), none_s) is not None
-    coupled = dataclasses.replace(sysarr, Kinv=sysarr.Kinv + 1e-30)
-    assert "couples" in why(coupled, none_h, opts, none_s)
-    full_c = dataclasses.replace(sysarr, C=sysarr.C + 1e-30)
-    assert "tridiagonal" in why(full_c, none_h, opts, none_s)
+    coupled = dataclasses.replace(sysarr, K=sysarr.K + 1e-30)
+    assert "coupled" in why(coupled, none_h, opts, none_s)
+    C = sysarr.C.copy()
+    C[0, 2] = C[2, 0] = 0.1 * C[0, 0]  # damping the building's modes do not diagonalise
+    assert "classical" in why(dataclasses.replace(sysarr, C=C), none_h, opts, none_s)
     swapped = dataclasses.replace(sysarr, i1=sysarr.i1[::-1].copy())
     assert "facing" in why(swapped, none_h, opts, none_s)
     # the codes the lane kernel repeats agree with the scalar kernel's and the contact module's
@@ -214,6 +268,7 @@ def test_run_chunk_dispatch_and_the_eligibility_rules():
     assert kernel_lanes.SCHEME_EVENT == kernel.SCHEMES["event"]
     assert kernel_lanes.LAW_NO_TENSION == CONTACT_LAWS["no_tension"]
     assert (kernel_lanes.EXC_HARMONIC, kernel_lanes.EXC_RECORD) == (kernel.EXC_HARMONIC, kernel.EXC_RECORD)
+    assert (kernel_lanes.MAX_EVENTS, kernel_lanes.EVENT_MIN_FRACTION) == (kernel.MAX_EVENTS, kernel.EVENT_MIN_FRACTION)
 
     # run_chunk: lanes when eligible (same rows as the scalar kernel), scalar with histories
     runs, rec = chunk_inputs(prep)
@@ -233,7 +288,7 @@ def test_run_chunk_dispatch_and_the_eligibility_rules():
         assert len(calls) == 1 and h2 is not None
     finally:
         driver.run_chunk_lanes = saved
-    assert_rows_identical(m1, m2)
+    assert_rows_agree(m1, m2, prep.dt)
 
 
 def test_excitation_profiles_equal_the_scalar_kernels_ground_acceleration():
@@ -248,22 +303,24 @@ def test_excitation_profiles_equal_the_scalar_kernels_ground_acceleration():
 
 
 @pytest.mark.parametrize("law", ["classic", "no_tension"])
-def test_event_scheme_stiff_coarse_steps_rows_identical(law):
+def test_event_scheme_stiff_coarse_steps(law):
     """Event scheme at dt = 1 ms with k_s/k up to 1e4: contact events every few steps, several in one
     step, and under the no-tension law with r = 0 chattering switches that reach kernel.MAX_EVENTS
     (the step taken as it is and counted unsettled): most steps of many lanes go through the scalar
-    fix-up, next to lanes that stay in the vector path."""
+    fix-up, next to lanes that stay in the vector path. Most of these runs are flagged (a contact
+    period under one step): the contract holds on the others, the flags on all."""
     s = implicit(load_scene(SWEEPS / "paper_6hz.toml"), law, duration=0.5, scheme="event", dt=1e-3)
     s = dataclasses.replace(s, sweep=(Axis("amplitude_m", (0.002, 0.005)), Axis("gap_m", GAPS),
                                       Axis("ks_ratio", (0.1, 1.0, 1e3, 3e3, 1e4)), Axis("r", R)))
     prep = prepare(s)
     runs, rec = chunk_inputs(prep)
     lanes, scalar = both(prep, runs, rec)
-    assert_rows_identical(lanes, scalar)
+    assert assert_rows_agree(lanes, scalar, prep.dt).sum() >= 30  # of 90: the rest have a contact period under a step
     events = col(scalar, "max_contact_iterations")
     assert (events == 0).any() and (events >= 3).any()
     assert (col(scalar, "impacts_f3") > 10).any()
     if law == "no_tension":
         assert (events == kernel.MAX_EVENTS).any() and (col(scalar, "unsettled_steps") > 0).any()
+        assert (col(lanes, "max_contact_iterations") == kernel.MAX_EVENTS).any()
     again, _ = driver.run_chunk_lanes(prep.sysarr, runs, rec, prep.opts, threads=2)
     assert_rows_identical(again, lanes)

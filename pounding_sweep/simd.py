@@ -1,0 +1,272 @@
+"""Explicit SIMD values for Numba kernels: a float64 vector of VW lanes and a lane mask.
+
+F64Vec is LLVM's <VW x double>, MaskVec a <VW x i64> of all-ones / all-zeros lanes (what AVX compares
+give). Arithmetic is LLVM's plain IEEE instruction lane by lane (no fast-math flags), and `vfma` is
+llvm.fma (one rounding; a vfmadd instruction on FMA hardware). Writing the vectors out, rather than
+relying on LLVM's loop vectoriser over scalar lane loops, keeps the kernel vectorised whatever the
+vectoriser's heuristics decide: earlier versions of the lane kernel saw it leave whole loops scalar
+after innocuous edits, and turn kept-or-updated values into masked stores, which are microcoded and
+slow on AMD Zen.
+
+VW = 8: two AVX2 registers per value (two independent instruction streams), one AVX-512 register.
+"""
+
+from __future__ import annotations
+
+import operator
+
+from llvmlite import ir
+from numba import types
+from numba.core import cgutils
+from numba.core.imputils import lower_builtin
+from numba.core.typing.templates import AbstractTemplate, infer_global, signature
+from numba.extending import intrinsic, models, register_model
+
+#: float64 lanes per vector value (two AVX2 registers, one AVX-512 register)
+VW = 8
+_VT = ir.VectorType(ir.DoubleType(), VW)
+_MT = ir.VectorType(ir.IntType(64), VW)
+_I32 = ir.IntType(32)
+
+
+class F64Vec(types.Type):
+    def __init__(self):
+        super().__init__(name=f"simd_f64x{VW}")
+
+
+class MaskVec(types.Type):
+    def __init__(self):
+        super().__init__(name=f"simd_maskx{VW}")
+
+
+f64v = F64Vec()
+maskv = MaskVec()
+
+
+@register_model(F64Vec)
+class _F64VecModel(models.PrimitiveModel):
+    def __init__(self, dmm, fe_type):
+        super().__init__(dmm, fe_type, _VT)
+
+
+@register_model(MaskVec)
+class _MaskVecModel(models.PrimitiveModel):
+    def __init__(self, dmm, fe_type):
+        super().__init__(dmm, fe_type, _MT)
+
+
+def _elem_ptr(context, builder, aryty, ary, idx):
+    a = context.make_array(aryty)(context, builder, ary)
+    return builder.bitcast(builder.gep(a.data, [idx], inbounds=True), _VT.as_pointer())
+
+
+def _intrinsic_fn(builder, name, ret, args):
+    return cgutils.get_or_insert_function(builder.module, ir.FunctionType(ret, args), name)
+
+
+@intrinsic
+def vload(typingctx, arr, idx):
+    """arr[idx:idx + VW] as a vector (no bounds check)."""
+    def codegen(context, builder, sig, args):
+        return builder.load(_elem_ptr(context, builder, sig.args[0], args[0], args[1]), align=8)
+    return f64v(arr, idx), codegen
+
+
+@intrinsic
+def vstore(typingctx, arr, idx, v):
+    """arr[idx:idx + VW] = v (no bounds check)."""
+    def codegen(context, builder, sig, args):
+        builder.store(args[2], _elem_ptr(context, builder, sig.args[0], args[0], args[1]), align=8)
+        return context.get_dummy_value()
+    return types.none(arr, idx, v), codegen
+
+
+@intrinsic
+def vsplat(typingctx, x):
+    """A vector with x in every lane."""
+    def codegen(context, builder, sig, args):
+        v = builder.insert_element(ir.Constant(_VT, ir.Undefined), args[0], ir.Constant(_I32, 0))
+        return builder.shuffle_vector(v, v, ir.Constant(ir.VectorType(_I32, VW), [0] * VW))
+    return f64v(types.float64), codegen
+
+
+@intrinsic
+def vfma(typingctx, a, b, c):
+    """a * b + c with one rounding (llvm.fma)."""
+    def codegen(context, builder, sig, args):
+        fn = _intrinsic_fn(builder, f"llvm.fma.v{VW}f64", _VT, [_VT, _VT, _VT])
+        return builder.call(fn, list(args))
+    return f64v(f64v, f64v, f64v), codegen
+
+
+# Operators on vectors and masks: typed by templates and lowered straight to one LLVM instruction.
+# (An @overload(..., inline="always") per operator made Numba inline IR at every use: most of the
+# kernel's compile time went there.)
+
+def _is_vec(t):
+    return isinstance(t, F64Vec)
+
+
+def _is_num(t):
+    return isinstance(t, (types.Float, types.Integer))
+
+
+def _as_vec(context, builder, ty, val):
+    """A vector operand: the vector itself, or a scalar cast to float64 and splatted."""
+    if _is_vec(ty):
+        return val
+    x = context.cast(builder, val, ty, types.float64)
+    v = builder.insert_element(ir.Constant(_VT, ir.Undefined), x, ir.Constant(_I32, 0))
+    return builder.shuffle_vector(v, v, ir.Constant(ir.VectorType(_I32, VW), [0] * VW))
+
+
+def _binary(op, build, restype):
+    @infer_global(op)
+    class _Typer(AbstractTemplate):
+        def generic(self, args, kws):
+            if len(args) == 2 and not kws and any(_is_vec(a) for a in args) and all(_is_vec(a) or _is_num(a) for a in args):
+                return signature(restype, *args)
+
+    def lower(context, builder, sig, args):
+        a = _as_vec(context, builder, sig.args[0], args[0])
+        b = _as_vec(context, builder, sig.args[1], args[1])
+        return build(builder, a, b)
+
+    for ta in (F64Vec, types.Number):
+        for tb in (F64Vec, types.Number):
+            if ta is F64Vec or tb is F64Vec:
+                lower_builtin(op, ta, tb)(lower)
+
+
+def _mask_binary(op, build):
+    @infer_global(op)
+    class _Typer(AbstractTemplate):
+        def generic(self, args, kws):
+            if len(args) == 2 and not kws and all(isinstance(a, MaskVec) for a in args):
+                return signature(maskv, *args)
+
+    lower_builtin(op, MaskVec, MaskVec)(lambda context, builder, sig, args: build(builder, args[0], args[1]))
+
+
+def _unary(op, check, restype, build):
+    @infer_global(op)
+    class _Typer(AbstractTemplate):
+        def generic(self, args, kws):
+            if len(args) == 1 and not kws and check(args[0]):
+                return signature(restype, *args)
+
+    lower_builtin(op, F64Vec if restype is f64v else MaskVec)(lambda context, builder, sig, args: build(builder, args[0]))
+
+
+_binary(operator.add, lambda b, x, y: b.fadd(x, y), f64v)
+_binary(operator.sub, lambda b, x, y: b.fsub(x, y), f64v)
+_binary(operator.mul, lambda b, x, y: b.fmul(x, y), f64v)
+_binary(operator.truediv, lambda b, x, y: b.fdiv(x, y), f64v)
+_binary(operator.gt, lambda b, x, y: b.sext(b.fcmp_ordered(">", x, y), _MT), maskv)
+_binary(operator.lt, lambda b, x, y: b.sext(b.fcmp_ordered("<", x, y), _MT), maskv)
+_binary(operator.ge, lambda b, x, y: b.sext(b.fcmp_ordered(">=", x, y), _MT), maskv)
+_mask_binary(operator.and_, lambda b, x, y: b.and_(x, y))
+_mask_binary(operator.or_, lambda b, x, y: b.or_(x, y))
+_mask_binary(operator.ne, lambda b, x, y: b.xor(x, y))
+_unary(operator.neg, _is_vec, f64v, lambda b, x: b.fneg(x))
+_unary(abs, _is_vec, f64v, lambda b, x: b.call(_intrinsic_fn(b, f"llvm.fabs.v{VW}f64", _VT, [_VT]), [x]))
+_unary(operator.invert, lambda t: isinstance(t, MaskVec), maskv, lambda b, x: b.xor(x, ir.Constant(_MT, [-1] * VW)))
+
+
+@intrinsic
+def mnot(typingctx, m):
+    def codegen(context, builder, sig, args):
+        return builder.xor(args[0], ir.Constant(_MT, [-1] * VW))
+    return maskv(m), codegen
+
+
+@intrinsic
+def mconst(typingctx, value):
+    """Every lane true (value True) or false."""
+    def codegen(context, builder, sig, args):
+        return builder.select(args[0], ir.Constant(_MT, [-1] * VW), ir.Constant(_MT, [0] * VW))
+    return maskv(types.boolean), codegen
+
+
+def _truth(builder, m):
+    return builder.icmp_signed("<", m, ir.Constant(_MT, [0] * VW))
+
+
+@intrinsic
+def vsel(typingctx, m, a, b):
+    """a where m, else b (lane by lane)."""
+    def codegen(context, builder, sig, args):
+        return builder.select(_truth(builder, args[0]), args[1], args[2])
+    return f64v(m, a, b), codegen
+
+
+@intrinsic
+def many(typingctx, m):
+    """True when any lane of the mask is true (one movmsk and a test)."""
+    def codegen(context, builder, sig, args):
+        bits = builder.bitcast(_truth(builder, args[0]), ir.IntType(VW))
+        return builder.icmp_unsigned("!=", bits, ir.Constant(ir.IntType(VW), 0))
+    return types.boolean(m), codegen
+
+
+@intrinsic
+def mcount(typingctx, m):
+    """Number of true lanes."""
+    def codegen(context, builder, sig, args):
+        it = ir.IntType(VW)
+        fn = _intrinsic_fn(builder, f"llvm.ctpop.i{VW}", it, [it])
+        return builder.zext(builder.call(fn, [builder.bitcast(_truth(builder, args[0]), it)]), ir.IntType(64))
+    return types.int64(m), codegen
+
+
+@intrinsic
+def mfloat(typingctx, m):
+    """1.0 where m, else 0.0."""
+    def codegen(context, builder, sig, args):
+        return builder.uitofp(_truth(builder, args[0]), _VT)
+    return f64v(m), codegen
+
+
+@intrinsic
+def vfence(typingctx, a):
+    """a, through llvm.arithmetic.fence: no code, but LLVM no longer sees where the value came from.
+    Used on the kept operand of a select that is stored back where it was loaded from: given
+    store(select(c, x, load p), p), LLVM would otherwise emit a masked store (slow on AMD Zen)."""
+    def codegen(context, builder, sig, args):
+        return builder.call(_intrinsic_fn(builder, f"llvm.arithmetic.fence.v{VW}f64", _VT, [_VT]), [args[0]])
+    return f64v(a), codegen
+
+
+#: vectors in a stack scratch buffer (see `scratch`)
+SCRATCH = 160
+vecptr = types.CPointer(f64v)
+
+
+@intrinsic
+def scratch(typingctx):
+    """A function-local buffer of SCRATCH vectors (an alloca in the entry block). Accessed with
+    constant indices (loops over compile-time sizes unroll), LLVM keeps its entries in registers
+    (scalar replacement of aggregates) instead of storing and reloading them."""
+    def codegen(context, builder, sig, args):
+        arr = cgutils.alloca_once(builder, ir.ArrayType(_VT, SCRATCH))
+        return builder.bitcast(arr, _VT.as_pointer())
+    return vecptr(), codegen
+
+
+@intrinsic
+def sget(typingctx, T, i):
+    """Entry i of a scratch buffer."""
+    def codegen(context, builder, sig, args):
+        idx = context.cast(builder, args[1], sig.args[1], types.intp)
+        return builder.load(builder.gep(args[0], [idx], inbounds=True))
+    return f64v(T, i), codegen
+
+
+@intrinsic
+def sset(typingctx, T, i, v):
+    """Entry i of a scratch buffer := v."""
+    def codegen(context, builder, sig, args):
+        idx = context.cast(builder, args[1], sig.args[1], types.intp)
+        builder.store(args[2], builder.gep(args[0], [idx], inbounds=True))
+        return context.get_dummy_value()
+    return types.none(T, i, v), codegen

@@ -56,8 +56,10 @@ def njit_lanes(fn):
 def njit_step(fn):
     """Decorate a function of the time loop: it allocates nothing, so it is compiled without Numba's
     runtime, whose atomic reference counts on every array argument took a third of the scalar
-    steps' time."""
-    return numba.njit(_nrt=False, **LANES_JIT)(fn)
+    steps' time; called only from compiled code, so without the Python and C entry wrappers (their
+    argument boxing was a good part of the compile time)."""
+    return numba.njit(_nrt=False, no_cpython_wrapper=True, no_cfunc_wrapper=True, **LANES_JIT)(fn)
+
 
 
 _inline = numba.njit(inline="always", **LANES_JIT)
@@ -1217,10 +1219,45 @@ def _park(W, l, nrows, r_s):
     W[(r_s + S_KS) * LANES + l] = 1.0
 
 
-@njit_lanes
-def _finalize_lane(W, l, buf, metrics, run, status, steps_done, dt, om2, psi, N, P, dur, nph):
-    """Write lane l's metric row (kernel.integrate_batch's end-of-run code), its state in buffer buf."""
+@njit_step
+def _median_inplace(dur, l, j, k):
+    """Median of dur[l, j, :k] (the mean of the two middle values for even k, as np.median), sorting
+    the buffer in place (heapsort: no allocation, no compiled np.median); 0.0 when k = 0."""
+    if k == 0:
+        return 0.0
+    for start in range(k // 2 - 1, -1, -1):  # heapify, then pop the largest to the end
+        _sift_down(dur, l, j, start, k)
+    for end in range(k - 1, 0, -1):
+        x = dur[l, j, 0]
+        dur[l, j, 0] = dur[l, j, end]
+        dur[l, j, end] = x
+        _sift_down(dur, l, j, 0, end)
+    if k % 2 == 1:
+        return dur[l, j, k // 2]
+    return (dur[l, j, k // 2 - 1] + dur[l, j, k // 2]) / 2.0
+
+
+@njit_step
+def _sift_down(dur, l, j, i, n):
+    while True:
+        c = 2 * i + 1
+        if c >= n:
+            return
+        if c + 1 < n and dur[l, j, c + 1] > dur[l, j, c]:
+            c += 1
+        if dur[l, j, c] <= dur[l, j, i]:
+            return
+        x = dur[l, j, c]
+        dur[l, j, c] = dur[l, j, i]
+        dur[l, j, i] = x
+        i = c
+
+
+@njit_step
+def _finalize_lane(W, l, metrics, run, status, steps_done, dt, om2, psi, N, P, dur, nph):
+    """Write lane l's metric row (kernel.integrate_batch's end-of-run code) after its last step."""
     r_q0, r_q1, r_g, r_f, r_pen, r_act, r_inc, r_cac, r_end, r_cd, r_R, r_s, r_met = _layout(N, P)
+    buf = r_q1 if steps_done % 2 == 1 else r_q0  # step s writes buffer q1 when s is odd
     nm = metrics.shape[1]
     pbase = ML.PER_DOF * N
     rbase = pbase + ML.PER_PAIR * P
@@ -1237,7 +1274,7 @@ def _finalize_lane(W, l, buf, metrics, run, status, steps_done, dt, om2, psi, N,
         if k > ML.MEDIAN_BUFFER:
             status |= ML.STATUS_MEDIAN_TRUNCATED
             k = ML.MEDIAN_BUFFER
-        metrics[run, base + ML.PAIR_MEDIAN_COMPRESSION] = np.median(dur[l, j, :k]) if k > 0 else 0.0
+        metrics[run, base + ML.PAIR_MEDIAN_COMPRESSION] = _median_inplace(dur, l, j, k)
     unsettled = W[(r_s + S_UNS) * LANES + l]
     if unsettled > 0:
         status |= ML.STATUS_UNSETTLED
@@ -1355,7 +1392,7 @@ def integrate_lanes(
         base = g * LANES
         nl = min(LANES, n_runs - base)
         max_nst = 0
-        uniform = True
+        uniform = nl > 0  # computed, not the literal True: a literal argument compiles its callee twice
         pid0 = pid[order[base]] if nl > 0 else 0
         for l in range(LANES):
             _park(W, l, nrows, r_s)
@@ -1381,7 +1418,7 @@ def integrate_lanes(
             W[(r_s + S_MIT) * LANES + l] = 1.0 if (nsteps[run] >= 1 and scheme != SCHEME_EVENT) else 0.0
         for l in range(nl):
             if lane_nst[l] == 0:
-                _finalize_lane(W, l, r_q0, metrics, lane_run[l], lane_status[l], 0, dt, om2, psi, N, P, dur, nph)
+                _finalize_lane(W, l, metrics, lane_run[l], lane_status[l], lane_nst[l], dt, om2, psi, N, P, dur, nph)
                 _park(W, l, nrows, r_s)
                 live[l] = False
         next_end = max_nst + 1
@@ -1399,7 +1436,7 @@ def integrate_lanes(
                                           nt, n1t, Cv, prof, pid_lane, uniform, pid0)
                 nend = 0
             else:
-                pon = 0
+                pon = act_pair[0] * 0  # int64, not a literal (see uniform)
                 for j in range(P):
                     if act_pair[j] > 0:
                         pon |= 1 << j
@@ -1445,8 +1482,7 @@ def integrate_lanes(
                 next_end = max_nst + 1
                 for l in range(LANES):
                     if live[l] and lane_nst[l] == step:
-                        _finalize_lane(W, l, dst, metrics, lane_run[l], lane_status[l], step, dt, om2, psi, N, P, dur,
-                                       nph)
+                        _finalize_lane(W, l, metrics, lane_run[l], lane_status[l], step, dt, om2, psi, N, P, dur, nph)
                         n_act += _count_act(W, l, P, r_act, act_pair, -1)
                         _park(W, l, nrows, r_s)
                         live[l] = False
@@ -1457,19 +1493,11 @@ def integrate_lanes(
 # ------------------------------------------------------------------------------------------ excitation
 
 
-@njit_lanes
-def _sin_profile(omega, nsteps, dt, out):
-    """out[step] = sin(omega * step * dt), the very expression kernel.ground_acceleration evaluates."""
-    for step in range(nsteps + 1):
-        out[step] = np.sin(omega * step * dt)
-
-
 def excitation_profiles(runs, rec, dt):
     """Ground acceleration as coef[run] * prof[pid[run], step], equal to kernel.ground_acceleration.
 
-    Harmonic: prof = sin(omega step dt) per distinct omega (computed by compiled code, as the kernel
-    does), coef = -amp * omega * omega (left to right: NumPy's float64 products are the same IEEE
-    operations). Record: prof = the resampled record (zero past its end), coef = the run's scale.
+    Harmonic: prof = sin(omega step dt) per distinct omega, coef = -amp * omega * omega. Record:
+    prof = the resampled record (zero past its end), coef = the run's scale.
     Returns (coef, pid, prof).
     """
     rec_flat, rec_off, rec_len = rec
@@ -1484,7 +1512,7 @@ def excitation_profiles(runs, rec, dt):
     prof = np.zeros((max(1, len(index)), nmax + 1))
     for (kind, val), k in index.items():
         if kind == EXC_HARMONIC:
-            _sin_profile(val, nmax, dt, prof[k])
+            prof[k] = np.sin(val * np.arange(nmax + 1, dtype=np.float64) * dt)
         else:
             off, ln = int(rec_off[val]), int(rec_len[val])
             m = min(ln, nmax + 1)

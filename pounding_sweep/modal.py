@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .model import SystemArrays
+from .structure import mass_normalised_modes
 
 #: largest relative off-diagonal of Phi^T C Phi accepted as classical damping (rounding of eigh)
 CLASSICAL_TOL = 1e-10
@@ -52,17 +53,6 @@ class ModalArrays:
         return (self.phi, self.psi, self.om2, self.dmp, self.gam, self.cf, self.cq, self.cr, self.W)
 
 
-def building_modes(M: np.ndarray, K: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(w^2, Phi) of K phi = w^2 M phi for a diagonal M, mass-normalised, w ascending.
-
-    Through the symmetric form M^-1/2 K M^-1/2 and NumPy's eigh: no SciPy import on the sweep path."""
-    s = 1.0 / np.sqrt(np.diag(M))
-    w2, v = np.linalg.eigh(K * s[:, None] * s[None, :])
-    phi = v * s[:, None]
-    phi = phi * np.where(phi[-1, :] < 0, -1.0, 1.0)  # top floor positive
-    return w2, phi
-
-
 def modal_arrays(sys: SystemArrays, n1: int) -> ModalArrays:
     """Modal data of the system's two blocks (floors [0, n1) and [n1, N)); ValueError when a block's
     damping is not classical (then the lane kernel cannot be used)."""
@@ -76,7 +66,7 @@ def modal_arrays(sys: SystemArrays, n1: int) -> ModalArrays:
         M = np.diag(sys.m[lo:hi])
         K = sys.K[lo:hi, lo:hi]
         C = sys.C[lo:hi, lo:hi]
-        w2, ph = building_modes(M, K)
+        w2, ph = mass_normalised_modes(M, K)
         D = ph.T @ C @ ph
         off = D - np.diag(np.diag(D))
         scale = np.sqrt(np.abs(np.outer(np.diag(D), np.diag(D)))) + 1e-300

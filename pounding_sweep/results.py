@@ -72,22 +72,62 @@ def status_words(codes: np.ndarray) -> list[str]:
     return out
 
 
+def arrow_array(values) -> pa.Array:
+    """A NumPy column (float, int, bool, or objects/strings with None for missing) as an Arrow array.
+
+    Built from the NumPy buffers: pa.array() imports pandas on its first call (to check for a
+    Series; apache/arrow#34994), which cost a metrics-only sweep half a second of start-up."""
+    v = np.asarray(values)
+    n = v.size
+    if v.dtype.kind == "f":
+        return pa.Array.from_buffers(pa.float64(), n, [None, pa.py_buffer(np.ascontiguousarray(v, np.float64))])
+    if v.dtype.kind in "iu":
+        return pa.Array.from_buffers(pa.int64(), n, [None, pa.py_buffer(np.ascontiguousarray(v, np.int64))])
+    if v.dtype.kind == "b":
+        return pa.Array.from_buffers(pa.bool_(), n, [None, pa.py_buffer(np.packbits(v, bitorder="little"))])
+    items = v.tolist()
+    valid = np.array([x is not None for x in items], dtype=bool)
+    enc = [str(x).encode() if x is not None else b"" for x in items]
+    offsets = np.zeros(n + 1, dtype=np.int32)
+    np.cumsum([len(e) for e in enc], out=offsets[1:])
+    validity = None if valid.all() else pa.py_buffer(np.packbits(valid, bitorder="little"))
+    return pa.Array.from_buffers(pa.string(), n, [validity, pa.py_buffer(offsets), pa.py_buffer(b"".join(enc))],
+                                 null_count=int(n - valid.sum()))
+
+
+def numpy_column(table: pa.Table, name: str) -> np.ndarray:
+    """A float64 or int64 column of a table as float64 NumPy (nulls -> NaN), read from its buffers
+    (Array.to_numpy imports pandas: see arrow_array)."""
+    parts = []
+    for chunk in table.column(name).chunks:
+        kind = {pa.float64(): np.float64, pa.int64(): np.int64}.get(chunk.type)
+        if kind is None:
+            raise TypeError(f"column {name!r}: {chunk.type} is not float64 or int64")
+        x = np.frombuffer(chunk.buffers()[1], dtype=kind, count=len(chunk), offset=chunk.offset * 8).astype(np.float64)
+        if chunk.null_count:
+            x[np.array(chunk.is_null().to_pylist(), dtype=bool)] = np.nan
+        parts.append(x)
+    return np.concatenate(parts) if parts else np.zeros(0)
+
+
+def arrow_table(cols: dict) -> pa.Table:
+    """Arrow table of named NumPy columns (see arrow_array)."""
+    return pa.Table.from_arrays([arrow_array(v) for v in cols.values()], names=list(cols))
+
+
 def metrics_table(params: dict[str, np.ndarray], metric_names: list[str], metrics: np.ndarray,
                   run_time: np.ndarray, extra: dict[str, np.ndarray] | None = None) -> pa.Table:
     """Arrow table of a chunk: parameters, metrics, scores (extra), status and run time."""
-    cols: dict[str, pa.Array] = {}
-    for k, v in params.items():
-        cols[k] = pa.array(v.tolist() if v.dtype == object else v)
+    cols: dict[str, np.ndarray] = dict(params)
     for i, name in enumerate(metric_names):
         if name == "status_code":
             continue
         col = metrics[:, i]
-        cols[name] = pa.array(col.astype(np.int64) if name.startswith(INT_COLUMNS) else col)
-    for name, col in (extra or {}).items():
-        cols[name] = pa.array(col)
-    cols["status"] = pa.array(status_words(metrics[:, metric_names.index("status_code")]))
-    cols["run_time_s"] = pa.array(run_time)
-    return pa.table(cols)
+        cols[name] = col.astype(np.int64) if name.startswith(INT_COLUMNS) else col
+    cols.update(extra or {})
+    cols["status"] = np.array(status_words(metrics[:, metric_names.index("status_code")]), dtype=object)
+    cols["run_time_s"] = run_time
+    return arrow_table(cols)
 
 
 def file_metadata(scene, extra: dict) -> dict[bytes, bytes]:
@@ -225,7 +265,7 @@ def histories_path(path: str | Path) -> Path:
 def histories_table(run_ids: np.ndarray, hist: np.ndarray, dt_sample: float, columns: list[str]) -> pa.Table:
     """Long-format history table: run_id, t_s and one column per channel (units in the names)."""
     n_runs, n_ch, n_s = hist.shape
-    cols = {"run_id": pa.array(np.repeat(run_ids, n_s)), "t_s": pa.array(np.tile(np.arange(n_s) * dt_sample, n_runs))}
+    cols = {"run_id": np.repeat(run_ids, n_s), "t_s": np.tile(np.arange(n_s) * dt_sample, n_runs)}
     for c, name in enumerate(columns):
-        cols[name] = pa.array(hist[:, c, :].reshape(-1))
-    return pa.table(cols)
+        cols[name] = hist[:, c, :].reshape(-1)
+    return arrow_table(cols)

@@ -34,7 +34,7 @@ from .model import CoupledModel, SystemArrays
 from .ranking import Ranking, Refinement, refine, score_columns, score_table_columns
 from . import __version__
 from .config import ConfigError
-from .results import (MANIFEST, PART_NAME, AtomicParquetWriter, file_metadata, histories_path, histories_table,
+from .results import (MANIFEST, PART_NAME, AtomicParquetWriter, file_metadata, histories_path, histories_table, numpy_column,
                       metrics_table, part_files, part_index, read_manifest, remove_stale_temporaries, sidecar_path,
                       write_manifest, write_part)
 
@@ -247,11 +247,11 @@ class _Tally:
     def add(self, table) -> None:
         self.runs += table.num_rows
         self.statuses.update(table.column("status").to_pylist())
-        self.steps += int(np.nansum(table.column("steps").to_numpy()))
-        self.kernel_s += float(np.nansum(table.column("run_time_s").to_numpy()))
+        self.steps += int(np.nansum(numpy_column(table, "steps")))
+        self.kernel_s += float(np.nansum(numpy_column(table, "run_time_s")))
         for name in table.column_names:
             if name.startswith("peak_force_f"):
-                self.peak_force = max(self.peak_force, float(np.nanmax(table.column(name).to_numpy(), initial=0.0)))
+                self.peak_force = max(self.peak_force, float(np.nanmax(numpy_column(table, name), initial=0.0)))
         if self.ranking is not None:
             self.ranking.update(table)
 

@@ -8,22 +8,26 @@ Debian's libblas3 and liblapack3):
 
 Sections (each prints a table):
   0. machine: CPU, SIMD flags, cores, load average (this machine is shared: ratios measured in
-     the same run are the claim; absolute times move with the load);
+     the same run are the claim; absolute times move with the load), and its measured peak of fused
+     multiply-adds per second and core (the roofline of section 7);
   1. compile time of each kernel with an empty cache and from the warm cache, in subprocesses,
      apart from run time;
   2. one run of the paper's model (6 Hz, k_s = k, r = 0.4, gap 0, dt = 1e-4 s, implicit scheme,
-     classic law) by every method: the lane kernel (per run inside a grid, on 1 and all cores; and
-     alone), the scalar kernel, the plain NumPy loop of the same scheme (tests/reference.py), solve_ivp
-     with contact events (tests/reference.py) and OpenSeesPy (benchmarks/peers): time per step,
-     steps/s, ratio to the engine, agreement with the engine;
-  3. grid throughput on 1 and 2 threads (parallel efficiency) on a grid of very uneven impact counts;
+     classic law: what OpenSees' Newton iteration on ViscoelasticGap elements solves) by every method:
+     the lane kernel (per run inside a grid, on 1 and all cores; and alone), the scalar kernel, the plain
+     NumPy loop of the same scheme (tests/reference.py), solve_ivp with contact events
+     (tests/reference.py) and OpenSeesPy (benchmarks/peers): time per step, steps/s, ratio to the engine,
+     agreement with the engine; and the lane kernel with the default event scheme;
+  3. grid throughput on 1 and 2 threads (parallel efficiency) on a grid of very uneven impact counts,
+     both schemes;
   4. scaling over grid size (1 .. 1e5 runs) and record length, through the sweep (run_scene:
      grid, kernel, Parquet);
   5. peak memory of a 1,000,000-run metrics-only sweep (subprocess, getrusage) against a 100,000-run
      one, and the Parquet file growing while the sweep runs;
   6. the paper's Duzce grid through the CLI with a warm cache (wall time of the whole command);
-  7. profile: the lane kernel's four vector functions timed alone, with their instruction mix, against
-     the whole kernel.
+  7. profile: where the lane kernel's time goes (vector steps without and with contact, the scalar
+     steps at contact switches, from its work counters) against the machine's FMA roofline.
+Sections 3-7 use the default event scheme.
 
 Timings: best of several repeats (wall clock), load average printed before each section.
 """
@@ -91,12 +95,12 @@ def best_of(fn, repeats: int) -> tuple[float, object]:
     return best, out
 
 
-def scene(base=SCENE_6HZ, duration=None, sweep=None, **contact):
-    """The shipped scene with the implicit scheme and the classic law (what the lane kernel and the
-    peers compute), another duration, contact values and sweep (none: the one run the contact values
-    describe)."""
+def scene(base=SCENE_6HZ, duration=None, sweep=None, scheme="event", **contact):
+    """The shipped scene with a scheme (the default event scheme; the peers of section 2 solve the
+    implicit one) and the classic law, another duration, contact values and sweep (none: the one run
+    the contact values describe)."""
     s = load_scene(base)
-    s = dataclasses.replace(s, integration=dataclasses.replace(s.integration, scheme="implicit", dt_s=DT),
+    s = dataclasses.replace(s, integration=dataclasses.replace(s.integration, scheme=scheme, dt_s=DT),
                             contact=dataclasses.replace(s.contact, law="classic", **contact))
     if duration is not None:
         s = dataclasses.replace(s, excitation=dataclasses.replace(s.excitation, duration_s=duration))
@@ -133,7 +137,7 @@ def cpu_threads() -> int:
 # ----------------------------------------------------------------------------------------- 0. machine
 
 
-def machine() -> None:
+def machine() -> float:
     header("0. machine")
     flags, model = set(), "?"
     with open("/proc/cpuinfo") as f:
@@ -148,6 +152,47 @@ def machine() -> None:
     print(f"CPU {model}, {cpu_threads()} cores, SIMD {' '.join(simd)}"
           f"{'' if 'avx512f' in flags else ' (no AVX-512: 4 float64 per instruction)'}; "
           f"Python {platform.python_version()}, NumPy {np.__version__}, Numba {numba.__version__}")
+    peak = fma_peak()
+    print(f"measured peak: {peak / 1e9:.1f} G float64 fused multiply-adds per second and core "
+          f"(independent chains of vector FMAs of the lane kernel's width)")
+    return peak
+
+
+_FMA_PEAK = None
+
+
+def fma_peak() -> float:
+    """float64 FMAs per second on one core: 6 independent chains of simd.VW-wide llvm.fma (enough to
+    hide the FMA latency on two pipes, few enough to stay in registers)."""
+    global _FMA_PEAK
+    if _FMA_PEAK is None:
+        import numba
+
+        from pounding_sweep.simd import VW, vfma, vsplat, vstore
+
+        @numba.njit
+        def chains(n, out):
+            a0 = a1 = a2 = a3 = a4 = a5 = vsplat(1.0)
+            x = vsplat(0.9999999)
+            y = vsplat(1e-9)
+            for _ in range(n):
+                a0 = vfma(a0, x, y); a1 = vfma(a1, x, y); a2 = vfma(a2, x, y)  # noqa: E702
+                a3 = vfma(a3, x, y); a4 = vfma(a4, x, y); a5 = vfma(a5, x, y)  # noqa: E702
+            vstore(out, 0, a0 + a1 + a2 + a3 + a4 + a5)
+            return 0
+
+        out = np.zeros(VW)
+        chains(10, out)
+        n = 2_000_000
+        best = min(_timed(lambda: chains(n, out)) for _ in range(5))
+        _FMA_PEAK = n * 6 * VW / best
+    return _FMA_PEAK
+
+
+def _timed(fn) -> float:
+    t0 = time.perf_counter()
+    fn()
+    return time.perf_counter() - t0
 
 
 # ----------------------------------------------------------------------------------------- 1. compile
@@ -196,7 +241,7 @@ def peers(duration: float, grid_copies: int, with_opensees: bool) -> float:
     from reference import ivp_reference, newmark_reference
     from pounding_sweep.simulate import simulate
 
-    s = scene(duration=duration, **RUN)
+    s = scene(duration=duration, scheme="implicit", **RUN)
     prep = prepare(s)
     nst = int(round(duration / DT))
     runs1, rec = run_inputs(prep, 1)
@@ -210,15 +255,20 @@ def peers(duration: float, grid_copies: int, with_opensees: bool) -> float:
     t_lane_alone, (ml, _) = best_of(lambda: driver.run_chunk_lanes(prep.sysarr, runs1, rec, prep.opts), 3)
     t_scalar, (ms, *_) = best_of(lambda: driver.run_chunk_scalar(prep.sysarr, runs1, rec, HistorySpec.none(),
                                                                   prep.opts), 3)
-    same = bool(np.array_equal(ml.view(np.int64), ms.view(np.int64))
-                and np.array_equal(mg.view(np.int64), np.repeat(ms, grid_copies, axis=0).view(np.int64)))
     names = L.metric_columns(prep.model.floors, prep.model.n_pairs)
-    peak_engine = float(ms[0, names.index("peak_force_f3_N")])
-    hist, _ = simulate(s, channels=["disp_b1f3", "disp_b2f3", "force_f3", "ground_acc"])  # engine histories
+    peak_engine = float(ml[0, names.index("peak_force_f3_N")])
+    hist, _ = simulate(s, channels=["disp_b1f3", "disp_b2f3", "force_f3", "ground_acc"])  # histories (scalar kernel)
     x1, x2 = hist["disp_b1f3_m"].to_numpy(), hist["disp_b2f3_m"].to_numpy()
 
     def agree(u1, u2, peak):
         return f"{rel_rms(u1, x1):.1e} / {rel_rms(u2, x2):.1e}", f"{abs(peak - peak_engine) / peak_engine:.1e}"
+
+    def rows_vs(m):
+        """Largest relative difference of the peak displacements and forces against the lane kernel's row."""
+        cols = [i for i, n in enumerate(names) if n.startswith(("peak_disp_b", "peak_force_f"))]
+        d = np.max(np.abs(m[0, cols] - ml[0, cols]) / np.abs(ml[0, cols]))
+        return f"peaks within {d:.0e}" if d > 0 else "identical peaks", \
+            f"{abs(m[0, names.index('peak_force_f3_N')] - peak_engine) / peak_engine:.1e}"
 
     engine = t_grid_all / grid_copies
     rows = []
@@ -227,11 +277,19 @@ def peers(duration: float, grid_copies: int, with_opensees: bool) -> float:
         rows.append([name, f"{t_run:.4g}", f"{t_run / nst * 1e9:,.1f}", fmt_rate(nst / t_run), f"{t_run / engine:,.1f}",
                      *agreement])
 
-    ident = ("identical rows" if same else "ROWS DIFFER", "0" if same else "?")
-    row(f"lane kernel, per run in a {grid_copies}-run grid, {ncores} cores [the engine]", engine, ident)
-    row(f"lane kernel, per run in a {grid_copies}-run grid, 1 core", t_grid_one / grid_copies, ident)
-    row("lane kernel, the run alone (15 idle lanes)", t_lane_alone, ident)
-    row("scalar kernel, the run alone", t_scalar, ("reference", "reference"))
+    same = bool(np.array_equal(mg, np.repeat(ml, grid_copies, axis=0)))
+    row(f"lane kernel, per run in a {grid_copies}-run grid, {ncores} cores [the engine]", engine,
+        ("rows equal to the run alone" if same else "ROWS DIFFER", "0"))
+    row(f"lane kernel, per run in a {grid_copies}-run grid, 1 core", t_grid_one / grid_copies, ("", ""))
+    row(f"lane kernel, the run alone ({driver.LANES - 1} idle lanes)", t_lane_alone, ("reference", "reference"))
+    row("scalar kernel (histories, scoring), the run alone", t_scalar, rows_vs(ms))
+    ev = scene(duration=duration, scheme="event", **RUN)
+    pev = prepare(ev)
+    rev, _ = run_inputs(pev, grid_copies)
+    driver.run_chunk_lanes(pev.sysarr, rev, rec, pev.opts, ncores)
+    t_ev, (mev, _) = best_of(lambda: driver.run_chunk_lanes(pev.sysarr, rev, rec, pev.opts, ncores), 3)
+    row(f"lane kernel, event scheme (the default: 2nd order across impacts), {ncores} cores", t_ev / grid_copies,
+        ("other scheme", f"{abs(mev[0, names.index('peak_force_f3_N')] - peak_engine) / peak_engine:.1e}"))
     t0 = time.perf_counter()
     ref = newmark_reference(s)
     t_np = time.perf_counter() - t0
@@ -260,46 +318,48 @@ def peers(duration: float, grid_copies: int, with_opensees: bool) -> float:
     table(rows, ["method", "s per run", "ns per step", "steps/s", "x engine", "top floor rel RMS b1 / b2",
                  "peak F13 rel diff"])
     print(f"(engine: lane kernel, {ncores} threads, the run repeated {grid_copies} times; agreement against the "
-          f"engine's history, peak F13 = {peak_engine:.6f} N)")
+          f"scalar kernel's history of the run (the lane kernel keeps no histories) and the engine's peak "
+          f"F13 = {peak_engine:.6f} N)")
     return engine
 
 
 # ----------------------------------------------------------------------------------------- 3. threads
 
 
-def uneven_scene(n_r: int, duration: float):
+def uneven_scene(n_r: int, duration: float, scheme: str = "event"):
     # k_s/k from 0.01 (soft, long contacts) to 100 (stiff, many short ones) and gaps from 0 to
     # 20 mm (no contact at all): runs of very different cost in one grid
-    return scene(duration=duration, sweep=[("gap_m", (0.0, 0.002, 0.02)), ("ks_ratio", np.geomspace(0.01, 100, 6)),
-                                           ("r", np.linspace(0.0, 1.0, n_r))])
+    return scene(duration=duration, scheme=scheme, sweep=[("gap_m", (0.0, 0.002, 0.02)),
+                                                          ("ks_ratio", np.geomspace(0.01, 100, 6)),
+                                                          ("r", np.linspace(0.0, 1.0, n_r))])
 
 
 def threads_table(n_r: int, duration: float) -> None:
-    s = uneven_scene(n_r, duration)
-    prep = prepare(s)
-    params = prep.grid.chunk(0, prep.grid.size)
+    ncores = cpu_threads()
+    rows = []
+    for scheme in ("event", "implicit"):
+        prep = prepare(uneven_scene(n_r, duration, scheme))
+        params = prep.grid.chunk(0, prep.grid.size)
+        names = L.metric_columns(prep.model.floors, prep.model.n_pairs)
+        for kern in ("lanes", "scalar"):
+            driver.FORCE_KERNEL = "scalar" if kern == "scalar" else None
+            try:
+                prep.run(params, threads=1)  # warm
+                base = None
+                for th in sorted({1, ncores}):
+                    t, out = best_of(lambda: prep.run(params, threads=th), 3)
+                    m = out[0]
+                    steps = float(m[:, names.index("steps")].sum())
+                    rate = steps / t
+                    base = base or rate
+                    imp = m[:, names.index("impacts_f3")]
+                    rows.append([scheme, f"{kern} kernel", th, f"{t:.3f}", fmt_rate(rate), f"{t / steps * th * 1e9:.1f}",
+                                 f"{rate / (base * th):.0%}", f"{int(imp.min())}..{int(imp.max())}"])
+            finally:
+                driver.FORCE_KERNEL = None
     header(f"3. grid throughput and parallel efficiency: gaps 0/2/20 mm x k_s/k 0.01..100 (6, log) x r 0..1 ({n_r}); "
            f"{prep.grid.size} runs of {duration:g} s")
-    ncores = cpu_threads()
-    names = L.metric_columns(prep.model.floors, prep.model.n_pairs)
-    rows = []
-    for kern in ("lanes", "scalar"):
-        driver.FORCE_KERNEL = "scalar" if kern == "scalar" else None
-        try:
-            prep.run(params, threads=1)  # warm
-            base = None
-            for th in sorted({1, ncores}):
-                t, out = best_of(lambda: prep.run(params, threads=th), 3)
-                m = out[0]
-                steps = float(m[:, names.index("steps")].sum())
-                rate = steps / t
-                base = base or rate
-                imp = m[:, names.index("impacts_f3")]
-                rows.append([f"{kern} kernel", th, f"{t:.3f}", fmt_rate(rate), f"{t / steps * th * 1e9:.1f}",
-                             f"{rate / (base * th):.0%}", f"{int(imp.min())}..{int(imp.max())}"])
-        finally:
-            driver.FORCE_KERNEL = None
-    table(rows, ["kernel", "threads", "wall [s]", "steps/s", "ns/step/core", "efficiency", "impacts f3 per run"])
+    table(rows, ["scheme", "kernel", "threads", "wall [s]", "steps/s", "ns/step/core", "efficiency", "impacts f3 per run"])
 
 
 # ----------------------------------------------------------------------------------------- 4. scaling
@@ -353,8 +413,7 @@ from pounding_sweep.sweep import run_scene
 n, dur, out = int(sys.argv[1]), float(sys.argv[2]), sys.argv[3]
 s = load_scene(r"{scene}")
 a = 100; b = 100; c = n // (a * b)
-s = dataclasses.replace(s, integration=dataclasses.replace(s.integration, scheme="implicit"),
-    excitation=dataclasses.replace(s.excitation, duration_s=dur),
+s = dataclasses.replace(s, excitation=dataclasses.replace(s.excitation, duration_s=dur),
     sweep=(Axis("ks_ratio", tuple(np.geomspace(0.1, 10.0, a))), Axis("r", tuple(np.linspace(0.0, 1.0, b))),
            Axis("gap_m", tuple(np.linspace(0.0, 0.005, c)))))
 t0 = time.perf_counter()
@@ -402,6 +461,10 @@ def memory(sizes: list[int], dur: float) -> None:
 # ----------------------------------------------------------------------------------------- 6. CLI
 
 
+NUMBA_FLOOR = ("import numba\nfrom numba.core.registry import cpu_target\n"
+               "cpu_target.target_context.refresh(); cpu_target.typing_context.refresh()")
+
+
 def cli_duzce(repeats: int) -> None:
     header("6. the paper's Duzce grid (20 runs) through the CLI, warm cache: wall time of the whole command")
     with tempfile.TemporaryDirectory() as d:
@@ -414,8 +477,15 @@ def cli_duzce(repeats: int) -> None:
             t0 = time.perf_counter()
             subprocess.run([sys.executable, "-c", "import pounding_sweep.cli"], check=True)
             imp.append(time.perf_counter() - t0)
-        rows.append(["python -c 'import pounding_sweep.cli' (start-up floor)", f"{min(imp):.2f}",
-                     f"{statistics.median(imp):.2f}", "", "", ""])
+        rows.append(["python -c 'import pounding_sweep.cli'", f"{min(imp):.2f}", f"{statistics.median(imp):.2f}",
+                     "", "", ""])
+        floor = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            subprocess.run([sys.executable, "-c", NUMBA_FLOOR], check=True)
+            floor.append(time.perf_counter() - t0)
+        rows.append(["Numba's own start-up: import numba, first-call registry refresh", f"{min(floor):.2f}",
+                     f"{statistics.median(floor):.2f}", "", "", ""])
         for label, path in (("shipped scene (its scheme: " + load_scene(SCENE_DUZCE).integration.scheme
                              + ")", SCENE_DUZCE), ("same scene, scheme = implicit (lane kernel)", implicit)):
             def cmd(k):  # a new output folder each time: a finished one would be resumed (nothing to run)
@@ -437,92 +507,61 @@ def cli_duzce(repeats: int) -> None:
 
 # ----------------------------------------------------------------------------------------- 7. profile
 
-def _profile_child() -> None:
-    """Runs in a subprocess with an empty NUMBA_CACHE_DIR (so the generated code can be inspected):
-    each vector function called 20,000 times from a compiled loop, on a 16-lane work array."""
-    import re
-
-    import numba
-
-    from pounding_sweep import kernel_lanes as K
-
-    sa = prepare(load_scene(SCENE_6HZ)).sysarr
-    nt, n1t = K.size_tuples(sa)
-    n, p = sa.m.size, sa.i1.size
-    W = np.zeros(K.n_rows(n, p) * K.LANES)
-    m, C, Kinv, H, S = sa.m, sa.C, sa.Kinv, sa.H, sa.S
-    on = np.ones(p, np.int64)
-    pq_, fq_, pc_, fc_ = K._predict_quiet, K._finish_quiet, K._predict_contact, K._finish_contact
-
-    @numba.njit
-    def loop(which, reps, W, nt, n1t, m, C, Kinv, H, S, on):
-        acc = 0
-        for k in range(reps):
-            if which == 0:
-                acc += pq_(W, 1e-4, nt, n1t, m, C, Kinv)
-            elif which == 1:
-                acc += fq_(W, 1e-4, k, nt, n1t, m, C)
-            elif which == 2:
-                acc += pc_(W, 1e-4, 0, nt, n1t, m, C, Kinv, S, on)
-            else:
-                a, b = fc_(W, 1e-4, k, nt, n1t, m, C, H, on, on)
-                acc += a + b
-        return acc
-
-    out = {}
-    for which, (name, fn) in enumerate((("predict_quiet", pq_), ("finish_quiet", fq_), ("predict_contact", pc_),
-                                        ("finish_contact", fc_))):
-        loop(which, 2, W, nt, n1t, m, C, Kinv, H, S, on)
-        asm = list(fn.inspect_asm().values())[0].split("\n_ZN")[1]  # the function, not its Python wrapper
-        ops = [ln.split()[0] for ln in asm.splitlines() if ln.startswith("\t") and not ln.strip().startswith(".")]
-        reps, best = 20000, float("inf")
-        for _ in range(7):
-            t0 = time.thread_time()
-            loop(which, reps, W, nt, n1t, m, C, Kinv, H, S, on)
-            best = min(best, time.thread_time() - t0)
-        out[name] = dict(ns=best / reps / K.LANES * 1e9, instr=len(ops),
-                         fp=sum(1 for op in ops if re.match(r"v(add|sub|mul|div)pd$", op)),
-                         mem=sum(1 for ln in asm.splitlines() if re.search(r"vmov(u|a)p[sd]\s.*\(", ln)),
-                         masked=sum(1 for op in ops if "maskmov" in op))
-    print(json.dumps(out))
+# float64 multiply-class operations (multiplies and fused multiply-adds, which share the FMA pipes)
+# per lane and step of the vector step without contact, for N modes (floors) and P pairs: the
+# modal update 3 N (ek s, cr r, cq q), input work N, damping work 2 N, modal acceleration 2 N, then
+# Phi q and Phi a, N_b^2 per building each. Counted from the source (kernel_lanes._quiet_step).
 
 
-def profile(prep_cpu) -> None:
-    header("7. profile: the lane kernel's vector functions, each alone (CPU time; instruction mix from the "
-           "generated code, fresh cache in a subprocess)")
-    with tempfile.TemporaryDirectory() as cache:
-        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
-        p = subprocess.run([sys.executable, __file__, "--profile-child"], env=env, capture_output=True, text=True,
-                           check=True)
-    r = json.loads(p.stdout.strip().splitlines()[-1])
-    rows = [[k, f"{v['ns']:.2f}", v["instr"], v["fp"], v["mem"], v["masked"]] for k, v in r.items()]
-    table(rows, ["function (one call = 16 lanes)", "ns per lane-step", "instructions (static)",
-                 "vector add/sub/mul/div", "vector loads/stores", "masked moves"])
-    quiet = r["predict_quiet"]["ns"] + r["finish_quiet"]["ns"]
-    contact = r["predict_contact"]["ns"] + r["finish_contact"]["ns"]
-    whole = prep_cpu()
-    print(f"sum of parts: no contact {quiet:.1f} ns, every pair in contact {contact:.1f} ns per lane-step; whole kernel "
-          f"(CPU time, 1 thread): grid without contact {whole['quiet']:.1f} ns, grid at gap 0 {whole['contact']:.1f} ns "
-          f"(the rest: per-step calls and checks, the scalar active-set iterations at impacts and separations, "
-          f"partly idle lanes)")
+def fma_ops_quiet(n1: int, n2: int) -> int:
+    n = n1 + n2
+    return 8 * n + 2 * (n1 * n1 + n2 * n2)
 
 
-def whole_kernel_cpu() -> dict:
-    out = {}
-    for label, gaps in (("quiet", (0.05,)), ("contact", (0.0,))):
-        s = scene(duration=2.0, sweep=[("gap_m", gaps), ("ks_ratio", np.geomspace(0.01, 100, 6)),
-                                       ("r", np.linspace(0, 1, 8))])
-        prep = prepare(s)
-        params = prep.grid.chunk(0, prep.grid.size)
-        m = prep.run(params, threads=1)[0]
-        steps = m[:, L.metric_columns(prep.model.floors, prep.model.n_pairs).index("steps")].sum()
-        best = float("inf")
-        for _ in range(5):
-            t0 = time.thread_time()
-            prep.run(params, threads=1)
-            best = min(best, time.thread_time() - t0)
-        out[label] = best / steps * 1e9
-    return out
+def profile(peak: float) -> None:
+    header("7. profile: where the lane kernel's time goes (1 thread, CPU time; work counters of the kernel)")
+    rows = []
+    for label, base, gaps in (("no contact (gap 50 mm)", SCENE_6HZ, (0.05,)), ("6 Hz at gap 0: every pair pounds", SCENE_6HZ, (0.0,)),
+                              ("Duzce record at gap 0", SCENE_DUZCE, (0.0,))):
+        for scheme in ("event", "implicit"):
+            s = scene(base=base, duration=2.0 if base == SCENE_6HZ else None, scheme=scheme,
+                      sweep=[("gap_m", gaps), ("ks_ratio", np.geomspace(0.1, 10, 4)), ("r", np.linspace(0.2, 1, 4))])
+            prep = prepare(s)
+            runs, rec = run_inputs_all(prep)
+            driver.run_chunk_lanes(prep.sysarr, runs, rec, prep.opts, 1)
+            best, stats = float("inf"), None
+            for _ in range(3):
+                t0 = time.thread_time()
+                m, _ = driver.run_chunk_lanes(prep.sysarr, runs, rec, prep.opts, 1)
+                t = time.thread_time() - t0
+                if t < best:
+                    best, stats = t, driver.LAST_LANE_STATS.copy()
+            steps = float(m[:, L.metric_columns(prep.model.floors, prep.model.n_pairs).index("steps")].sum())
+            fix_n, fix_ns, calls, vsteps = (int(x) for x in stats)
+            vec = best - fix_ns * 1e-9
+            rows.append([label, scheme, f"{best / steps * 1e9:.1f}", f"{vec / steps * 1e9:.1f}",
+                         f"{fix_n / runs.n:,.0f}", f"{fix_ns / max(fix_n, 1) / 1e3:.2f}",
+                         f"{fix_ns * 1e-9 / best:.0%}", f"{vsteps / max(calls, 1):,.0f}"])
+    table(rows, ["grid (16 runs)", "scheme", "ns/step", "of which vector ns/step", "scalar steps per run",
+                 "us per scalar step", "share scalar", "steps per vector call"])
+    n1, n2 = prepare(load_scene(SCENE_6HZ)).model.floors
+    ops = fma_ops_quiet(n1, n2)
+    roof = ops / peak * 1e9
+    print(f"roofline of the step without contact: {ops} multiply-class operations per lane and step at the measured "
+          f"{peak / 1e9:.1f} G per second and core = {roof:.1f} ns per step and core, {1e3 / roof:.0f} M steps/s "
+          f"per core. The rest of the vector step is loads, stores, compares and blends: on AMD Zen 1 every AVX2 "
+          f"instruction is two 128-bit operations and loads and stores share two address units, which bound it "
+          f"before the FMA pipes do.")
+
+
+def run_inputs_all(prep):
+    """Kernel inputs of every grid point of the scene."""
+    params = prep.grid.chunk(0, prep.grid.size)
+    ks, c, _, _, status = contact_arrays(prep.model, prep.scene, params, prep.dt)
+    ex = prep.excitation.run_arrays(params)
+    runs = RunArrays(ks, c, params["gap_m"], ex["exc_kind"], ex["exc_amp"], ex["exc_omega"], ex["rec_id"], ex["nsteps"],
+                     status)
+    return runs, (prep.excitation.rec_flat, prep.excitation.rec_off, prep.excitation.rec_len)
 
 
 # ----------------------------------------------------------------------------------------- main
@@ -533,16 +572,11 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="small sizes: a smoke test of every section")
     ap.add_argument("--no-opensees", action="store_true", help="leave OpenSeesPy out of section 2")
     ap.add_argument("--sections", default="01234567", help="which sections to run, e.g. 023")
-    ap.add_argument("--profile-child", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args()
-    if a.profile_child:
-        _profile_child()
-        return
     q = a.quick
     t0 = time.perf_counter()
     secs = a.sections
-    if "0" in secs:
-        machine()
+    peak = machine() if "0" in secs else fma_peak()
     if "1" in secs:
         compile_times()
     if "2" in secs:
@@ -557,7 +591,7 @@ def main() -> None:
     if "6" in secs:
         cli_duzce(repeats=2 if q else 5)
     if "7" in secs:
-        profile(whole_kernel_cpu)
+        profile(peak)
     print(f"\n(total {time.perf_counter() - t0:.0f} s; load average at the end {load()})")
 
 

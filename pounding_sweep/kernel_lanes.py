@@ -38,7 +38,7 @@ from numba.extending import intrinsic
 
 from . import metrics_layout as ML
 from .kernel import _monotonic_ns  # noqa: F401  (libc clock, declared to LLVM there)
-from .simd import SCRATCH, VW, f64v, many, mcount, mconst, mfloat, scratch, sget, sset, vfence, vfma, vsel, vsplat
+from .simd import SCRATCH, VW, f64v, many, mcount, mconst, mfloat, scratch, select_bits, sget, sset, vfma, vsel, vsplat
 
 #: runs per group, fixed at compile time (a multiple of simd.VW)
 LANES = 8
@@ -841,8 +841,7 @@ def _keep(typingctx, W, r, c, cond, new):
         fence = cgutils.get_or_insert_function(builder.module, ir.FunctionType(vt, [vt]),
                                                f"llvm.arithmetic.fence.v{VW}f64")
         old = builder.call(fence, [old])
-        truth = builder.icmp_signed("<", args[3], ir.Constant(ir.VectorType(ir.IntType(64), VW), [0] * VW))
-        builder.store(builder.select(truth, args[4], old), ptr, align=8)
+        builder.store(select_bits(builder, args[3], args[4], old), ptr, align=8)
         return context.get_dummy_value()
     return types.none(W, r, c, cond, new), codegen
 
@@ -853,13 +852,16 @@ C_CQ, C_CR, C_EK, C_NCF, C_NDA, C_NW2, C_DH, C_GAM = range(8)  # row C_X * N + k
 
 @_inline
 def _tab(N, P):
-    """Entries of the stack scratch T: modal accelerations, floors, free increments, forces, Psi F."""
+    """Entries of the stack scratch T: modal accelerations, floors, increments (then the new q),
+    forces, Psi F, the free step's q and r."""
     t_qa = 0
     t_u = N
     t_dq = 2 * N
     t_f = 3 * N
     t_g = 3 * N + P
-    return t_qa, t_u, t_dq, t_f, t_g
+    t_qf = 4 * N + P
+    t_rf = 5 * N + P
+    return t_qa, t_u, t_dq, t_f, t_g, t_qf, t_rf
 
 
 @_inline
@@ -1019,7 +1021,7 @@ def _quiet_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, lay):
     "some pair penetrates" (then the exact event test), energy increments, peaks."""
     r_q0, r_q1, r_g, r_f, r_pen, r_act, r_inc, r_cac, r_end, r_cd, r_R, r_s, r_met = lay
     c_phi, c_psi, c_psv = _ctab(N, P)
-    t_qa, t_u, t_dq, t_f, t_g = _tab(N, P)
+    t_qa, t_u, t_dq, t_f, t_g, t_qf, t_rf = _tab(N, P)
     vt = vsplat(step * dt)
     nevt = 0
     nbad = 0
@@ -1086,7 +1088,7 @@ def _contact_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, pon, lay)
     """One step of every chunk of lanes, some lane in contact."""
     r_q0, r_q1, r_g, r_f, r_pen, r_act, r_inc, r_cac, r_end, r_cd, r_R, r_s, r_met = lay
     c_phi, c_psi, c_psv = _ctab(N, P)
-    t_qa, t_u, t_dq, t_f, t_g = _tab(N, P)
+    t_qa, t_u, t_dq, t_f, t_g, t_qf, t_rf = _tab(N, P)
     vt = vsplat(step * dt)
     te = vsplat((step - 1) * dt + dt)
     vdt = vsplat(dt)
@@ -1100,15 +1102,15 @@ def _contact_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, pon, lay)
         s = _row(W, r_s + S_AGS, c) + _row(W, r_s + S_AGE, c)
         ks = _row(W, r_s + S_KS, c)
         gap = _row(W, r_s + S_GAP, c)
-        # the free step (start forces in the load): its end q, r into dst, its increment into T
+        # the free step (start forces in the load): its end q, r and its increment, in the scratch
         for k in range(N):
             q = _row(W, src + k, c)
             r = _row(W, src + N + k, c)
             dq = vfma(_cv(Cv, C_CQ * N + k), q,
                       vfma(_cv(Cv, C_CR * N + k), r,
                            vfma(_cv(Cv, C_EK * N + k), s, _cv(Cv, C_NCF * N + k) * _row(W, r_g + k, c))))
-            _put(W, dst + k, c, q + dq)
-            _put(W, dst + N + k, c, dq - r)
+            sset(T, t_qf + k, q + dq)
+            sset(T, t_rf + k, dq - r)
             sset(T, t_dq + k, dq)
         # each lane's forces: F = R (k_s delta_free + c delta'_free), R zero outside its contact set
         for i in range(P):
@@ -1119,8 +1121,8 @@ def _contact_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, pon, lay)
             d = zero
             v = zero
             for k in range(N):
-                d = vfma(_cv(Cv, c_psi + k * P + j), _row(W, dst + k, c), d)
-                v = vfma(_cv(Cv, c_psv + k * P + j), _row(W, dst + N + k, c), v)
+                d = vfma(_cv(Cv, c_psi + k * P + j), sget(T, t_qf + k), d)
+                v = vfma(_cv(Cv, c_psv + k * P + j), sget(T, t_rf + k), v)
             y = vfma(ks, d - gap, _row(W, r_cd + j, c) * v)
             for i in range(P):
                 if (pon >> i) & 1:
@@ -1136,8 +1138,8 @@ def _contact_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, pon, lay)
             sset(T, t_g + k, g)
             corr = _cv(Cv, C_NCF * N + k) * g
             dq = sget(T, t_dq + k) + corr
-            qn = _row(W, dst + k, c) + corr
-            rn = _row(W, dst + N + k, c) + corr
+            qn = sget(T, t_qf + k) + corr
+            rn = sget(T, t_rf + k) + corr
             _put(W, dst + k, c, qn)
             _put(W, dst + N + k, c, rn)
             sset(T, t_dq + k, qn)
@@ -1179,14 +1181,17 @@ def _contact_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, pon, lay)
             ak = act & ok
             x = _row(W, base + ML.PAIR_CONTACT_TIME, c)
             _keep(W, base + ML.PAIR_CONTACT_TIME, c, ak, x + vdt)
-            x = _row(W, base + ML.PAIR_MAX_PENETRATION, c)
-            _keep(W, base + ML.PAIR_MAX_PENETRATION, c, ak & (pen > x), pen)
-            x = _row(W, base + ML.PAIR_PEAK_FORCE, c)
-            upf = ak & (f > x)
-            _keep(W, base + ML.PAIR_PEAK_FORCE, c, upf, f)
-            _keep(W, base + ML.PAIR_PEAK_FORCE_TIME, c, upf, te)
-            x = _row(W, base + ML.PAIR_MIN_FORCE, c)
-            _keep(W, base + ML.PAIR_MIN_FORCE, c, ak & (f < x), f)
+            # extremes: written only in the steps where some lane improves them
+            up = ak & (pen > _row(W, base + ML.PAIR_MAX_PENETRATION, c))
+            if many(up):
+                _keep(W, base + ML.PAIR_MAX_PENETRATION, c, up, pen)
+            up = ak & (f > _row(W, base + ML.PAIR_PEAK_FORCE, c))
+            if many(up):
+                _keep(W, base + ML.PAIR_PEAK_FORCE, c, up, f)
+                _keep(W, base + ML.PAIR_PEAK_FORCE_TIME, c, up, te)
+            up = ak & (f < _row(W, base + ML.PAIR_MIN_FORCE, c))
+            if many(up):
+                _keep(W, base + ML.PAIR_MIN_FORCE, c, up, f)
             comp = ak & (f > 0.0)
             x = _row(W, base + ML.PAIR_COMPRESSION_TIME, c)
             _keep(W, base + ML.PAIR_COMPRESSION_TIME, c, comp, x + vdt)

@@ -162,9 +162,30 @@ _binary(operator.add, lambda b, x, y: b.fadd(x, y), f64v)
 _binary(operator.sub, lambda b, x, y: b.fsub(x, y), f64v)
 _binary(operator.mul, lambda b, x, y: b.fmul(x, y), f64v)
 _binary(operator.truediv, lambda b, x, y: b.fdiv(x, y), f64v)
-_binary(operator.gt, lambda b, x, y: b.sext(b.fcmp_ordered(">", x, y), _MT), maskv)
-_binary(operator.lt, lambda b, x, y: b.sext(b.fcmp_ordered("<", x, y), _MT), maskv)
-_binary(operator.ge, lambda b, x, y: b.sext(b.fcmp_ordered(">=", x, y), _MT), maskv)
+def _compare(op):
+    """A lane mask of x op y, compared four lanes at a time: an 8-lane comparison gives an <8 x i1>,
+    which AVX2 legalises through 16-bit lanes (a pack per comparison, an unpack per use)."""
+    def build(b, x, y):
+        if VW <= 4:
+            return b.sext(b.fcmp_ordered(op, x, y), _MT)
+        half = ir.VectorType(ir.IntType(64), 4)
+        parts = []
+        for lo in range(0, VW, 4):
+            idx = ir.Constant(ir.VectorType(_I32, 4), list(range(lo, lo + 4)))
+            xs = b.shuffle_vector(x, x, idx)
+            ys = b.shuffle_vector(y, y, idx)
+            parts.append(b.sext(b.fcmp_ordered(op, xs, ys), half))
+        while len(parts) > 1:
+            a, c = parts[0], parts[1]
+            n = a.type.count + c.type.count
+            parts = [b.shuffle_vector(a, c, ir.Constant(ir.VectorType(_I32, n), list(range(n))))] + parts[2:]
+        return parts[0]
+    return build
+
+
+_binary(operator.gt, _compare(">"), maskv)
+_binary(operator.lt, _compare("<"), maskv)
+_binary(operator.ge, _compare(">="), maskv)
 _mask_binary(operator.and_, lambda b, x, y: b.and_(x, y))
 _mask_binary(operator.or_, lambda b, x, y: b.or_(x, y))
 _mask_binary(operator.ne, lambda b, x, y: b.xor(x, y))
@@ -192,38 +213,45 @@ def _truth(builder, m):
     return builder.icmp_signed("<", m, ir.Constant(_MT, [0] * VW))
 
 
+def select_bits(builder, m, a, b):
+    """a where the 64-bit lane mask m is set (all ones), b where it is clear (for intrinsics that
+    build their own selects)."""
+    return builder.select(_truth(builder, m), a, b)
+
+
 @intrinsic
 def vsel(typingctx, m, a, b):
     """a where m, else b (lane by lane)."""
     def codegen(context, builder, sig, args):
-        return builder.select(_truth(builder, args[0]), args[1], args[2])
+        return select_bits(builder, args[0], args[1], args[2])
     return f64v(m, a, b), codegen
 
 
 @intrinsic
 def many(typingctx, m):
-    """True when any lane of the mask is true (one movmsk and a test)."""
+    """True when any lane of the mask is true: an OR reduction of the lanes (vpor and vptest; a
+    bitcast of the lanes' truth to an integer made LLVM pack the two AVX2 halves first)."""
     def codegen(context, builder, sig, args):
-        bits = builder.bitcast(_truth(builder, args[0]), ir.IntType(VW))
-        return builder.icmp_unsigned("!=", bits, ir.Constant(ir.IntType(VW), 0))
+        fn = _intrinsic_fn(builder, f"llvm.vector.reduce.or.v{VW}i64", ir.IntType(64), [_MT])
+        return builder.icmp_unsigned("!=", builder.call(fn, [args[0]]), ir.Constant(ir.IntType(64), 0))
     return types.boolean(m), codegen
 
 
 @intrinsic
 def mcount(typingctx, m):
-    """Number of true lanes."""
+    """Number of true lanes (each true lane is -1: minus the sum of the lanes)."""
     def codegen(context, builder, sig, args):
-        it = ir.IntType(VW)
-        fn = _intrinsic_fn(builder, f"llvm.ctpop.i{VW}", it, [it])
-        return builder.zext(builder.call(fn, [builder.bitcast(_truth(builder, args[0]), it)]), ir.IntType(64))
+        fn = _intrinsic_fn(builder, f"llvm.vector.reduce.add.v{VW}i64", ir.IntType(64), [_MT])
+        return builder.neg(builder.call(fn, [args[0]]))
     return types.int64(m), codegen
 
 
 @intrinsic
 def mfloat(typingctx, m):
-    """1.0 where m, else 0.0."""
+    """1.0 where m, else 0.0 (the bits of 1.0 kept where the mask is set)."""
     def codegen(context, builder, sig, args):
-        return builder.uitofp(_truth(builder, args[0]), _VT)
+        one = ir.Constant(_MT, [0x3FF0000000000000] * VW)
+        return builder.bitcast(builder.and_(args[0], one), _VT)
     return f64v(m), codegen
 
 

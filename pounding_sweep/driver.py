@@ -1,13 +1,14 @@
 """Run a chunk of grid points through the kernel on a pool of threads.
 
-Two kernels compute the same metric rows: the lane kernel (kernel_lanes.integrate_lanes, 16 runs
-side by side in SIMD lanes, the scalar kernel's arithmetic per run) takes every chunk it is
-eligible for (kernel_lanes.lanes_ineligible_reason: metrics only, implicit or event scheme, the two
-shear-frame structure); the scalar kernel (kernel.integrate_batch) takes the others (histories,
-scoring, the paper's scheme) and reruns any run that diverged in a lane.
+Two kernels compute the same metric row of a run: the lane kernel (kernel_lanes.integrate_lanes,
+LANES runs side by side in SIMD lanes, in modal coordinates) takes every chunk it is eligible for
+(kernel_lanes.lanes_ineligible_reason: metrics only, implicit or event scheme, two shear frames
+facing floor by floor with classical damping); the scalar kernel (kernel.integrate_batch) takes the
+others (histories, scoring, the paper's scheme) and reruns any run that diverged in a lane. The two
+agree to rounding (tests/test_kernel_lanes.py states the tolerances).
 
 The kernels release the GIL, so threads run side by side; work is handed out in small pieces
-(a group of 16 runs, or a small batch of runs) from a shared queue, so a thread that draws runs
+(a group of LANES runs, or a small batch of runs) from a shared queue, so a thread that draws runs
 with many impacts does not hold the others up (static splitting, as numba's prange does, would).
 Each run writes only its own row: no shared reductions, results identical whatever the thread
 count, lane or group a run lands in.

@@ -1147,10 +1147,20 @@ def _contact_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, pon, lay)
             dsum = vfma(_cv(Cv, C_DH * N + k) * dq, dq, dsum)
             sset(T, t_qa + k, vfma(_cv(Cv, C_NDA * N + k), rn, _cv(Cv, C_NW2 * N + k) * qn) - g)
         _floors(T, N, N1, t_u, t_dq, Cv, c_phi)
-        evt = _exact_events(W, c, T, N, N1, P, t_u, r_act, r_cd, dst, Cv, c_psv, law, scheme, ks, gap)
-        if many(evt):
-            _put(W, r_s + S_EVT, c, mfloat(evt))
-            nevt += mcount(evt)
+        # the exact test only where a pair out of contact penetrates or one in contact does not:
+        # every event of either scheme is one of these under the classic law (under the no-tension
+        # law a pair in contact can also switch off while penetrating: the exact test always runs)
+        maybe = mconst(law == LAW_NO_TENSION)
+        for j in range(P):
+            pe = (sget(T, t_u + j) - sget(T, t_u + N1 + j)) - gap
+            act = _row(W, r_act + j, c) > 0.5
+            maybe = maybe | (act & ~(pe > 0.0)) | (~act & (pe > 0.0))
+        evt = mconst(False)
+        if many(maybe):
+            evt = _exact_events(W, c, T, N, N1, P, t_u, r_act, r_cd, dst, Cv, c_psv, law, scheme, ks, gap)
+            if many(evt):
+                _put(W, r_s + S_EVT, c, mfloat(evt))
+                nevt += mcount(evt)
         ok = ~evt
         bad = _energy(W, c, r_s, s, pin, dsum, ok)
         bad = bad | _floor_peaks(W, c, T, N, N1, t_u, t_qa, r_met, Cv, c_phi, vt, ok)

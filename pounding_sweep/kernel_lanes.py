@@ -37,7 +37,7 @@ from numba.core import cgutils
 from numba.extending import intrinsic
 
 from . import metrics_layout as ML
-from .kernel import _monotonic_ns  # noqa: F401  (libc clock, declared to LLVM there)
+from .kernel import _ag_inside, _force_extremes, _monotonic_ns, _switch_tolerance, _want_contact
 from .simd import SCRATCH, VW, f64v, many, mcount, mconst, mfloat, scratch, select_bits, sget, sset, vfma, vsel, vsplat
 
 #: runs per group, fixed at compile time (a multiple of simd.VW)
@@ -113,7 +113,10 @@ def n_rows(n: int, p: int) -> int:
 # ------------------------------------------------------------------------------------------ scalar parts
 # One lane's step in scalar code, for the rare steps with a contact event: the scalar kernel's
 # algorithms (kernel.integrate_batch's event step: _first_event, _locate_event, _switch, _fixed_set_step; and the
-# implicit scheme's active-set iteration), written for modal state.
+# implicit scheme's active-set iteration), written for modal state. The pieces that do not depend on
+# the coordinates (the Hermite indicator, the switch tolerance, the ground motion inside a step, the
+# force extremes) are kernel.py's own: Numba's cache does not see an edit to them from here, so after
+# changing them clear pounding_sweep/__pycache__ (tests/test_kernel_lanes.py would show the drift).
 
 
 # Work arrays of one lane's scalar step, flat so that calls pass a few arrays (each array argument
@@ -145,25 +148,6 @@ def _pair(Z, rq, rqd, j, psi, gap, N):
         s += psi[k, j] * Z[rq, k]
         v += psi[k, j] * Z[rqd, k]
     return s - gap, v
-
-
-@njit_step
-def _switch_tolerance(up, uq):
-    """kernel._switch_tolerance."""
-    return 1e-15 + 1e-12 * (abs(up) + abs(uq))
-
-
-@njit_step
-def _want_contact(p0, p1, m0, m1, tau, h, law, k_s, c):
-    """kernel._want_contact: the contact indicator on the step's cubic Hermite interpolant."""
-    t2 = tau * tau
-    t3 = t2 * tau
-    p = (2 * t3 - 3 * t2 + 1) * p0 + (t3 - 2 * t2 + tau) * m0 + (-2 * t3 + 3 * t2) * p1 + (t3 - t2) * m1
-    if law == 0:
-        return p
-    dp = (6 * t2 - 6 * tau) * p0 + (3 * t2 - 4 * tau + 1) * m0 + (-6 * t2 + 6 * tau) * p1 + (3 * t2 - 2 * tau) * m1
-    f = p + (c / k_s) * dp / h
-    return min(p, f)
 
 
 @njit_step
@@ -301,14 +285,6 @@ def _finite(Z, rq, rqd, rf, phi, psi, N, P):
 
 
 @njit_step
-def _ag_inside(hs, h, ag_s, ag_e, harmonic, amp, om, t_s):
-    """kernel._ag_inside: exact for harmonic motion, linear between record samples."""
-    if harmonic:
-        return -amp * om * om * np.sin(om * (t_s + hs))
-    return ag_s + (ag_e - ag_s) * (hs / h)
-
-
-@njit_step
 def _hermite_root(p0, p1, m0, m1, h, law, k_s, c, sign, f_lo, f_hi):
     """The crossing in (0, 1] of sign * indicator on the interpolant, bracketed by f_lo < 0 <= f_hi:
     Illinois false position, then bisection steps when it stalls; the smallest bracket end where the
@@ -429,15 +405,6 @@ def _locate_event(Z, B, I, A, theta, h, hmin, ag_s, ag_e, harmonic, amp, om, t_s
     for j in range(P):
         B[B_TRIAL, j] = j == target or Z[Z_TH, j] <= 1.0
     return hs
-
-
-@njit_step
-def _force_extremes(orow, base, f, t):
-    if f > orow[base + ML.PAIR_PEAK_FORCE]:
-        orow[base + ML.PAIR_PEAK_FORCE] = f
-        orow[base + ML.PAIR_PEAK_FORCE_TIME] = t
-    if f < orow[base + ML.PAIR_MIN_FORCE]:
-        orow[base + ML.PAIR_MIN_FORCE] = f
 
 
 @njit_step
@@ -979,6 +946,44 @@ def _energy(W, c, r_s, s, pin, dsum, keep):
 
 
 @_inline
+def _events_energy_peaks(W, c, T, dst, quiet, s, pin, dsum, vt, law, scheme, N, N1, P, Cv, lay):
+    """The end of a vector step, the floors of the new state in T: the lanes with an event (EVT row),
+    then energy increments and per-floor peaks of the others. The exact event test runs only where a
+    pair out of contact penetrates or one in contact does not: every event of either scheme under the
+    classic law is one of these (under the no-tension law a pair in contact can also switch off while
+    penetrating: with contact the exact test always runs). Returns (lanes without an event, events,
+    divergences)."""
+    r_q0, r_q1, r_g, r_f, r_pen, r_act, r_inc, r_cac, r_end, r_cd, r_R, r_s, r_met = lay
+    c_phi, c_psi, c_psv = _ctab(N, P)
+    t_qa, t_u, t_dq, t_f, t_g, t_qf, t_rf = _tab(N, P)
+    gap = _row(W, r_s + S_GAP, c)
+    maybe = mconst(law == LAW_NO_TENSION and not quiet)
+    for j in range(P):
+        pe = (sget(T, t_u + j) - sget(T, t_u + N1 + j)) - gap
+        if quiet:
+            maybe = maybe | (pe > 0.0)
+        else:
+            act = _row(W, r_act + j, c) > 0.5
+            maybe = maybe | (act & ~(pe > 0.0)) | (~act & (pe > 0.0))
+    evt = mconst(False)
+    nevt = 0
+    if many(maybe):
+        evt = _exact_events(W, c, T, N, N1, P, t_u, r_act, r_cd, dst, Cv, c_psv, law, scheme, _row(W, r_s + S_KS, c),
+                            gap)
+        if many(evt):
+            _put(W, r_s + S_EVT, c, mfloat(evt))
+            nevt = mcount(evt)
+    ok = ~evt
+    bad = _energy(W, c, r_s, s, pin, dsum, ok)
+    bad = bad | _floor_peaks(W, c, T, N, N1, t_u, t_qa, r_met, Cv, c_phi, vt, ok)
+    nbad = 0
+    if many(bad):
+        _keep(W, r_s + S_BAD, c, bad, vsplat(1.0))
+        nbad = mcount(bad)
+    return ok, nevt, nbad
+
+
+@_inline
 def _fill_ag(W, r_s, prof, pid_lane, step, uniform, pid0):
     """Ground acceleration rows: AGS at the step start, AGE at its end (coef * prof[pid, step])."""
     if uniform:
@@ -1042,23 +1047,9 @@ def _quiet_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, lay):
             dsum = vfma(_cv(Cv, C_DH * N + k) * dq, dq, dsum)
             sset(T, t_qa + k, vfma(_cv(Cv, C_NDA * N + k), rn, _cv(Cv, C_NW2 * N + k) * qn))
         _floors(T, N, N1, t_u, t_dq, Cv, c_phi)
-        gap = _row(W, r_s + S_GAP, c)
-        pen_any = mconst(False)
-        for j in range(P):
-            pen_any = pen_any | ((sget(T, t_u + j) - sget(T, t_u + N1 + j)) - gap > 0.0)
-        evt = mconst(False)
-        if many(pen_any):
-            evt = _exact_events(W, c, T, N, N1, P, t_u, r_act, r_cd, dst, Cv, c_psv, law, scheme,
-                                _row(W, r_s + S_KS, c), gap)
-            if many(evt):
-                _put(W, r_s + S_EVT, c, mfloat(evt))
-                nevt += mcount(evt)
-        ok = ~evt
-        bad = _energy(W, c, r_s, s, pin, dsum, ok)
-        bad = bad | _floor_peaks(W, c, T, N, N1, t_u, t_qa, r_met, Cv, c_phi, vt, ok)
-        if many(bad):
-            _keep(W, r_s + S_BAD, c, bad, vsplat(1.0))
-            nbad += mcount(bad)
+        ok, ne, nb = _events_energy_peaks(W, c, T, dst, True, s, pin, dsum, vt, law, scheme, N, N1, P, Cv, lay)
+        nevt += ne
+        nbad += nb
     return nevt, nbad
 
 
@@ -1147,26 +1138,9 @@ def _contact_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, pon, lay)
             dsum = vfma(_cv(Cv, C_DH * N + k) * dq, dq, dsum)
             sset(T, t_qa + k, vfma(_cv(Cv, C_NDA * N + k), rn, _cv(Cv, C_NW2 * N + k) * qn) - g)
         _floors(T, N, N1, t_u, t_dq, Cv, c_phi)
-        # the exact test only where a pair out of contact penetrates or one in contact does not:
-        # every event of either scheme is one of these under the classic law (under the no-tension
-        # law a pair in contact can also switch off while penetrating: the exact test always runs)
-        maybe = mconst(law == LAW_NO_TENSION)
-        for j in range(P):
-            pe = (sget(T, t_u + j) - sget(T, t_u + N1 + j)) - gap
-            act = _row(W, r_act + j, c) > 0.5
-            maybe = maybe | (act & ~(pe > 0.0)) | (~act & (pe > 0.0))
-        evt = mconst(False)
-        if many(maybe):
-            evt = _exact_events(W, c, T, N, N1, P, t_u, r_act, r_cd, dst, Cv, c_psv, law, scheme, ks, gap)
-            if many(evt):
-                _put(W, r_s + S_EVT, c, mfloat(evt))
-                nevt += mcount(evt)
-        ok = ~evt
-        bad = _energy(W, c, r_s, s, pin, dsum, ok)
-        bad = bad | _floor_peaks(W, c, T, N, N1, t_u, t_qa, r_met, Cv, c_phi, vt, ok)
-        if many(bad):
-            _keep(W, r_s + S_BAD, c, bad, vsplat(1.0))
-            nbad += mcount(bad)
+        ok, ne, nb = _events_energy_peaks(W, c, T, dst, False, s, pin, dsum, vt, law, scheme, N, N1, P, Cv, lay)
+        nevt += ne
+        nbad += nb
         # contact spring and dashpot work on each pair's penetration, contact metrics (kernel.py's order)
         wsp = _row(W, r_s + S_WSP, c)
         wda = _row(W, r_s + S_WDA, c)

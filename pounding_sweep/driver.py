@@ -167,7 +167,8 @@ def run_chunk_lanes(sys: SystemArrays, runs: RunArrays, rec, opts: KernelOptions
     Runs are grouped by length, then by excitation profile, then by gap, so a group's lanes end
     together, share their ground motion and tend to be in contact at the same time (a group pays
     for the contact path whenever one of its lanes is in contact). Groups go to the threads one at a
-    time, the likely costliest first (longest, then smallest gap), so the last to finish is a cheap
+    time, the likely costliest first (longest first; within a length, by excitation, then smallest
+    gap), so the last to finish is a cheap
     one. A run's time is its group's time shared among the group's runs. Runs that diverged in a
     lane are rerun by the scalar kernel. (Grouping changes no result: see test_kernel_lanes.)
     """

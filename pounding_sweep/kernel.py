@@ -9,7 +9,7 @@ with the restoring sign (F_j > 0 in compression pushes building 1 back by -F_j a
 eqs. 11-16; Chopra, Dynamics of Structures, Table 5.4.2), unconditionally stable for the linear
 part, second order for smooth motion, first order across an impact that falls inside a step.
 
-Scheme "implicit" (default): the Kelvin-Voigt forces are evaluated at the end of the step, with
+Scheme "implicit": the Kelvin-Voigt forces are evaluated at the end of the step, with
 the set of pairs in contact chosen so that it agrees with the end-of-step state (active-set
 iteration). With Keff0 = K + 2/dt C + 4/dt^2 M and u0 the end-of-step state without contact,
 the end state with active set A is u = u0 - H_A F_A, H = Keff0^-1 G, and F_A solves the small

@@ -286,16 +286,24 @@ def _finite(Z, rq, rqd, rf, phi, psi, N, P):
 
 @njit_step
 def _hermite_root(p0, p1, m0, m1, h, law, k_s, c, sign, f_lo, f_hi):
-    """The crossing in (0, 1] of sign * indicator on the interpolant, bracketed by f_lo < 0 <= f_hi:
-    Illinois false position, then bisection steps when it stalls; the smallest bracket end where the
-    indicator is >= 0, to 1e-15 (the scalar kernel bisects 60 times; this takes ~10 evaluations)."""
+    """The crossing in (0, 1] of sign * indicator on the interpolant, bracketed by f_lo < 0 <= f_hi.
+    kernel._first_event bisects 60 times; here 20 halvings narrow the bracket to 1e-6 exactly as it
+    does (so where the interpolant crosses more than once, the same crossing is taken), then Illinois
+    false position finishes inside it to 1e-15 in a few evaluations. Returns the upper bracket end."""
     lo, hi = 0.0, 1.0
+    for _ in range(20):
+        mid = 0.5 * (lo + hi)
+        f = sign * _want_contact(p0, p1, m0, m1, mid, h, law, k_s, c)
+        if f >= 0.0:
+            hi, f_hi = mid, f
+        else:
+            lo, f_lo = mid, f
     side = 0
-    for _ in range(100):
-        if hi - lo <= 1e-15:
+    for _it in range(60):
+        if hi - lo <= 1e-15 or f_hi == 0.0:
             break
         t = hi - f_hi * (hi - lo) / (f_hi - f_lo)
-        if not (lo < t < hi) or _ % 4 == 3:
+        if not (lo < t < hi) or _it % 4 == 3:
             t = 0.5 * (lo + hi)
         f = sign * _want_contact(p0, p1, m0, m1, t, h, law, k_s, c)
         if f >= 0.0:
@@ -303,8 +311,6 @@ def _hermite_root(p0, p1, m0, m1, h, law, k_s, c, sign, f_lo, f_hi):
             if side == 1:
                 f_lo *= 0.5
             side = 1
-            if f == 0.0:
-                break
         else:
             lo, f_lo = t, f
             if side == -1:
@@ -1365,6 +1371,8 @@ def integrate_lanes(
     live = np.zeros(LANES, dtype=np.bool_)
     pid_lane = np.zeros(LANES, dtype=np.int64)
     act_pair = np.zeros(P, dtype=np.int64)
+    stale = np.zeros(LANES, dtype=np.bool_)  # lanes with a compressive phase open on a pair out of contact
+    stale_at = np.zeros(LANES, dtype=np.int64)  # ... since the end of this step
     # the scalar step's work arrays (see Z_*, B_*, I_*)
     phi, psi, om2, dmp, gam, N1_ = ms
     Z = np.zeros((ZR, max(N, P, 6)))
@@ -1416,6 +1424,8 @@ def integrate_lanes(
                 next_end = lane_nst[l]
         n_act = 0
         act_pair[:] = 0
+        stale[:] = False
+        any_stale = False
         step = 0
         while step < max_nst:
             # the vector code runs until a step that needs the scalar side (or a lane's last step)
@@ -1435,6 +1445,20 @@ def integrate_lanes(
             stats[ST_VSTEPS] += step - step_before
             src = r_q0 if (step - 1) % 2 == 0 else r_q1
             dst = r_q1 if (step - 1) % 2 == 0 else r_q0
+            if any_stale:
+                # a compressive phase left open by a switch-off at a step's very end (see below) closes
+                # in the lane's next step, as in kernel.integrate_batch: here, if that step was a vector
+                # step; if it is this step's scalar step, _lane_step closes it as the scalar kernel does
+                any_stale = False
+                for l in range(LANES):
+                    if stale[l]:
+                        stale[l] = False
+                        if step > stale_at[l] + 1 or W[(r_s + S_EVT) * LANES + l] < 0.5:
+                            for j in range(P):
+                                if W[(r_inc + j) * LANES + l] > 0.5 and W[(r_act + j) * LANES + l] < 0.5:
+                                    if live[l]:
+                                        _end_phase(dur, nph, l, j, W[(r_cac + j) * LANES + l])
+                                    W[(r_inc + j) * LANES + l] = 0.0
             if nevt > 0:
                 for l in range(LANES):
                     if W[(r_s + S_EVT) * LANES + l] > 0.5:
@@ -1452,6 +1476,11 @@ def integrate_lanes(
                         n_act += _count_act(W, l, P, r_act, act_pair, 1)
                         if not ok:
                             nbad += 1
+                        for j in range(P):  # a phase still open on a pair that switched off at the step end
+                            if W[(r_inc + j) * LANES + l] > 0.5 and W[(r_act + j) * LANES + l] < 0.5:
+                                stale[l] = True
+                                stale_at[l] = step
+                                any_stale = True
             if nend > 0:
                 for l in range(LANES):
                     for j in range(P):
@@ -1482,11 +1511,20 @@ def integrate_lanes(
 # ------------------------------------------------------------------------------------------ excitation
 
 
+@njit_lanes
+def _sin_profile(omega, nsteps, dt, out):
+    """out[step] = sin(omega * step * dt), the expression kernel.ground_acceleration evaluates."""
+    for step in range(nsteps + 1):
+        out[step] = np.sin(omega * step * dt)
+
+
 def excitation_profiles(runs, rec, dt):
     """Ground acceleration as coef[run] * prof[pid[run], step], equal to kernel.ground_acceleration.
 
-    Harmonic: prof = sin(omega step dt) per distinct omega, coef = -amp * omega * omega. Record:
-    prof = the resampled record (zero past its end), coef = the run's scale.
+    Harmonic: prof = sin(omega step dt) per distinct omega, by compiled code as the scalar kernel
+    evaluates it (the C library's sin: NumPy's vectorised sin may differ by an ulp on some CPUs),
+    coef = -amp * omega * omega. Record: prof = the resampled record (zero past its end), coef = the
+    run's scale.
     Returns (coef, pid, prof).
     """
     rec_flat, rec_off, rec_len = rec
@@ -1501,7 +1539,7 @@ def excitation_profiles(runs, rec, dt):
     prof = np.zeros((max(1, len(index)), nmax + 1))
     for (kind, val), k in index.items():
         if kind == EXC_HARMONIC:
-            prof[k] = np.sin(val * np.arange(nmax + 1, dtype=np.float64) * dt)
+            _sin_profile(val, nmax, dt, prof[k])
         else:
             off, ln = int(rec_off[val]), int(rec_len[val])
             m = min(ln, nmax + 1)
@@ -1546,6 +1584,9 @@ def lanes_ineligible_reason(sys, hist, opts, score) -> str | None:
         return "contact pairs are not floor j of building 1 facing floor j of building 2"
     if not (1 <= n1 < n and p == min(n1, n - n1)):
         return "pair count is not min(floors)"
+    if 6 * n + p > SCRATCH or p > 62:
+        return (f"{n} floors and {p} pairs: more than the lane kernel's register scratch ({SCRATCH} vectors for "
+                "6 N + P, see _tab) or contact-set masks (62 pairs) hold")
     for name in ("m", "C", "K"):
         if not np.all(np.isfinite(getattr(sys, name))):
             return f"non-finite {name}"

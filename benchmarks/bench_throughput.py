@@ -148,8 +148,10 @@ def machine() -> float:
                 flags = set(line.split(":", 1)[1].split())
     import numba
 
+    from llvmlite import binding as llvm_binding
+
     simd = [x for x in ("avx2", "fma", "avx512f") if x in flags]
-    print(f"CPU {model}, {cpu_threads()} cores, SIMD {' '.join(simd)}"
+    print(f"CPU {model} (LLVM: {llvm_binding.get_host_cpu_name()}), {cpu_threads()} cores, SIMD {' '.join(simd)}"
           f"{'' if 'avx512f' in flags else ' (no AVX-512: 4 float64 per instruction)'}; "
           f"Python {platform.python_version()}, NumPy {np.__version__}, Numba {numba.__version__}")
     peak = fma_peak()

@@ -738,22 +738,10 @@ def _locate_event(theta, h, hmin, ag_s, ag_e, harmonic, amp, om, t_s, u, v, a, m
             h_eval = hs
             phi = _indicator(target, un, vn, active, law, k_s, c, d, i1, i2)
             scale = max(scale, abs(un[pp] - un[qq] - d) + abs(u[pp] - u[qq] - d))
-            if phi >= 0.0:
-                hi, f_hi = hs, phi
-                if side == 1:
-                    f_lo *= 0.5  # Illinois: the same end twice, halve the other's weight
-                side = 1
-            else:
-                lo, f_lo = hs, phi
-                if side == -1:
-                    f_hi *= 0.5
-                side = -1
+            lo, hi, f_lo, f_hi, side = _illinois(lo, hi, f_lo, f_hi, side, hs, phi)
             if abs(phi) <= 1e-13 * scale or hi - lo <= 1e-13 * h or (hs <= hmin and phi >= 0.0):
                 break
-            hs = hi - f_hi * (hi - lo) / (f_hi - f_lo)
-            if not (lo < hs < hi):
-                hs = 0.5 * (lo + hi)
-            hs = max(hs, hmin)
+            hs = max(_secant_point(lo, hi, f_lo, f_hi), hmin)
         hs = h_eval  # the sub-step whose end state is in un, vn, an, F
         # does another pair switch inside this sub-step, before it ends?
         _first_event(hs, u, v, un, vn, active, just, law, k_s, c, d, i1, i2, npair, thetas, switch)
@@ -770,6 +758,28 @@ def _locate_event(theta, h, hmin, ag_s, ag_e, harmonic, amp, om, t_s, u, v, a, m
     for j in range(npair):
         switch[j] = j == target or thetas[j] <= 1.0  # the target, and pairs crossing with it
     return hs
+
+
+@njit_kernel
+def _secant_point(lo, hi, f_lo, f_hi):
+    """The false-position point of the bracket (lo, hi), or its midpoint when that falls outside."""
+    x = hi - f_hi * (hi - lo) / (f_hi - f_lo)
+    return x if lo < x < hi else 0.5 * (lo + hi)
+
+
+@njit_kernel
+def _illinois(lo, hi, f_lo, f_hi, side, x, fx):
+    """One update of an Illinois false-position bracket (lo, hi) with f(lo) < 0 <= f(hi): x, where
+    f is fx, replaces the end of its sign; when the same end moves twice running, the other end's
+    value is halved (the modified regula falsi: Dowell & Jarratt, BIT 11, 1971). Returns (lo, hi,
+    f_lo, f_hi, side), side = 1 after the high end moved, -1 after the low end."""
+    if fx >= 0.0:
+        if side == 1:
+            f_lo *= 0.5
+        return lo, x, f_lo, fx, 1
+    if side == -1:
+        f_hi *= 0.5
+    return x, hi, fx, f_hi, -1
 
 
 @njit_kernel

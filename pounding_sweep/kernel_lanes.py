@@ -37,7 +37,8 @@ from numba.core import cgutils
 from numba.extending import intrinsic
 
 from . import metrics_layout as ML
-from .kernel import _ag_inside, _force_extremes, _monotonic_ns, _switch_tolerance, _want_contact
+from .kernel import (_ag_inside, _force_extremes, _illinois, _monotonic_ns, _secant_point, _switch_tolerance,
+                     _want_contact)
 from .simd import SCRATCH, VW, f64v, many, mcount, mconst, mfloat, scratch, select_bits, sget, sset, vfma, vsel, vsplat
 
 #: runs per group, fixed at compile time (a multiple of simd.VW)
@@ -115,8 +116,9 @@ def n_rows(n: int, p: int) -> int:
 # algorithms (kernel.integrate_batch's event step: _first_event, _locate_event, _switch, _fixed_set_step; and the
 # implicit scheme's active-set iteration), written for modal state. The pieces that do not depend on
 # the coordinates (the Hermite indicator, the switch tolerance, the ground motion inside a step, the
-# force extremes) are kernel.py's own: Numba's cache does not see an edit to them from here, so after
-# changing them clear pounding_sweep/__pycache__ (tests/test_kernel_lanes.py would show the drift).
+# force extremes, the Illinois bracket update) are kernel.py's own: Numba's cache does not see an
+# edit to them from here, so after changing them clear pounding_sweep/__pycache__
+# (tests/test_kernel_lanes.py would show the drift).
 
 
 # Work arrays of one lane's scalar step, flat so that calls pass a few arrays (each array argument
@@ -191,16 +193,24 @@ def _free_step(Z, h, ag_s, ag_e, gap, psi, N, P):
 
 
 @njit_step
+def _active_pairs(B, I, P):
+    """The pairs in B_ACT into I[I_IDX, :na]; returns na."""
+    na = 0
+    for j in range(P):
+        if B[B_ACT, j]:
+            I[I_IDX, na] = j
+            na += 1
+    return na
+
+
+@njit_step
 def _set_forces(Z, B, I, A, h, k_s, psi, N, P):
     """Contact forces Z_FS at the end of a step of length h with the set B_ACT (others 0): the SPD
     system (W_SS + diag(1/kappa)) F_S = (k_s delta + c delta')_S / kappa of the free end state,
     W = Psi^T diag(cf) Psi, kappa = k_s + 2 c / h (kernel._contact_forces' system in modal form)."""
-    na = 0
     for j in range(P):
         Z[Z_FS, j] = 0.0
-        if B[B_ACT, j]:
-            I[I_IDX, na] = j
-            na += 1
+    na = _active_pairs(B, I, P)
     if na == 0:
         return
     for p in range(na):
@@ -243,6 +253,17 @@ def _end_state(Z, h, psi, N, P):
 
 
 @njit_step
+def _law_forces(Z, B, rq, rqd, rf, k_s, gap, psi, N, P):
+    """Row rf := the Kelvin-Voigt forces (eq. 8) of the pairs in B_ACT in the state (rq, rqd), 0 for
+    the others."""
+    for j in range(P):
+        Z[rf, j] = 0.0
+        if B[B_ACT, j]:
+            pen, vr = _pair(Z, rq, rqd, j, psi, gap, N)
+            Z[rf, j] = k_s * pen + Z[Z_C, j] * vr
+
+
+@njit_step
 def _fixed_set_step(Z, B, I, A, h, ag_s, ag_e, k_s, gap, psi, N, P):
     """kernel._fixed_set_step in modal form: one Newmark step of length h from (Z_Q, Z_QD, Z_F) with
     the pairs in B_ACT in contact at its end; end state in Z_QE, Z_QDE, its Kelvin-Voigt forces (eq. 8)
@@ -251,11 +272,7 @@ def _fixed_set_step(Z, B, I, A, h, ag_s, ag_e, k_s, gap, psi, N, P):
     _free_step(Z, h, ag_s, ag_e, gap, psi, N, P)
     _set_forces(Z, B, I, A, h, k_s, psi, N, P)
     _end_state(Z, h, psi, N, P)
-    for j in range(P):
-        Z[Z_FE, j] = 0.0
-        if B[B_ACT, j]:
-            pen, vr = _pair(Z, Z_QE, Z_QDE, j, psi, gap, N)
-            Z[Z_FE, j] = k_s * pen + Z[Z_C, j] * vr
+    _law_forces(Z, B, Z_QE, Z_QDE, Z_FE, k_s, gap, psi, N, P)
 
 
 @njit_step
@@ -302,20 +319,9 @@ def _hermite_root(p0, p1, m0, m1, h, law, k_s, c, sign, f_lo, f_hi):
     for _it in range(60):
         if hi - lo <= 1e-15 or f_hi == 0.0:
             break
-        t = hi - f_hi * (hi - lo) / (f_hi - f_lo)
-        if not (lo < t < hi) or _it % 4 == 3:
-            t = 0.5 * (lo + hi)
+        t = _secant_point(lo, hi, f_lo, f_hi) if _it % 4 != 3 else 0.5 * (lo + hi)
         f = sign * _want_contact(p0, p1, m0, m1, t, h, law, k_s, c)
-        if f >= 0.0:
-            hi, f_hi = t, f
-            if side == 1:
-                f_lo *= 0.5
-            side = 1
-        else:
-            lo, f_lo = t, f
-            if side == -1:
-                f_hi *= 0.5
-            side = -1
+        lo, hi, f_lo, f_hi, side = _illinois(lo, hi, f_lo, f_hi, side, t, f)
     return hi
 
 
@@ -380,22 +386,10 @@ def _locate_event(Z, B, I, A, theta, h, hmin, ag_s, ag_e, harmonic, amp, om, t_s
             ph = _indicator(Z, B, Z_QE, Z_QDE, target, law, k_s, gap, psi, N)
             p_end, _v = _pair(Z, Z_QE, Z_QDE, target, psi, gap, N)
             scale = max(scale, abs(p_end) + abs(p_start))
-            if ph >= 0.0:
-                hi, f_hi = hs, ph
-                if side == 1:
-                    f_lo *= 0.5
-                side = 1
-            else:
-                lo, f_lo = hs, ph
-                if side == -1:
-                    f_hi *= 0.5
-                side = -1
+            lo, hi, f_lo, f_hi, side = _illinois(lo, hi, f_lo, f_hi, side, hs, ph)
             if abs(ph) <= 1e-13 * scale or hi - lo <= 1e-13 * h or (hs <= hmin and ph >= 0.0):
                 break
-            hs = hi - f_hi * (hi - lo) / (f_hi - f_lo)
-            if not (lo < hs < hi):
-                hs = 0.5 * (lo + hi)
-            hs = max(hs, hmin)
+            hs = max(_secant_point(lo, hi, f_lo, f_hi), hmin)
         hs = h_eval
         _first_event(Z, B, hs, law, k_s, gap, phi, psi, N, N1, P)
         earlier = -1
@@ -441,11 +435,7 @@ def _switch(Z, B, orow, t, k_s, gap, psi, N, P, pbase):
             Z[Z_DP, j] = f - k_s * pen
             _force_extremes(orow, base, f, t)
         B[B_WAS, j] = B[B_ACT, j]
-    for j in range(P):
-        Z[Z_F, j] = 0.0
-        if B[B_ACT, j]:
-            pen, vr = _pair(Z, Z_Q, Z_QD, j, psi, gap, N)
-            Z[Z_F, j] = k_s * pen + Z[Z_C, j] * vr
+    _law_forces(Z, B, Z_Q, Z_QD, Z_F, k_s, gap, psi, N, P)
 
 
 @njit_step
@@ -637,11 +627,7 @@ def _lane_factors(W, l, P, k_s, cdash, run, dt, Wm, B, I, A, r_R):
     """Lane l's R = (I + diag(kappa) W)_SS^-1 for its set S (B_ACT), in full P x P (zeros outside S)."""
     for z in range(P * P):
         W[(r_R + z) * LANES + l] = 0.0
-    na = 0
-    for j in range(P):
-        if B[B_ACT, j]:
-            I[I_IDX, na] = j
-            na += 1
+    na = _active_pairs(B, I, P)
     if na == 0:
         return
     # Gauss-Jordan on [I + diag(kappa) W_SS | I] (no pivoting: similar to I + SPD, positive pivots)
@@ -1064,7 +1050,8 @@ def _contact(W, step0, step1, dt, scheme, law, nt, n1t, Cv, pon, prof, pid_lane,
     """Steps step0..step1 with some lane in contact: the step with each lane's contact set (forces from
     its R), contact metrics and energies. Pairs in contact in no lane (bit j of pon clear) have zero
     force in every lane. Returns at the first step with an event, a divergence or the end of a
-    compressive phase: (that step, lanes with an event, lanes diverged, lanes whose phase ended)."""
+    compressive phase: (that step, lanes with an event, lanes diverged, lanes whose phase ended).
+    Its loop is _quiet's: one function for both cost the quiet step 6-14 %."""
     N = len(nt)
     N1 = len(n1t)
     P = min(N1, N - N1)

@@ -124,11 +124,11 @@ def main(argv: list[str] | None = None) -> int:
         _parser().print_usage(sys.stderr)
         print("error: give a scene file (TOML); see --help", file=sys.stderr)
         return EXIT_BAD_INPUT
-    from .sweep import run_scene
-
     scene = None
     try:
         scene = load_scene(args.scene)
+        from .sweep import run_scene  # Numba and pyarrow: after the scene is read, so bad input fails fast
+
         if args.threads is not None and args.threads < 0:
             raise ConfigError(f"--threads {args.threads}: must be >= 0")
         if args.workers is not None and args.workers < 0:

@@ -19,9 +19,10 @@ import numpy as np
 if TYPE_CHECKING:  # pandas costs 0.3 s to import: only where a table is built
     import pandas as pd
 
+    from .driver import ScoreSpec  # imports Numba: only where a score is set up, so bad input fails fast
+
 from .channels import floor_dof
 from .config import ExperimentConfig
-from .driver import ScoreSpec
 
 
 class ExperimentError(ValueError):
@@ -156,6 +157,8 @@ def score_spec(exp: Experiment, cfg: ExperimentConfig, floors: tuple[int, int], 
     Simulation time = experiment time - time_offset_s. The window defaults to all of the
     experiment that the simulation covers; a window outside that is an error.
     """
+    from .driver import ScoreSpec
+
     ts = exp.time_s - cfg.time_offset_s
     lo, hi = (0.0, sim_duration_s) if cfg.window_s is None else cfg.window_s
     if cfg.window_s is not None and (lo < 0 or hi > sim_duration_s + 1e-9):

@@ -19,7 +19,8 @@ Sections (each prints a table):
      (tests/reference.py) and OpenSeesPy (benchmarks/peers): time per step, steps/s, ratio to the engine,
      agreement with the engine; and the lane kernel with the default event scheme;
   3. grid throughput on 1 and 2 threads (parallel efficiency) on a grid of very uneven impact counts,
-     both schemes;
+     both schemes, in rounds (1 thread pinned to each core, then all cores), with the load balance
+     (threads busy) and the work's CPU-time growth with every core busy, apart;
   4. scaling over grid size (1 .. 1e5 runs) and record length, through the sweep (run_scene:
      grid, kernel, Parquet);
   5. peak memory of a 1,000,000-run metrics-only sweep (subprocess, getrusage) against a 100,000-run
@@ -336,8 +337,24 @@ def uneven_scene(n_r: int, duration: float, scheme: str = "event"):
                                                           ("r", np.linspace(0.0, 1.0, n_r))])
 
 
-def threads_table(n_r: int, duration: float) -> None:
-    ncores = cpu_threads()
+def _pinned(fn, cpus: set[int]) -> float:
+    """Wall time of fn() with this process's threads allowed on `cpus` only."""
+    allowed = os.sched_getaffinity(0)
+    os.sched_setaffinity(0, cpus)
+    try:
+        return best_of(fn, 1)[0]
+    finally:
+        os.sched_setaffinity(0, allowed)
+
+
+def threads_table(n_r: int, duration: float, rounds: int) -> None:
+    """Each round: the grid on one thread pinned to each core in turn, then on every core. This VM's
+    cores are not equally fast for the engine at all times (the host's other tenants share their
+    caches and load/store units; at times one core runs the grid 1.5x faster than the other), so the
+    table gives the efficiency against the fastest core of each round and, apart, over the rounds in
+    which the cores were equally fast (solo times within 5 %): the engine's own scaling."""
+    cores = sorted(os.sched_getaffinity(0))
+    nc = len(cores)
     rows = []
     for scheme in ("event", "implicit"):
         prep = prepare(uneven_scene(n_r, duration, scheme))
@@ -346,22 +363,38 @@ def threads_table(n_r: int, duration: float) -> None:
         for kern in ("lanes", "scalar"):
             driver.FORCE_KERNEL = "scalar" if kern == "scalar" else None
             try:
-                prep.run(params, threads=1)  # warm
-                base = None
-                for th in sorted({1, ncores}):
-                    t, out = best_of(lambda: prep.run(params, threads=th), 3)
-                    m = out[0]
-                    steps = float(m[:, names.index("steps")].sum())
-                    rate = steps / t
-                    base = base or rate
-                    imp = m[:, names.index("impacts_f3")]
-                    rows.append([scheme, f"{kern} kernel", th, f"{t:.3f}", fmt_rate(rate), f"{t / steps * th * 1e9:.1f}",
-                                 f"{rate / (base * th):.0%}", f"{int(imp.min())}..{int(imp.max())}"])
+                m = prep.run(params, threads=1)[0]  # warm
+                steps = float(m[:, names.index("steps")].sum())
+                imp = m[:, names.index("impacts_f3")]
+                solo, alls, effs, even, busy, infl = [], [], [], [], [], []
+                for _ in range(rounds if kern == "lanes" else max(2, rounds // 4)):
+                    ts = [_pinned(lambda: prep.run(params, threads=1), {c}) for c in cores]
+                    c0 = time.process_time()
+                    t_all = best_of(lambda: prep.run(params, threads=nc), 1)[0]
+                    cpu = time.process_time() - c0  # every thread's CPU time (the waiting main thread's is ~0)
+                    solo.append(min(ts))
+                    alls.append(t_all)
+                    effs.append(min(ts) / (nc * t_all))
+                    busy.append(cpu / (nc * t_all))
+                    infl.append(cpu / (sum(ts) / nc))
+                    if max(ts) <= 1.05 * min(ts):
+                        even.append(effs[-1])
+                med = statistics.median
+                rows.append([scheme, f"{kern} kernel", f"{min(solo):.3f}", f"{min(alls):.3f}",
+                             fmt_rate(steps / min(alls)), f"{med(effs):.0%} ({min(effs):.0%}..{max(effs):.0%})",
+                             f"{med(even):.0%} ({len(even)} of {len(effs)})" if even else f"none of {len(effs)}",
+                             f"{med(busy):.0%}", f"{med(infl):.2f}", f"{int(imp.min())}..{int(imp.max())}"])
             finally:
                 driver.FORCE_KERNEL = None
     header(f"3. grid throughput and parallel efficiency: gaps 0/2/20 mm x k_s/k 0.01..100 (6, log) x r 0..1 ({n_r}); "
-           f"{prep.grid.size} runs of {duration:g} s")
-    table(rows, ["scheme", "kernel", "threads", "wall [s]", "steps/s", "ns/step/core", "efficiency", "impacts f3 per run"])
+           f"{prep.grid.size} runs of {duration:g} s; each round: 1 thread pinned to each core, then {nc} threads")
+    table(rows, ["scheme", "kernel", "1 core, best [s]", f"{nc} cores, best [s]", f"steps/s on {nc}",
+                 "efficiency per round: median (range)", "rounds with equally fast cores: median", "threads busy",
+                 "CPU time x 1 core", "impacts f3 per run"])
+    print(f"(efficiency of a round = t(fastest core alone) / ({nc} x t({nc} threads)); cores equally fast: their solo "
+          f"times within 5 %. Threads busy = CPU time of the {nc}-thread run / ({nc} x its wall time): the load balance. "
+          "CPU time x 1 core = that CPU time / the mean solo time: above 1, the same work cost more with every core "
+          "busy (caches and load/store units shared with each other and the host's other tenants); medians)")
 
 
 # ----------------------------------------------------------------------------------------- 4. scaling
@@ -584,7 +617,7 @@ def main() -> None:
     if "2" in secs:
         peers(duration=1.0 if q else 5.0, grid_copies=64 if q else 512, with_opensees=not a.no_opensees)
     if "3" in secs:
-        threads_table(n_r=4 if q else 20, duration=0.5 if q else 2.0)
+        threads_table(n_r=4 if q else 20, duration=0.5 if q else 2.0, rounds=2 if q else 8)
     if "4" in secs:
         scaling(sizes=[1, 10, 100, 1000] if q else [1, 10, 100, 1000, 10_000, 100_000], run_s=0.2 if q else 1.0,
                 lengths=[0.5, 2.0] if q else [0.5, 2.0, 8.0, 32.0], n_len=100 if q else 1000)

@@ -1,0 +1,184 @@
+"""Where the lane kernel's time goes, by compiled function and by instruction class (Linux perf).
+
+Usage (from the repository root, dev install; needs `perf` (Debian: linux-perf) with
+/proc/sys/kernel/perf_event_paranoid <= 2, and objdump for the instruction mix):
+
+    python benchmarks/profile_lanes.py                    # 6 Hz at gap 0 (every pair pounds), event
+    python benchmarks/profile_lanes.py --gap 0.05         # no contact
+    python benchmarks/profile_lanes.py --scheme implicit
+
+The lane kernel is compiled into a temporary Numba cache (about 45 s), so that its linked LLVM
+module is at hand: every compiled function's address goes into /tmp/perf-PID.map, where perf
+finds the names of JIT code. Then `perf record -p` samples this process while it runs a 16-run
+grid (bench_throughput section 7's) over and over, on one thread. Printed: the share of samples
+per function, then the instruction mix of the hottest compiled function (samples by the class
+of the instruction they landed on: on an out-of-order CPU a sample lands near, not on, the
+instruction that stalled, so read classes, not single instructions).
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import ctypes
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def short(name: str) -> str:
+    """`_ZN14pounding_sweep12kernel_lanes8_contactB3v51...` -> `kernel_lanes._contact`."""
+    at = name.find("14pounding_sweep")
+    if at < 0:
+        return name[:60]
+    rest = name[at + len("14pounding_sweep"):]
+    parts = []
+    while rest and rest[0].isdigit() and len(parts) < 2:
+        n = int(re.match(r"\d+", rest).group(0))
+        k = len(str(n))
+        parts.append(rest[k:k + n])
+        rest = rest[k + n:]
+    return ".".join(parts)
+
+
+def compiled_functions(dispatcher) -> list[tuple[int, str]]:
+    """(address, name) of every function defined in the dispatcher's linked modules."""
+    out = []
+    for cres in dispatcher.overloads.values():
+        lib = cres.library
+        for f in lib._final_module.functions:
+            if f.is_declaration:
+                continue
+            try:
+                addr = lib.get_pointer_to_function(f.name)
+            except Exception:  # noqa: BLE001 (a name the engine did not export)
+                continue
+            if addr:
+                out.append((addr, f.name))
+    return sorted(set(out))
+
+
+def instruction_class(text: str) -> str:
+    op = text.split()[0]
+    ops = text[len(op):].strip()
+    mem = "(" in ops
+    if op.startswith(("vmov", "vbroadcast", "mov")):
+        return "store" if "(" in ops.split(",")[-1] else ("load" if mem else "register move")
+    if op.startswith(("vfmadd", "vfnmadd", "vfmsub", "vfnmsub", "vmul")):
+        return "multiply / FMA" + (" with a load" if mem else "")
+    if op.startswith(("vadd", "vsub")):
+        return "add / subtract" + (" with a load" if mem else "")
+    if op.startswith(("vcmp", "vblend", "vand", "vor", "vxor", "vpack", "vptest", "vmovmsk", "vperm", "vextract",
+                      "vinsert")):
+        return "compare / blend / mask" + (" with a load" if mem else "")
+    return "scalar, branch, other"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--gap", type=float, default=0.0, help="gap [m] of every run (0: every pair pounds)")
+    ap.add_argument("--scheme", default="event", choices=["event", "implicit"])
+    ap.add_argument("--seconds", type=float, default=4.0, help="how long perf samples")
+    a = ap.parse_args()
+    perf = shutil.which("perf")
+    if perf is None:
+        sys.exit("perf not found: install it (Debian: apt-get install linux-perf)")
+    with open("/proc/sys/kernel/perf_event_paranoid") as f:
+        if int(f.read()) > 2:
+            sys.exit("perf_event_paranoid > 2: perf cannot sample this process")
+
+    tmp = Path(tempfile.mkdtemp(prefix="profile_lanes_"))
+    os.environ["NUMBA_CACHE_DIR"] = str(tmp / "cache")  # compile here: the linked module stays at hand
+    sys.path.insert(0, str(REPO / "benchmarks"))
+    sys.argv = sys.argv[:1]
+    import numpy as np
+
+    import bench_throughput as B
+    from pounding_sweep import driver, kernel_lanes
+
+    s = B.scene(base=B.SCENE_6HZ, duration=2.0, scheme=a.scheme,
+                sweep=[("gap_m", (a.gap,)), ("ks_ratio", np.geomspace(0.1, 10, 4)), ("r", np.linspace(0.2, 1, 4))])
+    prep = B.prepare(s)
+    runs, rec = B.run_inputs_all(prep)
+    t0 = time.perf_counter()
+    driver.run_chunk_lanes(prep.sysarr, runs, rec, prep.opts, 1)
+    print(f"compiled the lane kernel in {time.perf_counter() - t0:.0f} s")
+    syms = compiled_functions(kernel_lanes.integrate_lanes)
+    pmap = Path(f"/tmp/perf-{os.getpid()}.map")
+    with open(pmap, "w") as fh:
+        for k, (addr, name) in enumerate(syms):
+            end = syms[k + 1][0] if k + 1 < len(syms) else addr + 65536
+            fh.write(f"{addr:x} {end - addr:x} {short(name)}\n")
+
+    data = tmp / "perf.data"
+    rec_p = subprocess.Popen([perf, "record", "-q", "-p", str(os.getpid()), "-o", str(data)],
+                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    time.sleep(0.5)
+    t0 = time.perf_counter()
+    calls = 0
+    while time.perf_counter() - t0 < a.seconds:
+        driver.run_chunk_lanes(prep.sysarr, runs, rec, prep.opts, 1)
+        calls += 1
+    wall = time.perf_counter() - t0
+    rec_p.send_signal(signal.SIGINT)
+    rec_p.wait(timeout=60)
+    steps = calls * runs.n * int(runs.nsteps.max())
+    print(f"{calls} calls of the 16-run grid (gap {a.gap} m, {a.scheme} scheme), {wall:.1f} s: "
+          f"{wall / steps * 1e9:.1f} ns per step and run on one thread, perf attached")
+
+    rep = subprocess.run([perf, "report", "-i", str(data), "--stdio", "--sort", "symbol", "--percent-limit", "0.5"],
+                         capture_output=True, text=True).stdout
+    print("\nshare of samples   function")
+    for line in rep.splitlines():
+        m = re.match(r"\s*([\d.]+%)\s+\[.\]\s+(\S+)", line)
+        if m:
+            print(f"{m.group(1):>16}   {m.group(2)}")
+
+    shares = {m.group(2): float(m.group(1)[:-1]) for m in re.finditer(r"([\d.]+%)\s+\[.\]\s+(\S+)", rep)}
+    named = [(shares.get(short(n), 0.0), k) for k, (_, n) in enumerate(syms)]
+    best, k = max(named)
+    hot = syms[k]
+    objdump = shutil.which("objdump")
+    if objdump is None or best == 0.0:
+        print("\n(no instruction mix: objdump missing or no samples in compiled code)")
+        return
+    addr, name = hot
+    end = syms[k + 1][0] if k + 1 < len(syms) else addr + 65536
+    binf = tmp / "hot.bin"
+    binf.write_bytes(ctypes.string_at(addr, end - addr))
+    asm = subprocess.run([objdump, "-D", "-b", "binary", "-mi386:x86-64", f"--adjust-vma={addr:#x}", str(binf)],
+                         capture_output=True, text=True).stdout
+    ips = collections.Counter()
+    script = subprocess.run([perf, "script", "-i", str(data), "-F", "ip,sym"], capture_output=True, text=True).stdout
+    for line in script.splitlines():
+        parts = line.split()
+        if len(parts) >= 2 and parts[1] == short(name):
+            ips[int(parts[0], 16)] += 1
+    total = sum(ips.values())
+    by_class, static = collections.Counter(), collections.Counter()
+    for line in asm.splitlines():
+        m = re.match(r"\s*([0-9a-f]+):\s+(?:[0-9a-f]{2} )+\s*(\S.*)", line)
+        if m:
+            c = instruction_class(m.group(2))
+            by_class[c] += ips.get(int(m.group(1), 16), 0)
+            static[c] += 1
+    frame = re.search(r"sub\s+\$0x([0-9a-f]+),%rsp", asm)
+    print(f"\ninstruction mix of {short(name)} ({total} samples; stack frame "
+          f"{int(frame.group(1), 16) if frame else 0:,} bytes)")
+    print("share of samples   class   (instructions of that class in the code)")
+    for c, n in by_class.most_common():
+        print(f"{n / max(total, 1):>16.1%}   {c}   ({static[c]})")
+    pmap.unlink(missing_ok=True)
+    shutil.rmtree(tmp, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -67,17 +67,6 @@ def test_bad_input(case, tmp_path):
     assert ROWS.get(case.id) == render_row(INDEX[case.id], case, o.code, o.message(d)), STALE
 
 
-def test_a_scene_error_is_reported_before_the_engine_is_loaded(tmp_path):
-    """A scene that fails to load never imports Numba, pyarrow or SciPy (about 1 s of start-up here)."""
-    scene = tmp_path / "bad.toml"
-    scene.write_text(BASE.replace("r = [0.2, 0.6]", "r = [0.2, 1.5]"))
-    code = ("import sys; from pounding_sweep.cli import main; rc = main([sys.argv[1]]); "
-            "print(rc, [m for m in ('numba', 'pyarrow', 'scipy') if m in sys.modules])")
-    p = subprocess.run([sys.executable, "-c", code, str(scene)], capture_output=True, text=True, cwd=REPO)
-    assert p.stdout.strip() == "2 []", (p.stdout, p.stderr)
-    assert "r" in p.stderr and "1.5" in p.stderr
-
-
 # ------------------------------------------------------------------ a dozen through the real command
 
 

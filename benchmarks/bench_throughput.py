@@ -54,11 +54,11 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "tests"))
 sys.path.insert(0, str(REPO / "benchmarks" / "peers"))
 
-from pounding_sweep import driver  # noqa: E402
+from pounding_sweep import driver, kernel_lanes  # noqa: E402
 from pounding_sweep import metrics_layout as L  # noqa: E402
 from pounding_sweep.config import Axis, load_scene  # noqa: E402
 from pounding_sweep.driver import HistorySpec, RunArrays  # noqa: E402
-from pounding_sweep.sweep import contact_arrays, prepare, run_scene  # noqa: E402
+from pounding_sweep.sweep import prepare, run_scene  # noqa: E402
 
 SCENE_6HZ = REPO / "sweeps" / "paper_6hz.toml"
 SCENE_DUZCE = REPO / "sweeps" / "paper_duzce.toml"
@@ -108,16 +108,12 @@ def scene(base=SCENE_6HZ, duration=None, sweep=None, scheme="event", **contact):
     return dataclasses.replace(s, sweep=tuple(Axis(n, tuple(float(x) for x in v)) for n, v in (sweep or ())))
 
 
-def run_inputs(prep, copies=1):
-    """Kernel inputs of the scene's first grid point, repeated `copies` times."""
-    params = prep.grid.chunk(0, 1)
-    ks, c, _, _, status = contact_arrays(prep.model, prep.scene, params, prep.dt)
-    ex = prep.excitation.run_arrays(params)
-    one = RunArrays(ks, c, params["gap_m"], ex["exc_kind"], ex["exc_amp"], ex["exc_omega"], ex["rec_id"],
-                    ex["nsteps"], status)
-    runs = RunArrays(*(np.ascontiguousarray(np.repeat(getattr(one, f.name), copies, axis=0))
-                       for f in dataclasses.fields(RunArrays)))
-    rec = (prep.excitation.rec_flat, prep.excitation.rec_off, prep.excitation.rec_len)
+def run_inputs(prep, copies=1, points=1):
+    """Kernel inputs of the scene's first `points` grid points, repeated `copies` times."""
+    runs, rec, _ = prep.kernel_inputs(prep.grid.chunk(0, points))
+    if copies > 1:
+        runs = RunArrays(*(np.ascontiguousarray(np.repeat(getattr(runs, f.name), copies, axis=0))
+                           for f in dataclasses.fields(RunArrays)))
     return runs, rec
 
 
@@ -187,15 +183,9 @@ def fma_peak() -> float:
         out = np.zeros(VW)
         chains(10, out)
         n = 2_000_000
-        best = min(_timed(lambda: chains(n, out)) for _ in range(5))
+        best = best_of(lambda: chains(n, out), 5)[0]
         _FMA_PEAK = n * 6 * VW / best
     return _FMA_PEAK
-
-
-def _timed(fn) -> float:
-    t0 = time.perf_counter()
-    fn()
-    return time.perf_counter() - t0
 
 
 # ----------------------------------------------------------------------------------------- 1. compile
@@ -562,7 +552,7 @@ def profile(peak: float) -> None:
             s = scene(base=base, duration=2.0 if base == SCENE_6HZ else None, scheme=scheme,
                       sweep=[("gap_m", gaps), ("ks_ratio", np.geomspace(0.1, 10, 4)), ("r", np.linspace(0.2, 1, 4))])
             prep = prepare(s)
-            runs, rec = run_inputs_all(prep)
+            runs, rec = run_inputs(prep, points=prep.grid.size)
             driver.run_chunk_lanes(prep.sysarr, runs, rec, prep.opts, 1)
             best, stats = float("inf"), None
             for _ in range(3):
@@ -572,7 +562,8 @@ def profile(peak: float) -> None:
                 if t < best:
                     best, stats = t, driver.LAST_LANE_STATS.copy()
             steps = float(m[:, L.metric_columns(prep.model.floors, prep.model.n_pairs).index("steps")].sum())
-            fix_n, fix_ns, calls, vsteps = (int(x) for x in stats)
+            fix_n, fix_ns, calls, vsteps = (int(stats[k]) for k in (kernel_lanes.ST_FIXUPS, kernel_lanes.ST_FIX_NS,
+                                                                     kernel_lanes.ST_CALLS, kernel_lanes.ST_VSTEPS))
             vec = best - fix_ns * 1e-9
             rows.append([label, scheme, f"{best / steps * 1e9:.1f}", f"{vec / steps * 1e9:.1f}",
                          f"{fix_n / runs.n:,.0f}", f"{fix_ns / max(fix_n, 1) / 1e3:.2f}",
@@ -589,16 +580,6 @@ def profile(peak: float) -> None:
           f"before the FMA pipes do.")
 
 
-def run_inputs_all(prep):
-    """Kernel inputs of every grid point of the scene."""
-    params = prep.grid.chunk(0, prep.grid.size)
-    ks, c, _, _, status = contact_arrays(prep.model, prep.scene, params, prep.dt)
-    ex = prep.excitation.run_arrays(params)
-    runs = RunArrays(ks, c, params["gap_m"], ex["exc_kind"], ex["exc_amp"], ex["exc_omega"], ex["rec_id"], ex["nsteps"],
-                     status)
-    return runs, (prep.excitation.rec_flat, prep.excitation.rec_off, prep.excitation.rec_len)
-
-
 # ----------------------------------------------------------------------------------------- main
 
 
@@ -611,7 +592,7 @@ def main() -> None:
     q = a.quick
     t0 = time.perf_counter()
     secs = a.sections
-    peak = machine() if "0" in secs else fma_peak()
+    peak = machine() if "0" in secs else None  # the FMA peak: only where a section needs it
     if "1" in secs:
         compile_times()
     if "2" in secs:
@@ -626,7 +607,7 @@ def main() -> None:
     if "6" in secs:
         cli_duzce(repeats=2 if q else 5)
     if "7" in secs:
-        profile(peak)
+        profile(peak or fma_peak())
     print(f"\n(total {time.perf_counter() - t0:.0f} s; load average at the end {load()})")
 
 

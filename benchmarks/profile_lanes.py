@@ -97,6 +97,16 @@ def main() -> None:
 
     tmp = Path(tempfile.mkdtemp(prefix="profile_lanes_"))
     os.environ["NUMBA_CACHE_DIR"] = str(tmp / "cache")  # compile here: the linked module stays at hand
+    pmap = Path(f"/tmp/perf-{os.getpid()}.map")
+    try:
+        _profile(a, perf, tmp, pmap)
+    finally:
+        pmap.unlink(missing_ok=True)
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _profile(a, perf: str, tmp: Path, pmap: Path) -> None:
+    """Compile, map, sample and print (main's work; main cleans up)."""
     sys.path.insert(0, str(REPO / "benchmarks"))
     sys.argv = sys.argv[:1]
     import numpy as np
@@ -107,12 +117,11 @@ def main() -> None:
     s = B.scene(base=B.SCENE_6HZ, duration=2.0, scheme=a.scheme,
                 sweep=[("gap_m", (a.gap,)), ("ks_ratio", np.geomspace(0.1, 10, 4)), ("r", np.linspace(0.2, 1, 4))])
     prep = B.prepare(s)
-    runs, rec = B.run_inputs_all(prep)
+    runs, rec = B.run_inputs(prep, points=prep.grid.size)
     t0 = time.perf_counter()
     driver.run_chunk_lanes(prep.sysarr, runs, rec, prep.opts, 1)
     print(f"compiled the lane kernel in {time.perf_counter() - t0:.0f} s")
     syms = compiled_functions(kernel_lanes.integrate_lanes)
-    pmap = Path(f"/tmp/perf-{os.getpid()}.map")
     with open(pmap, "w") as fh:
         for k, (addr, name) in enumerate(syms):
             end = syms[k + 1][0] if k + 1 < len(syms) else addr + 65536
@@ -136,13 +145,11 @@ def main() -> None:
 
     rep = subprocess.run([perf, "report", "-i", str(data), "--stdio", "--sort", "symbol", "--percent-limit", "0.5"],
                          capture_output=True, text=True).stdout
+    shares = {m.group(2): float(m.group(1)) for m in re.finditer(r"([\d.]+)%\s+\[.\]\s+(\S+)", rep)}
     print("\nshare of samples   function")
-    for line in rep.splitlines():
-        m = re.match(r"\s*([\d.]+%)\s+\[.\]\s+(\S+)", line)
-        if m:
-            print(f"{m.group(1):>16}   {m.group(2)}")
+    for fn, share in shares.items():
+        print(f"{share:>15.2f}%   {fn}")
 
-    shares = {m.group(2): float(m.group(1)[:-1]) for m in re.finditer(r"([\d.]+%)\s+\[.\]\s+(\S+)", rep)}
     named = [(shares.get(short(n), 0.0), k) for k, (_, n) in enumerate(syms)]
     best, k = max(named)
     hot = syms[k]
@@ -151,6 +158,7 @@ def main() -> None:
         print("\n(no instruction mix: objdump missing or no samples in compiled code)")
         return
     addr, name = hot
+    hot_name = short(name)
     end = syms[k + 1][0] if k + 1 < len(syms) else addr + 65536
     binf = tmp / "hot.bin"
     binf.write_bytes(ctypes.string_at(addr, end - addr))
@@ -160,7 +168,7 @@ def main() -> None:
     script = subprocess.run([perf, "script", "-i", str(data), "-F", "ip,sym"], capture_output=True, text=True).stdout
     for line in script.splitlines():
         parts = line.split()
-        if len(parts) >= 2 and parts[1] == short(name):
+        if len(parts) >= 2 and parts[1] == hot_name:
             ips[int(parts[0], 16)] += 1
     total = sum(ips.values())
     by_class, static = collections.Counter(), collections.Counter()
@@ -171,13 +179,13 @@ def main() -> None:
             by_class[c] += ips.get(int(m.group(1), 16), 0)
             static[c] += 1
     frame = re.search(r"sub\s+\$0x([0-9a-f]+),%rsp", asm)
-    print(f"\ninstruction mix of {short(name)} ({total} samples; stack frame "
+    print(f"\ninstruction mix of {hot_name} ({total} samples; stack frame "
           f"{int(frame.group(1), 16) if frame else 0:,} bytes)")
     print("share of samples   class   (instructions of that class in the code)")
     for c, n in by_class.most_common():
         print(f"{n / max(total, 1):>16.1%}   {c}   ({static[c]})")
-    pmap.unlink(missing_ok=True)
-    shutil.rmtree(tmp, ignore_errors=True)
+
+
 
 
 if __name__ == "__main__":

@@ -26,8 +26,9 @@ import numpy as np
 
 from . import metrics_layout as L
 from .kernel import integrate_batch
-from .kernel_lanes import LANES, ST_N, coefficient_table, excitation_profiles, integrate_lanes, lanes_ineligible_reason, size_tuples
-from .modal import modal_arrays
+from .kernel_lanes import (LANES, ST_N, coefficient_table, excitation_profiles, integrate_lanes, lane_modes,
+                           lanes_ineligible_reason, size_tuples)
+from .modal import ModalArrays, modal_arrays
 from .model import SystemArrays
 from .score_kernel import N_SCORES
 
@@ -106,16 +107,18 @@ def kernel_for(sys: SystemArrays, hist: HistorySpec, opts: KernelOptions, score:
 #: set to "scalar" to force the scalar kernel everywhere (benchmarks and tests compare the two)
 FORCE_KERNEL: str | None = None
 #: the lane kernel's work counters (kernel_lanes.ST_*) of the last run_chunk_lanes call (benchmarks)
-LAST_LANE_STATS = np.zeros(4, dtype=np.int64)
+LAST_LANE_STATS = np.zeros(ST_N, dtype=np.int64)
 
 
 def run_chunk(sys: SystemArrays, runs: RunArrays, rec, hist: HistorySpec, opts: KernelOptions,
               threads: int = 1, batch_runs: int = 0, score: ScoreSpec | None = None):
     """Integrate every run of the chunk; return (metrics, run_time_s, histories or None, scores or None)."""
     score = score or ScoreSpec.none()
-    if FORCE_KERNEL != "scalar" and runs.n > 0 and kernel_for(sys, hist, opts, score) == "lanes":
-        metrics, run_time = run_chunk_lanes(sys, runs, rec, opts, threads)
-        return metrics, run_time, None, None
+    if FORCE_KERNEL != "scalar" and runs.n > 0:
+        ma = lane_modes(sys, hist, opts, score)
+        if isinstance(ma, ModalArrays):
+            metrics, run_time = run_chunk_lanes(sys, runs, rec, opts, threads, ma)
+            return metrics, run_time, None, None
     return run_chunk_scalar(sys, runs, rec, hist, opts, threads, batch_runs, score)
 
 
@@ -161,8 +164,10 @@ def run_chunk_scalar(sys: SystemArrays, runs: RunArrays, rec, hist: HistorySpec,
     return metrics, run_time, (hist_arr if hist.active else None), (scores if score.active else None)
 
 
-def run_chunk_lanes(sys: SystemArrays, runs: RunArrays, rec, opts: KernelOptions, threads: int = 1):
-    """run_chunk on the lane kernel (the caller checked eligibility): (metrics, run_time_s).
+def run_chunk_lanes(sys: SystemArrays, runs: RunArrays, rec, opts: KernelOptions, threads: int = 1,
+                    ma: ModalArrays | None = None):
+    """run_chunk on the lane kernel (the caller checked eligibility; `ma`: the system's modal data
+    when the caller has them, from kernel_lanes.lane_modes): (metrics, run_time_s).
 
     Runs are grouped by length, then by excitation profile, then by gap, so a group's lanes end
     together, share their ground motion and tend to be in contact at the same time (a group pays
@@ -181,9 +186,9 @@ def run_chunk_lanes(sys: SystemArrays, runs: RunArrays, rec, opts: KernelOptions
     order = np.lexsort((runs.gap, pid, -runs.nsteps)).astype(np.int64)
     nt, n1t = size_tuples(sys)
     n_groups = -(-n // LANES)
-    ma = modal_arrays(sys, len(n1t))
-    ms = (ma.phi, ma.psi, ma.om2, ma.dmp, ma.gam, ma.n1)
-    cv = coefficient_table(ma, sys.dt)
+    ma = ma if ma is not None else modal_arrays(sys, len(n1t))
+    ms = (ma.phi, ma.psi, ma.om2, ma.dmp, ma.gam)
+    cv = coefficient_table(ma)
 
     stats = np.zeros((n_groups, ST_N), dtype=np.int64)  # one row per group: no thread shares one
 
@@ -224,9 +229,10 @@ def compile_kernel(sys: SystemArrays, opts: KernelOptions, hist: HistorySpec | N
                      np.ones(1), np.zeros(1, np.int64), np.ones(1, np.int64), np.zeros(1, np.int64))
     rec = (np.zeros(1), np.zeros(1, np.int64), np.zeros(1, np.int64))
     none = HistorySpec.none()
-    lanes_ok = lanes_ineligible_reason(sys, hist or none, opts, score) is None
+    ma = lane_modes(sys, hist or none, opts, score)
+    lanes_ok = isinstance(ma, ModalArrays)
     if lanes_ok:
-        run_chunk_lanes(sys, runs, rec, opts)
+        run_chunk_lanes(sys, runs, rec, opts, 1, ma)
     if hist is None or not lanes_ok:
         run_chunk_scalar(sys, runs, rec, hist or none, opts, score=score)
     return time.perf_counter() - t0

@@ -33,13 +33,14 @@ import numba
 import numpy as np
 from llvmlite import ir
 from numba import types
-from numba.core import cgutils
 from numba.extending import intrinsic
 
 from . import metrics_layout as ML
 from .kernel import (_ag_inside, _force_extremes, _illinois, _monotonic_ns, _secant_point, _switch_tolerance,
                      _want_contact)
-from .simd import SCRATCH, VW, f64v, many, mcount, mconst, mfloat, scratch, select_bits, sget, sset, vfma, vsel, vsplat
+from .modal import ModalArrays, modal_arrays
+from .simd import (SCRATCH, VW, elem_ptr, f64v, fence, many, mcount, mconst, mfloat, scratch, select_bits, sget,
+                   splat, sset, vfma, vsel, vsplat)
 
 #: runs per group, fixed at compile time (a multiple of simd.VW)
 LANES = 8
@@ -105,10 +106,6 @@ def _layout(N, P):
     r_s = r_R + P * P  # per-lane scalars (S_*)
     r_met = r_s + N_SCALARS  # metric slots before the per-run ones (metrics_layout order)
     return r_q0, r_q1, r_g, r_f, r_pen, r_act, r_inc, r_cac, r_end, r_cd, r_R, r_s, r_met
-
-
-def n_rows(n: int, p: int) -> int:
-    return 5 * n + 7 * p + p * p + N_SCALARS + ML.PER_DOF * n + ML.PER_PAIR * p
 
 
 # ------------------------------------------------------------------------------------------ scalar parts
@@ -340,14 +337,14 @@ def _first_event(Z, B, h, law, k_s, gap, phi, psi, N, N1, P):
         c = Z[Z_C, j]
         sign = -1.0 if B[B_ACT, j] else 1.0
         tol = _switch_tolerance(_floor_u(Z, Z_QE, j, phi, N), _floor_u(Z, Z_QE, N1 + j, phi, N))
-        if sign * _want_contact(p0, p1, m0, m1, 1.0, h, law, k_s, c) <= tol:
+        f1 = sign * _want_contact(p0, p1, m0, m1, 1.0, h, law, k_s, c)
+        if f1 <= tol:
             continue
         f0 = sign * _want_contact(p0, p1, m0, m1, 0.0, h, law, k_s, c)
         if not B[B_JUST, j] and f0 >= 0.0:
             Z[Z_TH, j] = 0.0
         else:
-            Z[Z_TH, j] = _hermite_root(p0, p1, m0, m1, h, law, k_s, c, sign, min(f0, -1e-300),
-                                       sign * _want_contact(p0, p1, m0, m1, 1.0, h, law, k_s, c))
+            Z[Z_TH, j] = _hermite_root(p0, p1, m0, m1, h, law, k_s, c, sign, min(f0, -1e-300), f1)
         if Z[Z_TH, j] < first:
             first = Z[Z_TH, j]
     for j in range(P):
@@ -663,7 +660,6 @@ def _lane_step(W, l, src, dst, step, dt, scheme, law, max_iter, harmonic, amp, o
     for k in range(N):
         Z[Z_Q, k] = W[(src + k) * LANES + l]
         Z[Z_QD, k] = (2.0 / dt) * W[(src + N + k) * LANES + l]
-    start = 0
     for j in range(P):
         Z[Z_C, j] = cdash[run, j]
         Z[Z_F, j] = W[(r_f + j) * LANES + l]
@@ -676,8 +672,7 @@ def _lane_step(W, l, src, dst, step, dt, scheme, law, max_iter, harmonic, amp, o
         Z[Z_PP, j] = pen
         Z[Z_SP, j] = k_s * pen if act else 0.0
         Z[Z_DP, j] = Z[Z_F, j] - Z[Z_SP, j] if act else 0.0
-        if act and j < 62:
-            start |= 1 << j
+    start = _mask(B, B_ACT, P)
     Z[Z_EN, E_IN] = W[(r_s + S_EIN) * LANES + l]
     Z[Z_EN, E_ABS] = W[(r_s + S_EABS) * LANES + l]
     Z[Z_EN, E_DST] = W[(r_s + S_DST) * LANES + l]
@@ -721,15 +716,12 @@ def _lane_step(W, l, src, dst, step, dt, scheme, law, max_iter, harmonic, amp, o
         for j in range(P):
             g += psi[k, j] * Z[Z_F, j]
         W[(r_g + k) * LANES + l] = g
-    mk = 0
     for j in range(P):
         W[(r_f + j) * LANES + l] = Z[Z_F, j]
         W[(r_act + j) * LANES + l] = 1.0 if B[B_ACT, j] else 0.0
         W[(r_inc + j) * LANES + l] = 1.0 if B[B_INC, j] else 0.0
         W[(r_cac + j) * LANES + l] = Z[Z_CAC, j]
         W[(r_pen + j) * LANES + l] = Z[Z_PP, j]
-        if B[B_ACT, j] and j < 62:
-            mk |= 1 << j
     W[(r_s + S_EIN) * LANES + l] = Z[Z_EN, E_IN]
     W[(r_s + S_EABS) * LANES + l] = Z[Z_EN, E_ABS]
     W[(r_s + S_DST) * LANES + l] = Z[Z_EN, E_DST]
@@ -738,7 +730,7 @@ def _lane_step(W, l, src, dst, step, dt, scheme, law, max_iter, harmonic, amp, o
     W[(r_s + S_WREL) * LANES + l] = Z[Z_EN, E_WREL]
     for z in range(nmet):
         W[(r_met + z) * LANES + l] = orow[z]
-    if mk != start:
+    if _mask(B, B_ACT, P) != start:
         _lane_factors(W, l, P, k_s, cdash, run, dt, Wm, B, I, A, r_R)
     return True
 
@@ -746,22 +738,18 @@ def _lane_step(W, l, src, dst, step, dt, scheme, law, max_iter, harmonic, amp, o
 # ------------------------------------------------------------------------------------------ vector parts
 
 
-def _vec_ptr(context, builder, sig, args, stride):
-    """Pointer to arr[r * stride + c] as a vector pointer."""
-    i64 = ir.IntType(64)
-    idx = builder.mul(context.cast(builder, args[1], sig.args[1], types.int64), ir.Constant(i64, stride))
-    if len(args) > 2 and stride == LANES:
-        idx = builder.add(idx, context.cast(builder, args[2], sig.args[2], types.int64))
-    a = context.make_array(sig.args[0])(context, builder, args[0])
-    vt = ir.VectorType(ir.DoubleType(), VW)
-    return builder.bitcast(builder.gep(a.data, [idx], inbounds=True), vt.as_pointer())
+def _vec_ptr(context, builder, sig, args):
+    """Pointer to W[r * LANES + c] (args W, r, c) as a vector pointer."""
+    idx = builder.mul(context.cast(builder, args[1], sig.args[1], types.int64), ir.Constant(ir.IntType(64), LANES))
+    idx = builder.add(idx, context.cast(builder, args[2], sig.args[2], types.int64))
+    return elem_ptr(context, builder, sig.args[0], args[0], idx)
 
 
 @intrinsic
 def _row(typingctx, W, r, c):
     """W[r * LANES + c : ... + VW] as a vector (row r, lanes c..c+VW-1)."""
     def codegen(context, builder, sig, args):
-        return builder.load(_vec_ptr(context, builder, sig, args, LANES), align=8)
+        return builder.load(_vec_ptr(context, builder, sig, args), align=8)
     return f64v(W, r, c), codegen
 
 
@@ -769,7 +757,7 @@ def _row(typingctx, W, r, c):
 def _put(typingctx, W, r, c, v):
     """Row r, lanes c..c+VW-1 := v."""
     def codegen(context, builder, sig, args):
-        builder.store(args[3], _vec_ptr(context, builder, sig, args, LANES), align=8)
+        builder.store(args[3], _vec_ptr(context, builder, sig, args), align=8)
         return context.get_dummy_value()
     return types.none(W, r, c, v), codegen
 
@@ -781,11 +769,7 @@ def _cv(typingctx, Cv, r):
     def codegen(context, builder, sig, args):
         a = context.make_array(sig.args[0])(context, builder, args[0])
         idx = context.cast(builder, args[1], sig.args[1], types.intp)
-        x = builder.load(builder.gep(a.data, [idx], inbounds=True))
-        vt = ir.VectorType(ir.DoubleType(), VW)
-        i32 = ir.IntType(32)
-        v = builder.insert_element(ir.Constant(vt, ir.Undefined), x, ir.Constant(i32, 0))
-        return builder.shuffle_vector(v, v, ir.Constant(ir.VectorType(i32, VW), [0] * VW))
+        return splat(builder, builder.load(builder.gep(a.data, [idx], inbounds=True)))
     return f64v(Cv, r), codegen
 
 
@@ -794,12 +778,8 @@ def _keep(typingctx, W, r, c, cond, new):
     """Row r := new where cond, else unchanged (the old value through an arithmetic fence, so that
     LLVM does not turn the select and store into a masked store: microcoded and slow on AMD Zen)."""
     def codegen(context, builder, sig, args):
-        ptr = _vec_ptr(context, builder, sig, args, LANES)
-        vt = ir.VectorType(ir.DoubleType(), VW)
-        old = builder.load(ptr, align=8)
-        fence = cgutils.get_or_insert_function(builder.module, ir.FunctionType(vt, [vt]),
-                                               f"llvm.arithmetic.fence.v{VW}f64")
-        old = builder.call(fence, [old])
+        ptr = _vec_ptr(context, builder, sig, args)
+        old = fence(builder, builder.load(ptr, align=8))
         builder.store(select_bits(builder, args[3], args[4], old), ptr, align=8)
         return context.get_dummy_value()
     return types.none(W, r, c, cond, new), codegen
@@ -832,9 +812,10 @@ def _ctab(N, P):
     return c_phi, c_psi, c_psv
 
 
-def coefficient_table(ma, dt: float) -> np.ndarray:
-    """The vector code's coefficients (modal.ModalArrays at dt), in _ctab's order."""
+def coefficient_table(ma: ModalArrays) -> np.ndarray:
+    """The vector code's coefficients (modal.ModalArrays at its dt), in _ctab's order."""
     n = ma.om2.size
+    dt = ma.dt
     rows = [ma.cq, ma.cr, -ma.cf * ma.gam, -ma.cf, (-2.0 / dt) * ma.dmp, -ma.om2, ma.dmp / dt, ma.gam,
             ma.phi.ravel(), ma.psi.ravel(), (2.0 / dt) * ma.psi.ravel()]
     flat = np.concatenate([np.asarray(r, dtype=np.float64).ravel() for r in rows])
@@ -956,7 +937,7 @@ def _events_energy_peaks(W, c, T, dst, quiet, s, pin, dsum, vt, law, scheme, N, 
             maybe = maybe | (pe > 0.0)
         else:
             act = _row(W, r_act + j, c) > 0.5
-            maybe = maybe | (act & ~(pe > 0.0)) | (~act & (pe > 0.0))
+            maybe = maybe | (act != (pe > 0.0))
     evt = mconst(False)
     nevt = 0
     if many(maybe):
@@ -1320,7 +1301,7 @@ def integrate_lanes(
     # structure: nt, n1t are tuples of length N and N1 (floor counts fixed at compile time)
     nt,
     n1t,
-    ms,  # (phi, psi, om2, dmp, gam, N1): modal.ModalArrays, for the scalar steps
+    ms,  # (phi, psi, om2, dmp, gam): modal.ModalArrays, for the scalar steps
     Wm,  # W = Psi^T diag(cf) Psi at dt
     Cv,  # coefficient_table: the vector code's coefficients
     # per run
@@ -1361,7 +1342,7 @@ def integrate_lanes(
     stale = np.zeros(LANES, dtype=np.bool_)  # lanes with a compressive phase open on a pair out of contact
     stale_at = np.zeros(LANES, dtype=np.int64)  # ... since the end of this step
     # the scalar step's work arrays (see Z_*, B_*, I_*)
-    phi, psi, om2, dmp, gam, N1_ = ms
+    phi, psi, om2, dmp, gam = ms
     Z = np.zeros((ZR, max(N, P, 6)))
     for k in range(N):
         Z[Z_OM2, k] = om2[k]
@@ -1544,14 +1525,18 @@ def size_tuples(sys):
 
 
 def lanes_ineligible_reason(sys, hist, opts, score) -> str | None:
-    """Why this chunk must run on the scalar kernel, or None when the lane kernel computes its rows.
+    """Why this chunk must run on the scalar kernel, or None when the lane kernel computes its rows."""
+    why = lane_modes(sys, hist, opts, score)
+    return why if isinstance(why, str) else None
+
+
+def lane_modes(sys, hist, opts, score) -> ModalArrays | str:
+    """The modal data the lane kernel runs this chunk with, or why it must run on the scalar kernel.
 
     The lane kernel computes metric rows only (no histories, no scoring against an experiment), for
     the event and implicit schemes, for two shear frames facing floor by floor (pair j: floor j of
     building 1 and floor j of building 2, min(N1, N2) pairs) with classical damping in each.
     """
-    from .modal import modal_arrays
-
     if hist is not None and hist.active:
         return "histories requested"
     if score is not None and score.active:
@@ -1580,7 +1565,6 @@ def lanes_ineligible_reason(sys, hist, opts, score) -> str | None:
     if np.any(sys.C[:n1, n1:] != 0.0) or np.any(sys.K[:n1, n1:] != 0.0):
         return "the buildings are coupled outside the contact pairs"
     try:
-        modal_arrays(sys, n1)
+        return modal_arrays(sys, n1)
     except ValueError as e:
         return str(e)
-    return None

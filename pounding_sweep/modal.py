@@ -46,11 +46,6 @@ class ModalArrays:
     cq: np.ndarray  # -2 w^2 / keff
     cr: np.ndarray  # 8 / (dt^2 keff)
     W: np.ndarray  # (P, P) Psi^T diag(cf) Psi
-    n1: int  # floors of building 1
-
-    def arrays(self) -> tuple:
-        """The tuple the lane kernel takes."""
-        return (self.phi, self.psi, self.om2, self.dmp, self.gam, self.cf, self.cq, self.cr, self.W)
 
 
 def modal_arrays(sys: SystemArrays, n1: int) -> ModalArrays:
@@ -85,4 +80,4 @@ def modal_arrays(sys: SystemArrays, n1: int) -> ModalArrays:
     W = psi.T @ (cf[:, None] * psi)
     c = np.ascontiguousarray
     return ModalArrays(dt, c(phi), c(psi), c(om2), c(dmp), c(gam), c(cf), c(-2.0 * om2 * cf), c(8.0 / (dt * dt) * cf),
-                       c(0.5 * (W + W.T)), int(n1))
+                       c(0.5 * (W + W.T)))

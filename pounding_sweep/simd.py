@@ -55,7 +55,8 @@ class _MaskVecModel(models.PrimitiveModel):
         super().__init__(dmm, fe_type, _MT)
 
 
-def _elem_ptr(context, builder, aryty, ary, idx):
+def elem_ptr(context, builder, aryty, ary, idx):
+    """IR: pointer to ary[idx] as a vector pointer (no bounds check)."""
     a = context.make_array(aryty)(context, builder, ary)
     return builder.bitcast(builder.gep(a.data, [idx], inbounds=True), _VT.as_pointer())
 
@@ -64,19 +65,24 @@ def _intrinsic_fn(builder, name, ret, args):
     return cgutils.get_or_insert_function(builder.module, ir.FunctionType(ret, args), name)
 
 
-@intrinsic
-def vload(typingctx, arr, idx):
-    """arr[idx:idx + VW] as a vector (no bounds check)."""
-    def codegen(context, builder, sig, args):
-        return builder.load(_elem_ptr(context, builder, sig.args[0], args[0], args[1]), align=8)
-    return f64v(arr, idx), codegen
+def splat(builder, x):
+    """IR: the float64 x in every lane (insertelement + shufflevector: one broadcast)."""
+    v = builder.insert_element(ir.Constant(_VT, ir.Undefined), x, ir.Constant(_I32, 0))
+    return builder.shuffle_vector(v, v, ir.Constant(ir.VectorType(_I32, VW), [0] * VW))
+
+
+def fence(builder, v):
+    """IR: v through llvm.arithmetic.fence: no code, but LLVM no longer sees where the value came from.
+    Used on the kept operand of a select that is stored back where it was loaded from: given
+    store(select(c, x, load p), p), LLVM would otherwise emit a masked store (slow on AMD Zen)."""
+    return builder.call(_intrinsic_fn(builder, f"llvm.arithmetic.fence.v{VW}f64", _VT, [_VT]), [v])
 
 
 @intrinsic
 def vstore(typingctx, arr, idx, v):
     """arr[idx:idx + VW] = v (no bounds check)."""
     def codegen(context, builder, sig, args):
-        builder.store(args[2], _elem_ptr(context, builder, sig.args[0], args[0], args[1]), align=8)
+        builder.store(args[2], elem_ptr(context, builder, sig.args[0], args[0], args[1]), align=8)
         return context.get_dummy_value()
     return types.none(arr, idx, v), codegen
 
@@ -85,8 +91,7 @@ def vstore(typingctx, arr, idx, v):
 def vsplat(typingctx, x):
     """A vector with x in every lane."""
     def codegen(context, builder, sig, args):
-        v = builder.insert_element(ir.Constant(_VT, ir.Undefined), args[0], ir.Constant(_I32, 0))
-        return builder.shuffle_vector(v, v, ir.Constant(ir.VectorType(_I32, VW), [0] * VW))
+        return splat(builder, args[0])
     return f64v(types.float64), codegen
 
 
@@ -115,9 +120,7 @@ def _as_vec(context, builder, ty, val):
     """A vector operand: the vector itself, or a scalar cast to float64 and splatted."""
     if _is_vec(ty):
         return val
-    x = context.cast(builder, val, ty, types.float64)
-    v = builder.insert_element(ir.Constant(_VT, ir.Undefined), x, ir.Constant(_I32, 0))
-    return builder.shuffle_vector(v, v, ir.Constant(ir.VectorType(_I32, VW), [0] * VW))
+    return splat(builder, context.cast(builder, val, ty, types.float64))
 
 
 def _binary(op, build, restype):
@@ -195,13 +198,6 @@ _unary(operator.invert, lambda t: isinstance(t, MaskVec), maskv, lambda b, x: b.
 
 
 @intrinsic
-def mnot(typingctx, m):
-    def codegen(context, builder, sig, args):
-        return builder.xor(args[0], ir.Constant(_MT, [-1] * VW))
-    return maskv(m), codegen
-
-
-@intrinsic
 def mconst(typingctx, value):
     """Every lane true (value True) or false."""
     def codegen(context, builder, sig, args):
@@ -253,16 +249,6 @@ def mfloat(typingctx, m):
         one = ir.Constant(_MT, [0x3FF0000000000000] * VW)
         return builder.bitcast(builder.and_(args[0], one), _VT)
     return f64v(m), codegen
-
-
-@intrinsic
-def vfence(typingctx, a):
-    """a, through llvm.arithmetic.fence: no code, but LLVM no longer sees where the value came from.
-    Used on the kept operand of a select that is stored back where it was loaded from: given
-    store(select(c, x, load p), p), LLVM would otherwise emit a masked store (slow on AMD Zen)."""
-    def codegen(context, builder, sig, args):
-        return builder.call(_intrinsic_fn(builder, f"llvm.arithmetic.fence.v{VW}f64", _VT, [_VT]), [args[0]])
-    return f64v(a), codegen
 
 
 #: vectors in a stack scratch buffer (see `scratch`)

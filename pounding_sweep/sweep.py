@@ -88,15 +88,20 @@ class Prepared:
         """Integrate the runs described by `params` (as Grid.chunk gives them)."""
         if self.auto is not None:
             return self.auto.run(params, threads, batch_runs)
+        runs, rec, derived = self.kernel_inputs(params)
+        metrics, run_time, hist, scores = run_chunk(self.sysarr, runs, rec, self.hist, self.opts, threads, batch_runs,
+                                                    self.score)
+        return metrics, run_time, hist, scores, derived
+
+    def kernel_inputs(self, params: dict[str, np.ndarray]):
+        """The kernel's inputs for `params` at the scene's dt: (RunArrays, record arrays, the derived
+        contact columns)."""
         ks, c, xi, spp, status = contact_arrays(self.model, self.scene, params, self.dt)
         ex = self.excitation.run_arrays(params)
         runs = RunArrays(ks, c, params["gap_m"], ex["exc_kind"], ex["exc_amp"], ex["exc_omega"], ex["rec_id"],
                          ex["nsteps"], status)
         rec = (self.excitation.rec_flat, self.excitation.rec_off, self.excitation.rec_len)
-        metrics, run_time, hist, scores = run_chunk(self.sysarr, runs, rec, self.hist, self.opts, threads, batch_runs,
-                                                    self.score)
-        derived = {"ks_N_per_m": ks, "contact_damping_ratio": xi, "steps_per_contact_period": spp}
-        return metrics, run_time, hist, scores, derived
+        return runs, rec, {"ks_N_per_m": ks, "contact_damping_ratio": xi, "steps_per_contact_period": spp}
 
 
 def prepare(scene: Scene) -> Prepared:

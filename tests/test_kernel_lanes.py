@@ -31,12 +31,13 @@ import numpy as np
 import pytest
 
 from conftest import SWEEPS
+from reference import newmark_reference
 from pounding_sweep import driver, kernel, kernel_lanes
 from pounding_sweep import metrics_layout as L
 from pounding_sweep.config import Axis, load_scene
 from pounding_sweep.contact import CONTACT_LAWS
 from pounding_sweep.driver import HistorySpec, RunArrays, ScoreSpec
-from pounding_sweep.sweep import contact_arrays, prepare
+from pounding_sweep.sweep import prepare
 
 KS = (0.01, 0.1, 1.0, 10.0, 100.0, 1e4)
 R = (0.0, 0.4, 1.0)
@@ -58,14 +59,50 @@ def implicit(scene, law="classic", duration=None, scheme="implicit", dt=None):
 
 
 def chunk_inputs(prep, params=None):
-    """RunArrays and record arrays for a chunk of the scene's grid, as sweep.Prepared.run builds them."""
-    params = params if params is not None else prep.grid.chunk(0, prep.grid.size)
-    ks, c, _, _, status = contact_arrays(prep.model, prep.scene, params, prep.dt)
-    ex = prep.excitation.run_arrays(params)
-    runs = RunArrays(ks, c, params["gap_m"], ex["exc_kind"], ex["exc_amp"], ex["exc_omega"], ex["rec_id"],
-                     ex["nsteps"], status)
-    rec = (prep.excitation.rec_flat, prep.excitation.rec_off, prep.excitation.rec_len)
+    """RunArrays and record arrays for a chunk of the scene's grid (sweep.Prepared.kernel_inputs)."""
+    runs, rec, _ = prep.kernel_inputs(params if params is not None else prep.grid.chunk(0, prep.grid.size))
     return runs, rec
+
+
+# (ks_ratio, r, gap_m, law, scheme): test_reference's pounding cases, both laws and both lane schemes
+NUMPY_REFERENCE_CASES = [
+    (1.0, 0.4, 0.0, "classic", "implicit"),
+    (10.0, 0.0, 1e-3, "classic", "implicit"),
+    (1.0, 0.0, 0.0, "no_tension", "implicit"),
+    (1.0, 0.4, 0.0, "classic", "event"),
+    (0.1, 1.0, 0.0, "classic", "event"),
+    (10.0, 0.4, 0.0, "no_tension", "event"),
+    (1.0, 1.0, 1e-3, "no_tension", "event"),
+]
+
+
+@pytest.mark.parametrize("ks_ratio, r, gap_m, law, scheme", NUMPY_REFERENCE_CASES,
+                         ids=lambda v: f"{v}" if not isinstance(v, float) else f"{v:g}")
+def test_lane_kernel_metrics_equal_the_numpy_reference(ks_ratio, r, gap_m, law, scheme):
+    """The lane kernel against the plain NumPy Newmark loop of tests/reference.py directly (not only
+    through the scalar kernel), 1 s of the 6 Hz scene: impacts and unsettled steps equal, peak
+    displacements and peak forces within 1e-6, contact time within one step per impact."""
+    base = implicit(load_scene(SWEEPS / "paper_6hz.toml"), law=law, duration=1.0, scheme=scheme)
+    s = dataclasses.replace(base, sweep=(), contact=dataclasses.replace(base.contact, ks_ratio=ks_ratio, r=r,
+                                                                        gap_m=gap_m))
+    prep = prepare(s)
+    assert kernel_lanes.lanes_ineligible_reason(prep.sysarr, HistorySpec.none(), prep.opts, None) is None
+    runs, rec = chunk_inputs(prep)
+    assert runs.n == 1
+    m, _ = driver.run_chunk_lanes(prep.sysarr, runs, rec, prep.opts)
+    row = dict(zip(L.metric_columns(prep.model.floors, prep.model.n_pairs), m[0]))
+    ref = newmark_reference(s)
+    dt = ref["problem"].dt
+    floors = [f"b{b}f{f}" for b, nf in zip((1, 2), prep.model.floors) for f in range(1, nf + 1)]
+    for i, name in enumerate(floors):
+        assert row[f"peak_disp_{name}_m"] == pytest.approx(np.max(np.abs(ref["u"][:, i])), rel=1e-6)
+    impacts = [int(row[f"impacts_f{j + 1}"]) for j in range(prep.model.n_pairs)]
+    assert any(impacts), "the case is meant to pound"
+    assert impacts == ref["impacts"].tolist()
+    for j in range(prep.model.n_pairs):
+        assert row[f"peak_force_f{j + 1}_N"] == pytest.approx(ref["peak_force"][j], rel=1e-6)
+        assert row[f"contact_time_f{j + 1}_s"] == pytest.approx(ref["contact_time"][j], abs=(impacts[j] + 1) * dt)
+    assert int(row["unsettled_steps"]) == ref["unsettled"]
 
 
 def both(prep, runs, rec, threads=1):

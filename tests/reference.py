@@ -94,6 +94,14 @@ class Problem:
     amp: float  # harmonic: table displacement amplitude A [m] (times the scene's scale)
     omega: float  # harmonic: table circular frequency w [rad/s]
     record: np.ndarray | None  # record: ground acceleration at t = n dt [m/s^2] (times scale)
+    noise: float = 0.0  # Monte Carlo arithmetic: relative size of the random rounding (newmark_reference)
+    rng: object = None
+
+    def rounded(self, x):
+        """x with a random relative rounding of size `noise` (none by default)."""
+        if self.noise <= 0.0:
+            return x
+        return x * (1.0 + self.noise * self.rng.uniform(-1.0, 1.0, np.shape(x)))
 
     @property
     def n_dof(self) -> int:
@@ -163,7 +171,7 @@ def _solve_with_contact(P: Problem, Keff, p_hat, u_n, v_n, active):
         g = P.G[:, j]
         A += ke[j] * np.outer(g, g)
         rhs += b[j] * g
-    u = np.linalg.solve(A, rhs)
+    u = P.rounded(np.linalg.solve(A, rhs))
     F = np.where(active, ke * (P.G.T @ u) - b, 0.0)
     return u, F, ke, b
 
@@ -177,7 +185,7 @@ def _wanted_set(P: Problem, u, ke, b) -> np.ndarray:
     return want
 
 
-def newmark_reference(scene, cycle_fallback: str = "union", **overrides) -> dict:
+def newmark_reference(scene, cycle_fallback: str = "union", noise: float = 0.0, seed: int = 0, **overrides) -> dict:
     """Newmark average acceleration on the full coupled system, plain NumPy, one solve at a time.
 
     Returns t (steps+1,), u, v, a (steps+1, n_dof), F (steps+1, n_pairs), active (bool, like F),
@@ -202,8 +210,18 @@ def newmark_reference(scene, cycle_fallback: str = "union", **overrides) -> dict
 
     scheme "paper" (section 2): a trial step with F = 0; F from eq. (8) on the trial displacement
     and velocity (no_tension: clipped at 0) is applied as a load and the step repeated once.
+
+    noise > 0: Monte Carlo arithmetic (Parker, Pierce & Eggert, "Monte Carlo arithmetic: how to gamble
+    with floating point and win", Comput. Sci. Eng. 2(4), 2000): every displacement a solve returns,
+    and every velocity and acceleration formed from it, is multiplied by (1 + noise xi), xi uniform
+    in [-1, 1] (seeded): a random rounding of relative size `noise` where a program rounds, before
+    the 2/dt and 4/dt^2 of eqs. 15-16 amplify it. Two runs with different seeds differ as two programs
+    that round differently do: their spread measures how this trajectory amplifies rounding
+    (tests/tolerances.py turns it into the tolerance of kernel-vs-reference comparisons).
     """
     P = resolve(scene, **overrides)
+    if noise > 0.0:
+        P = dataclasses.replace(P, noise=noise, rng=np.random.default_rng(seed))
     if P.scheme not in SCHEMES or P.law not in LAWS:
         raise ValueError(f"unknown scheme {P.scheme!r} or law {P.law!r}")
     n, p, dt, N = P.n_dof, P.n_pairs, P.dt, P.nsteps
@@ -256,7 +274,7 @@ def newmark_reference(scene, cycle_fallback: str = "union", **overrides) -> dict
             act_hist[k + 1] = active
             continue
         else:
-            u0 = np.linalg.solve(Keff, p_hat)  # trial step, F = 0
+            u0 = P.rounded(np.linalg.solve(Keff, p_hat))  # trial step, F = 0
             z0 = P.G.T @ u0
             v0 = 2.0 / dt * (u0 - u_n) - v_n  # trial velocity (eq. 15)
             pen = z0 - P.gap
@@ -266,12 +284,13 @@ def newmark_reference(scene, cycle_fallback: str = "union", **overrides) -> dict
                 active = (pen > 0.0) & (F > 0.0)
             else:
                 active = pen > 0.0
-            u = np.linalg.solve(Keff, p_hat - P.G @ F)  # the step repeated with F as a load
+            u = P.rounded(np.linalg.solve(Keff, p_hat - P.G @ F))  # the step repeated with F as a load
 
         du = u - u_n
         U[k + 1] = u
         V[k + 1] = 2.0 / dt * du - v_n
         A[k + 1] = 4.0 / dt**2 * du - 4.0 / dt * v_n - a_n
+        V[k + 1], A[k + 1] = P.rounded(V[k + 1]), P.rounded(A[k + 1])
         F_hist[k + 1] = F
         act_hist[k + 1] = active
 
@@ -298,10 +317,10 @@ def _substep(P: Problem, h: float, ag_end: float, u, v, a, active):
     for j in np.flatnonzero(active):
         A += ke[j] * np.outer(P.G[:, j], P.G[:, j])
         rhs += b[j] * P.G[:, j]
-    u1 = np.linalg.solve(A, rhs)
-    v1 = 2.0 / h * (u1 - u) - v
+    u1 = P.rounded(np.linalg.solve(A, rhs))
+    v1 = P.rounded(2.0 / h * (u1 - u) - v)
     F = np.where(active, P.ks * (P.G.T @ u1 - P.gap) + P.c * (P.G.T @ v1), 0.0)
-    return u1, v1, _acceleration(P, ag_end, u1, v1, F), F
+    return u1, v1, P.rounded(_acceleration(P, ag_end, u1, v1, F)), F
 
 
 def _acceleration(P: Problem, ag, u, v, F):
@@ -322,10 +341,19 @@ def _tolerance(P: Problem, u) -> np.ndarray:
     return 1e-15 + 1e-12 * (np.abs(P.G).T @ np.abs(u))
 
 
-def _event_step(P: Problem, k: int, u, v, a, active, ag, stats, max_events: int = 16):
+def _event_step(P: Problem, k: int, u, v, a, active, ag, stats, max_events: int = 16, scan: int = 32):
     """One step of the event scheme from t_k: integrate with the current set; where the end
-    contradicts it, find the first switch instant by brentq on the sub-step map, take the sub-step,
-    switch (force from eq. 8 at that instant, a from equilibrium), and go on with what is left."""
+    contradicts it, find the first switch instant on the sub-step map, take the sub-step, switch
+    (force from eq. 8 at that instant, a from equilibrium), and go on with what is left.
+
+    The switch instant of a pair is the first s in (0, h] at which the state after a real Newmark
+    sub-step of length s contradicts the set: the sub-step map is scanned at `scan` equal fractions
+    of what is left of the step, and brentq polishes the first bracket. At s = 0 the contradiction
+    is that of the start state itself (the map's limit), never a sub-step: a sub-step of length s
+    carries the rounding of u amplified by 2/s in its velocity (1e-8 m in the no-tension indicator
+    at s = 1e-13 s, as large as the indicator itself near a release). A pair switched at this very
+    instant is on the agreeing side by construction (its indicator is zero to rounding), so its start
+    is not tested; the kernel does the same (kernel._first_event's `just`)."""
     from scipy.optimize import brentq
 
     dt = P.dt
@@ -337,6 +365,7 @@ def _event_step(P: Problem, k: int, u, v, a, active, ag, stats, max_events: int 
         return ag[k] + (ag[k + 1] - ag[k]) * s / dt
 
     active = active.copy()
+    just = np.zeros(P.n_pairs, dtype=bool)
     s0, unsettled, events = 0.0, 0, 0
     while True:
         h = dt - s0
@@ -347,15 +376,23 @@ def _event_step(P: Problem, k: int, u, v, a, active, ag, stats, max_events: int 
             break
         events += 1
         times = np.full(P.n_pairs, np.inf)
+        start = _contradiction(P, u, v, active)
         for j in np.flatnonzero(bad):
             def phi(s, j=j):
+                if s == 0.0:
+                    return -1e-300 if just[j] else min(start[j], -1e-300)
                 e = _substep(P, s, ag_at(s0 + s), u, v, a, active)
                 return _contradiction(P, e[0], e[1], active)[j]
-            lo = 1e-9 * dt
-            if h <= lo or phi(lo) >= 0.0:
-                times[j] = 0.0
-            else:
-                times[j] = brentq(phi, lo, h, xtol=1e-15 * dt, rtol=4 * np.finfo(float).eps, maxiter=200)
+            if h <= 1e-9 * dt or (not just[j] and start[j] >= 0.0):
+                times[j] = 0.0  # contradicts already at the start
+                continue
+            lo = 0.0
+            for i in range(1, scan + 1):
+                hi = h * i / scan
+                if i == scan or phi(hi) >= 0.0:
+                    break
+                lo = hi
+            times[j] = brentq(phi, lo, hi, xtol=1e-15 * dt, rtol=4 * np.finfo(float).eps, maxiter=200)
         s = times.min()
         if s > 1e-9 * dt:
             if dt - (s0 + s) <= 1e-9 * dt:
@@ -365,6 +402,7 @@ def _event_step(P: Problem, k: int, u, v, a, active, ag, stats, max_events: int 
             stats["peak_force"] = np.maximum(stats["peak_force"], np.where(active, F, 0.0))
             s0 += s
         switch = times <= s * (1 + 1e-9) + 1e-12 * dt
+        just = switch
         stats["impacts"] += switch & ~active
         active = active ^ switch
         F = np.where(active, P.ks * (P.G.T @ u - P.gap) + P.c * (P.G.T @ v), 0.0)

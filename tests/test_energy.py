@@ -13,6 +13,7 @@ from conftest import SWEEPS
 from pounding_sweep.config import Axis, load_scene
 from pounding_sweep.simulate import simulate
 from pounding_sweep.sweep import run_scene
+from tolerances import energy_balance_tolerance
 
 ENERGY = ["kinetic_energy_end_J", "strain_energy_end_J", "structural_damping_energy_J", "contact_damping_energy_J",
           "contact_spring_energy_end_J", "energy_residual_J"]
@@ -30,10 +31,12 @@ def scene(duration=1.0, damping=True):
 @pytest.mark.parametrize("ks, r, scheme", [(1.0, 0.4, "implicit"), (10.0, 0.0, "implicit"), (1.0, 0.4, "paper"),
                                            (1.0, 0.4, "event"), (10.0, 0.0, "event")])
 def test_energy_bookkeeping_closes(ks, r, scheme):
-    """E_in = KE + SE + D_struct + D_contact + E_spring + residual (the Newmark identity), to rounding."""
+    """E_in = KE + SE + D_struct + D_contact + E_spring + residual (the Newmark identity), to rounding:
+    tolerances.energy_balance_tolerance (measured: at most 5900 u of the energies' scale over 10,000 steps,
+    against the bound's 70,000 u)."""
     _, m = simulate(scene(), channels=["disp_b1f3"], ks_ratio=ks, r=r, scheme=scheme)
     total = sum(m[k] for k in ENERGY)
-    assert m["input_energy_J"] == pytest.approx(total, rel=1e-9, abs=1e-12)
+    assert m["input_energy_J"] == pytest.approx(total, abs=energy_balance_tolerance(m, n_dof=6))
     assert m["structural_damping_energy_J"] > 0 and m["contact_damping_energy_J"] > 0
 
 
@@ -85,6 +88,10 @@ def test_default_scheme_is_stable_and_conserves_on_stiff_coarse_contact(tmp_path
     gap = _balance_gap(df)
     print(f"\n[event stability {law}] runs {len(df)}, max balance gap {gap.max():.1e}, "
           f"unsettled {df.status.str.contains('unsettled').sum()}")
+    # not a summation bound: the balance closes to the rounding of the shortest sub-steps, whose velocity
+    # 2/h_s (u_end - u) - v carries the rounding of u amplified by dt / h_s, up to 1e9 at the shortest
+    # sub-step the scheme integrates (kernel.EVENT_MIN_FRACTION = 1e-9 dt): 1e9 u = 1e-7 of the energy per
+    # such sub-step; 1e-5 allows a hundred of them (measured: 4e-6 on three code-generation targets)
     assert gap.max() < 1e-5
     assert (df.status.str.contains("unsettled") <= under).all()
 

@@ -3,17 +3,18 @@
 The two integrate the same scheme with different algebra (modal coordinates and fused multiply-adds
 in the lanes, the floors' Newmark solve in the scalar kernel), so they agree to rounding, not bit for
 bit. The contract tested here (assert_rows_agree), on every run the scalar kernel does not flag
-`contact_underresolved` or `contact_unsettled`:
-- counts (impacts, compression phases, steps, located events) and status codes equal;
-- peaks, their times, penetrations and forces within 1e-6 relative (1e-9 of the column's largest
-  value for values near zero); the most negative force within 1e-7 of the pair's peak force;
-- energy terms within 1e-7 of the run's absolute input work;
-- contact and compression times within one step per phase or impact, the median phase within one
-  step (a phase ends where F = 0, and whether the last piece before it counts as compressive depends
-  on the sign of a force of 1e-10 N).
-Measured: 1.6e-8, 2.1e-9, 1.7e-9 and 2.2 steps over 5-8 phases. Flagged runs (a contact period of
-less than a step, or an active set that cycles) are not trustworthy in either kernel: rounding
-changes their discrete contact decisions. For them the test checks that both kernels set
+`contact_underresolved` or `contact_unsettled`, with tolerances derived in tests/tolerances.py:
+- counts (impacts, compression phases, steps, located events) and status codes equal, or at a
+  near-tie between the scalar kernel's and its backward-error twins';
+- every other value within tolerances.SAFETY times the larger difference the scalar kernel's two
+  backward-error twins (the model's matrices as rounding may leave them) show for that run and column;
+- plus, where the event scheme's own thresholds decide rather than rounding: the least force within
+  k_s kernel._switch_tolerance, contact and compression times within one step per phase or impact,
+  the median phase within one step (a phase ends where F = 0, and whether its last piece counts as
+  compressive depends on the sign of a residue of that size).
+Measured: at most 5.3x the twins' difference on three code-generation targets. Flagged runs (a contact
+period of less than a step, or an active set that cycles) are not trustworthy in either kernel:
+rounding changes their discrete contact decisions. For them the test checks that both kernels set
 contact_underresolved (from the inputs) and that the lane kernel's rows are finite.
 The grids span k_s/k 0.01..1e4, r 0/0.4/1, gaps 0/1/20 mm, harmonic and recorded excitation, both
 contact laws, runs of unequal length in one group, a diverging run (rerun by the scalar kernel), and
@@ -32,6 +33,8 @@ import pytest
 
 from conftest import SWEEPS
 from reference import newmark_reference
+from tolerances import (SEEDS, backward_error_twin, count_bounds, mca_twins, switch_residue_force,
+                        value_tolerance)
 from pounding_sweep import driver, kernel, kernel_lanes
 from pounding_sweep import metrics_layout as L
 from pounding_sweep.config import Axis, load_scene
@@ -80,8 +83,10 @@ NUMPY_REFERENCE_CASES = [
                          ids=lambda v: f"{v}" if not isinstance(v, float) else f"{v:g}")
 def test_lane_kernel_metrics_equal_the_numpy_reference(ks_ratio, r, gap_m, law, scheme):
     """The lane kernel against the plain NumPy Newmark loop of tests/reference.py directly (not only
-    through the scalar kernel), 1 s of the 6 Hz scene: impacts and unsettled steps equal, peak
-    displacements and peak forces within 1e-6, contact time within one step per impact."""
+    through the scalar kernel), 1 s of the 6 Hz scene: impacts and unsettled steps equal (or between the
+    reference's and its Monte Carlo arithmetic twins' at a near-tie), peak displacements and peak forces
+    within tolerances.SAFETY times the twins' difference, contact time within one step per impact (the
+    lane kernel sums whole steps between switches in its vector steps; tests/tolerances.py)."""
     base = implicit(load_scene(SWEEPS / "paper_6hz.toml"), law=law, duration=1.0, scheme=scheme)
     s = dataclasses.replace(base, sweep=(), contact=dataclasses.replace(base.contact, ks_ratio=ks_ratio, r=r,
                                                                         gap_m=gap_m))
@@ -92,17 +97,26 @@ def test_lane_kernel_metrics_equal_the_numpy_reference(ks_ratio, r, gap_m, law, 
     m, _ = driver.run_chunk_lanes(prep.sysarr, runs, rec, prep.opts)
     row = dict(zip(L.metric_columns(prep.model.floors, prep.model.n_pairs), m[0]))
     ref = newmark_reference(s)
+    n_steps, n_dof = ref["u"].shape[0] - 1, ref["u"].shape[1]
+    twins = mca_twins(lambda **kw: newmark_reference(s, **kw), n_dof)
     dt = ref["problem"].dt
+
+    def agrees(got, values):
+        tol = value_tolerance(np.array(values[0]), [np.array(v) for v in values[1:]], np.array(values[0]), n_steps, n_dof)
+        return abs(got - values[0]) <= tol
+
     floors = [f"b{b}f{f}" for b, nf in zip((1, 2), prep.model.floors) for f in range(1, nf + 1)]
     for i, name in enumerate(floors):
-        assert row[f"peak_disp_{name}_m"] == pytest.approx(np.max(np.abs(ref["u"][:, i])), rel=1e-6)
-    impacts = [int(row[f"impacts_f{j + 1}"]) for j in range(prep.model.n_pairs)]
-    assert any(impacts), "the case is meant to pound"
-    assert impacts == ref["impacts"].tolist()
+        assert agrees(row[f"peak_disp_{name}_m"], [np.max(np.abs(x["u"][:, i])) for x in [ref] + twins]), name
+    impacts = np.array([int(row[f"impacts_f{j + 1}"]) for j in range(prep.model.n_pairs)])
+    assert impacts.any(), "the case is meant to pound"
+    lo, hi = count_bounds(ref["impacts"], [t["impacts"] for t in twins])
+    assert np.all((lo <= impacts) & (impacts <= hi))
     for j in range(prep.model.n_pairs):
-        assert row[f"peak_force_f{j + 1}_N"] == pytest.approx(ref["peak_force"][j], rel=1e-6)
+        assert agrees(row[f"peak_force_f{j + 1}_N"], [x["peak_force"][j] for x in [ref] + twins]), j
         assert row[f"contact_time_f{j + 1}_s"] == pytest.approx(ref["contact_time"][j], abs=(impacts[j] + 1) * dt)
-    assert int(row["unsettled_steps"]) == ref["unsettled"]
+    lo, hi = count_bounds(ref["unsettled"], [t["unsettled"] for t in twins])
+    assert lo <= int(row["unsettled_steps"]) <= hi
 
 
 def both(prep, runs, rec, threads=1):
@@ -126,9 +140,28 @@ FLAGGED = L.STATUS_UNSETTLED | L.STATUS_UNDERRESOLVED
 COUNTS = ("impacts_", "compression_phases_", "steps", "status_code", "max_contact_iterations", "unsettled_steps")
 
 
-def assert_rows_agree(lanes, scalar, dt, floors=(3, 3)):
-    """The module docstring's contract; returns the mask of the runs it holds to the tolerances."""
+def scalar_twins(prep, runs, rec):
+    """The scalar kernel's rows on the backward-error twins of the model (tests/tolerances.py)."""
+    return [driver.run_chunk_scalar(backward_error_twin(prep.sysarr, seed), runs, rec, HistorySpec.none(), prep.opts,
+                                    2)[0] for seed in SEEDS]
+
+
+def assert_rows_agree(prep, runs, rec, lanes, scalar, floors=(3, 3)):
+    """The module docstring's contract; returns the mask of the runs it holds to the tolerances.
+
+    Each value within tolerances.SAFETY times the larger difference the scalar kernel's backward-error
+    twins show for that run and column (at least the floor of n_steps rounding steps on the column's
+    scale); counts equal, or between the scalar kernel's and its twins' at a near-tie. Two quantities
+    carry the event scheme's own thresholds, not rounding: the least force of a pair may be anywhere
+    within +/- k_s times kernel._switch_tolerance (a force that small at a step's end is not a switch,
+    in either kernel); and a compressive phase ends where F = 0, so whether its last piece counts as
+    compressive depends on the sign of a force residue of that size: contact and compression times may
+    differ by one step per phase or impact, the median phase by one step.
+    """
     assert lanes.shape == scalar.shape
+    twins = scalar_twins(prep, runs, rec)
+    dt = prep.dt
+    n_steps, n_dof = int(runs.nsteps.max()), prep.sysarr.m.size
     cols = L.metric_columns(floors, min(floors))
     col = {n: i for i, n in enumerate(cols)}
     status = scalar[:, col["status_code"]].astype(np.int64)
@@ -136,27 +169,36 @@ def assert_rows_agree(lanes, scalar, dt, floors=(3, 3)):
     assert np.array_equal(status & L.STATUS_UNDERRESOLVED, lstatus & L.STATUS_UNDERRESOLVED)
     assert np.isfinite(lanes).all()
     good = (status & FLAGGED) == 0
-    a, b = lanes[good], scalar[good]
-    e_abs = b[:, col["input_work_abs_J"]]
+    a, b, tw = lanes[good], scalar[good], [t[good] for t in twins]
+    ks = runs.ks[good]
     problems = []
     for name, ci in col.items():
-        x, y = a[:, ci], b[:, ci]
+        x, y, ty = a[:, ci], b[:, ci], [t[:, ci] for t in tw]
         if name.startswith(COUNTS):
-            err, tol = np.abs(x - y), np.zeros_like(y)
-        elif name.startswith("min_force"):
-            err, tol = np.abs(x - y), 1e-7 * b[:, col[name.replace("min_force", "peak_force")]] + 1e-300
-        elif name.endswith("_J"):
-            err, tol = np.abs(x - y), 1e-7 * e_abs + 1e-300
-        elif name.startswith(("contact_time", "compression_time")):
-            j = name.split("_f")[1].split("_")[0]
-            err, tol = np.abs(x - y), dt * (b[:, col[f"compression_phases_f{j}"]] + b[:, col[f"impacts_f{j}"]] + 1)
-        elif name.startswith("median_compression"):
-            err, tol = np.abs(x - y), np.full_like(y, 1.01 * dt)
+            if name == "status_code":
+                lo = hi = y
+            else:
+                lo, hi = count_bounds(y, ty)
+            err, tol = np.maximum(lo - x, x - hi), np.zeros_like(y)
         else:
-            err, tol = np.abs(x - y), 1e-6 * np.maximum(np.abs(y), 1e-3 * np.abs(y).max()) + 1e-300
+            scale = np.abs(y).max()
+            if name.endswith("_J"):
+                scale = b[:, col["input_work_abs_J"]]
+            tol = value_tolerance(y, ty, scale, n_steps, n_dof)
+            err = np.abs(x - y)
+            if name.startswith("min_force"):
+                j = int(name.removeprefix("min_force_f").split("_")[0])
+                tol = tol + 2 * switch_residue_force(ks, b[:, col[f"peak_disp_b1f{j}_m"]],
+                                                     b[:, col[f"peak_disp_b2f{j}_m"]])
+            elif name.startswith(("contact_time", "compression_time")):
+                j = name.split("_f")[1].split("_")[0]
+                tol = tol + dt * (b[:, col[f"compression_phases_f{j}"]] + b[:, col[f"impacts_f{j}"]] + 1)
+            elif name.startswith("median_compression"):
+                tol = tol + dt * (1 + 1e-9)
         for r in np.flatnonzero(err > tol)[:3]:
             run = np.flatnonzero(good)[r]
-            problems.append(f"run {run}: {name} lanes {x[r]!r} scalar {y[r]!r} (tolerance {tol[r]:.3g})")
+            problems.append(f"run {run}: {name} lanes {x[r]!r} scalar {y[r]!r} twins {[t[r] for t in ty]} "
+                            f"(tolerance {tol[r]:.3g})")
     if problems:
         raise AssertionError(f"{len(problems)} disagreements:\n" + "\n".join(problems[:12]))
     return good
@@ -182,7 +224,7 @@ def harmonic_grid(law, scheme="implicit"):
 def test_harmonic_grid_rows_agree(law, scheme):
     prep, runs, rec, lanes, scalar = harmonic_grid(law, scheme)
     assert driver.kernel_for(prep.sysarr, prep.hist, prep.opts, prep.score) == "lanes"
-    good = assert_rows_agree(lanes, scalar, prep.dt)
+    good = assert_rows_agree(prep, runs, rec, lanes, scalar)
     assert good.sum() >= 80  # the flagged runs are k_s/k = 1e4 (and cycling sets under the implicit scheme)
     # the grid exercises what the lane kernel does differently: contact in some lanes and not in
     # others, impacts, long and short compressive phases, the active-set fallback (classic law)
@@ -217,7 +259,7 @@ def test_record_grid_with_runs_of_unequal_length_rows_agree(tmp_path, scheme):
     runs, recarr = chunk_inputs(prep)
     assert len(set(runs.nsteps.tolist())) == 2
     lanes, scalar = both(prep, runs, recarr)
-    assert assert_rows_agree(lanes, scalar, prep.dt).sum() >= 24  # of 36: r = 0 at k_s/k = 10 cycles (implicit)
+    assert assert_rows_agree(prep, runs, recarr, lanes, scalar).sum() >= 24  # of 36: r = 0 at k_s/k = 10 cycles (implicit)
     assert (col(scalar, "impacts_f3") > 0).any()
 
 
@@ -242,7 +284,7 @@ def test_uneven_lengths_and_a_diverging_run_in_one_group(scheme):
     assert col(scalar, "status_code")[5] == L.STATUS_NONFINITE
     assert col(scalar, "steps")[3] == 0 and col(scalar, "steps")[7] == runs.nsteps[7]
     assert_rows_identical(lanes[5:6], scalar[5:6])  # the diverged run: the scalar kernel's own row
-    assert assert_rows_agree(lanes, scalar, prep.dt).all()
+    assert assert_rows_agree(prep, runs, rec, lanes, scalar).all()
 
 
 @pytest.mark.parametrize("scheme", SCHEMES)
@@ -259,7 +301,7 @@ def test_other_floor_counts(scheme):
     assert prep.model.floors == (4, 2)
     runs, rec = chunk_inputs(prep)
     lanes, scalar = both(prep, runs, rec)
-    assert assert_rows_agree(lanes, scalar, prep.dt, floors=(4, 2)).sum() >= 12
+    assert assert_rows_agree(prep, runs, rec, lanes, scalar, floors=(4, 2)).sum() >= 12
     assert (col(scalar, "impacts_f2", (4, 2)) > 0).any()
 
 
@@ -333,7 +375,7 @@ def test_run_chunk_dispatch_and_the_eligibility_rules():
         assert len(calls) == 1 and h2 is not None
     finally:
         driver.run_chunk_lanes = saved
-    assert_rows_agree(m1, m2, prep.dt)
+    assert_rows_agree(prep, runs, rec, m1, m2)
 
 
 def test_excitation_profiles_equal_the_scalar_kernels_ground_acceleration():
@@ -360,7 +402,7 @@ def test_event_scheme_stiff_coarse_steps(law):
     prep = prepare(s)
     runs, rec = chunk_inputs(prep)
     lanes, scalar = both(prep, runs, rec)
-    assert assert_rows_agree(lanes, scalar, prep.dt).sum() >= 30  # of 90: the rest have a contact period under a step
+    assert assert_rows_agree(prep, runs, rec, lanes, scalar).sum() >= 30  # of 90: the rest have a contact period under a step
     events = col(scalar, "max_contact_iterations")
     assert (events == 0).any() and (events >= 3).any()
     assert (col(scalar, "impacts_f3") > 10).any()

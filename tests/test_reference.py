@@ -24,6 +24,7 @@ from pounding_sweep.config import load_scene
 from pounding_sweep.contact import damping_ratio_from_restitution, dashpot_coefficient
 from pounding_sweep.model import CoupledModel
 from pounding_sweep.simulate import simulate
+from tolerances import SAFETY, rel_to_peak, count_bounds, history_tolerance, mca_twins, summation_tolerance, value_tolerance
 from reference import (
     ivp_reference,
     modal_free_vibration,
@@ -63,13 +64,6 @@ def kernel_run(scene, **overrides) -> dict:
         ag=df["ground_acc_m_s2"].to_numpy(),
         metrics=metrics,
     )
-
-
-def rel_to_peak(x, ref) -> float:
-    """max |x - ref| / max |ref| (0 when both are identically 0)."""
-    peak = np.max(np.abs(ref))
-    diff = np.max(np.abs(x - ref))
-    return float(diff / peak) if peak > 0 else float(diff)
 
 
 def rel_rms(x, ref) -> float:
@@ -136,56 +130,83 @@ def _params(which):
 
 @functools.lru_cache(maxsize=None)
 def newmark_pair(ks_ratio, r, gap_m, law, scheme):
-    """(kernel, reference) on the short 6 Hz scene, computed once per case for both tests below."""
+    """(kernel, reference, the reference's two Monte Carlo arithmetic twins) on the short 6 Hz scene,
+    computed once per case for both tests below."""
     ov = dict(ks_ratio=ks_ratio, r=r, gap_m=gap_m, law=law, scheme=scheme)
     s = scene_6hz(SHORT_S)
-    return kernel_run(s, **ov), newmark_reference(s, **ov)
+    ref = newmark_reference(s, **ov)
+    twins = mca_twins(lambda **kw: newmark_reference(s, **ov, **kw), ref["u"].shape[1])
+    return kernel_run(s, **ov), ref, twins
+
+
+def _histories(run: dict, kernel: bool = False) -> dict:
+    """u, v, absolute acceleration and F (t = 0 excluded: see test_kernel_force_history_starts_at_zero)."""
+    return dict(u=run["u"], v=run["v"], abs_acc=run["abs_acc"] if kernel else run["a"] + run["ag"][:, None],
+                F=run["F"][1:])
 
 
 @pytest.mark.parametrize("ks_ratio, r, gap_m, law, scheme", _params(0))
 def test_kernel_histories_equal_newmark_reference(ks_ratio, r, gap_m, law, scheme):
-    """Same scheme, same arithmetic up to rounding: every history agrees to ~1e-9 of its peak.
-
-    Displacements are held to 1e-9. Velocities, accelerations and forces to 1e-8: they are
-    differences of displacements scaled by 2/dt and 4/dt^2 (F = ke g.u - b with ke = k_s + 2c/dt),
-    which magnifies the rounding of u. Measured worst over the 72-case grid (1 s): 1.6e-10 on u,
-    3e-9 on the others. Rounding differences also grow with time in the stiff, lightly damped
-    cases (k_s/k = 10, r = 0.4, no_tension: x10 every ~0.3 s); a 1e-15 relative change of k_s
-    in the reference alone grows the same way, so it is the problem's sensitivity, not the kernel.
-    The kernel's force sample at t = 0 is excluded here (see test_kernel_force_history_starts_at_zero).
+    """Same scheme, same arithmetic up to rounding: every history agrees with the reference to within
+    tolerances.SAFETY times what rounding does to this very run (the reference's Monte Carlo arithmetic
+    twins), relative to its peak. Velocities, accelerations and forces are differences of displacements
+    scaled by 2/dt and 4/dt^2, which the twins' rounding goes through as the kernel's does, so each has
+    its own tolerance. Measured (3 code-generation targets): at most 8.7x the twins' difference;
+    absolute differences 1e-11 .. 3e-9 of the peaks, largest in the stiff, lightly damped cases, whose
+    contact events amplify rounding (see tests/tolerances.py).
     """
-    k, ref = newmark_pair(ks_ratio, r, gap_m, law, scheme)
+    k, ref, twins = newmark_pair(ks_ratio, r, gap_m, law, scheme)
     assert k["u"].shape == ref["u"].shape
-    errs = dict(
-        u=rel_to_peak(k["u"], ref["u"]),
-        v=rel_to_peak(k["v"], ref["v"]),
-        abs_acc=rel_to_peak(k["abs_acc"], ref["a"] + ref["ag"][:, None]),
-        F=rel_to_peak(k["F"][1:], ref["F"][1:]),
-    )
-    print(f"\n[kernel vs newmark_reference] {_case_id((ks_ratio, r, gap_m, law, scheme))}: "
-          + ", ".join(f"{q} {e:.1e}" for q, e in errs.items()))
     np.testing.assert_array_equal(k["t"], ref["t"])
-    assert errs["u"] <= 1e-9, errs
-    assert errs["v"] <= 1e-8 and errs["abs_acc"] <= 1e-8 and errs["F"] <= 1e-8, errs
+    n_steps, n_dof = ref["u"].shape[0] - 1, ref["u"].shape[1]
+    kh, rh, th = _histories(k, kernel=True), _histories(ref), [_histories(t) for t in twins]
+    errs = {q: rel_to_peak(kh[q], rh[q]) for q in rh}
+    tols = {q: history_tolerance(rh, th, q, n_steps, n_dof) for q in rh}
+    print(f"\n[kernel vs newmark_reference] {_case_id((ks_ratio, r, gap_m, law, scheme))}: "
+          + ", ".join(f"{q} {errs[q]:.1e} (tolerance {tols[q]:.1e})" for q in rh))
+    for q in rh:
+        assert errs[q] <= tols[q], (q, errs, tols)
 
 
 @pytest.mark.parametrize("ks_ratio, r, gap_m, law, scheme", _params(1))
 def test_kernel_counts_equal_newmark_reference(ks_ratio, r, gap_m, law, scheme):
-    """Impacts, contact time, unsettled steps and peak force: the kernel's metrics from the same steps."""
-    k, ref = newmark_pair(ks_ratio, r, gap_m, law, scheme)
+    """Impacts, contact time, unsettled steps and peak force: the kernel's metrics from the same steps.
+
+    Counts are equal, or where a twin's differs from the reference's (a near-tie: an impact decided by a
+    rounding-level difference) between the two. Contact time: the implicit and paper schemes count whole
+    steps (equal, or between the twins' at a near-tie, plus the rounding of summing them); the event
+    scheme sums sub-steps that end at located switches, each located to within 1e-13 dt by the kernel's
+    bracket (kernel._locate_event) and 1e-15 dt by brentq (tests/reference.py), two switches per impact,
+    plus SAFETY times the twins' difference. Peak force: SAFETY times the twins' difference, at least the
+    floor (tests/tolerances.py).
+    """
+    k, ref, twins = newmark_pair(ks_ratio, r, gap_m, law, scheme)
     m = k["metrics"]
     p = ref["F"].shape[1]
     dt = ref["problem"].dt
-    impacts_k = [int(m[f"impacts_f{j + 1}"]) for j in range(p)]
-    print(f"\n[impacts] {_case_id((ks_ratio, r, gap_m, law, scheme))}: kernel {impacts_k}, reference {ref['impacts'].tolist()}")
-    assert any(impacts_k), "the case is meant to pound"
-    assert impacts_k == ref["impacts"].tolist()
-    # event scheme: contact time summed over sub-steps (to rounding); else whole steps
-    tol = 1e-9 if scheme == "event" else 0.5 * dt
+    n_steps, n_dof = ref["u"].shape[0] - 1, ref["u"].shape[1]
+    impacts_k = np.array([int(m[f"impacts_f{j + 1}"]) for j in range(p)])
+    lo, hi = count_bounds(ref["impacts"], [t["impacts"] for t in twins])
+    print(f"\n[impacts] {_case_id((ks_ratio, r, gap_m, law, scheme))}: kernel {impacts_k.tolist()}, reference "
+          f"{ref['impacts'].tolist()}, twins {[t['impacts'].tolist() for t in twins]}")
+    assert impacts_k.any(), "the case is meant to pound"
+    assert np.all((lo <= impacts_k) & (impacts_k <= hi))
+    t_end = n_steps * dt
     for j in range(p):
-        assert m[f"contact_time_f{j + 1}_s"] == pytest.approx(ref["contact_time"][j], abs=tol)
-        assert m[f"peak_force_f{j + 1}_N"] == pytest.approx(ref["peak_force"][j], rel=1e-8)
-    assert int(m["unsettled_steps"]) == ref["unsettled"]
+        got = m[f"contact_time_f{j + 1}_s"]
+        tc = [ref["contact_time"][j]] + [t["contact_time"][j] for t in twins]
+        summed = summation_tolerance(n_steps, t_end)
+        if scheme == "event":
+            located = 2 * hi[j] * (1e-13 + 1e-15) * dt
+            tol = SAFETY * max(abs(x - tc[0]) for x in tc) + located + summed
+            assert got == pytest.approx(tc[0], abs=tol)
+        else:
+            assert min(tc) - summed <= got <= max(tc) + summed
+        peaks = [ref["peak_force"][j]] + [t["peak_force"][j] for t in twins]
+        tol = value_tolerance(np.array(peaks[0]), [np.array(x) for x in peaks[1:]], np.array(peaks[0]), n_steps, n_dof)
+        assert m[f"peak_force_f{j + 1}_N"] == pytest.approx(peaks[0], abs=float(tol))
+    lo_u, hi_u = count_bounds(ref["unsettled"], [t["unsettled"] for t in twins])
+    assert lo_u <= int(m["unsettled_steps"]) <= hi_u
 
 
 def test_kernel_force_history_starts_at_zero():

@@ -11,6 +11,7 @@ import pandas as pd
 import pytest
 
 import pounding_sweep
+from tolerances import switch_residue_force
 from conftest import REPO, SWEEPS
 from pounding_sweep.config import load_scene
 from pounding_sweep.results import read_metadata, read_schema
@@ -44,8 +45,11 @@ def test_6hz_peak_force_and_contact_duration_match_the_references(six_hz):
     assert 0.020 <= row.median_compression_phase_f3_s <= 0.025
     assert row.impacts_f3 > 20  # it pounds about once per cycle over 5 s at 6 Hz
     assert row.min_force_f3_N < 0  # the classic law pulls briefly before separation
-    el = df.loc[df.index.get_level_values("r") == 1.0]  # no dashpot at r = 1: no pull, up to rounding
-    assert (el.min_force_f3_N >= -1e-12 * el.peak_force_f3_N).all()
+    # no dashpot at r = 1: no pull; the force where a contact ends is zero up to the event scheme's switch
+    # residue (k_s times kernel._switch_tolerance: a smaller penetration is not a switch)
+    el = df.loc[df.index.get_level_values("r") == 1.0]
+    residue = switch_residue_force(el.ks_N_per_m, el.peak_disp_b1f3_m, el.peak_disp_b2f3_m)
+    assert (el.min_force_f3_N >= -residue).all()
 
 
 def test_metadata_is_self_describing(six_hz):
@@ -82,8 +86,9 @@ def test_histories_when_asked_and_identical_across_threads(tmp_path):
     assert len(h) == 20 * (10000 // 10 + 1)
     one = h[h.run_id == 6]
     assert one.t_s.iloc[1] == pytest.approx(1e-3)
-    # decimated history peaks cannot exceed the per-step metrics, and come close
-    assert one.force_f3_N.max() <= a.loc[6, "peak_force_f3_N"] + 1e-12
+    # decimated history peaks cannot exceed the per-step metrics (the very values the history samples, in the
+    # same run: no tolerance), and come close
+    assert one.force_f3_N.max() <= a.loc[6, "peak_force_f3_N"]
     assert one.force_f3_N.max() > 0.9 * a.loc[6, "peak_force_f3_N"]
 
 
@@ -123,7 +128,11 @@ def test_record_axis_and_csv_record(tmp_path, shared_dir):
     df = pd.read_parquet(s.path).set_index("record")
     assert list(df.index) == ["RSN1605_DUZCE_DZC180", "RSN1605_DUZCE_DZC270", "dzc180"]
     assert df.loc["RSN1605_DUZCE_DZC180", "peak_disp_b1f3_m"] != df.loc["RSN1605_DUZCE_DZC270", "peak_disp_b1f3_m"]
-    assert df.loc["dzc180", "peak_disp_b1f3_m"] == pytest.approx(df.loc["RSN1605_DUZCE_DZC180", "peak_disp_b1f3_m"], rel=1e-9)
+    # the CSV's step, from its first and last stamps, is the AT2's to the bit, and so are its samples: the
+    # same inputs give the same run, bit for bit (no tolerance: nothing rounds differently)
+    metrics = [c for c in df.columns if c not in ("run_id", "run_time_s")]
+    csv_row, at2_row = df.loc["dzc180", metrics], df.loc["RSN1605_DUZCE_DZC180", metrics]
+    assert csv_row.equals(at2_row), csv_row.compare(at2_row)
 
 
 def test_amplitude_and_frequency_axes(tmp_path):

@@ -14,7 +14,9 @@ import pyarrow.parquet as pq
 import pytest
 
 from conftest import REPO, SWEEPS
+from tolerances import SAFETY, SEEDS, U, backward_error_twin, floor_steps
 from pounding_sweep.config import Axis, load_scene
+from pounding_sweep.model import CoupledModel
 from pounding_sweep.experiment import ExperimentError, load_experiment, score_spec
 from pounding_sweep.score_kernel import lagged_correlation, peak_abs, relative_rms_error_pct, score_channel
 from pounding_sweep.simulate import simulate
@@ -75,8 +77,17 @@ def test_run_scored_against_its_own_history_is_zero(tmp_path):
     table = pd.DataFrame({"t_s": own.t_s, "model1_floor3_mm": own.disp_b1f3_m * 1e3, "model2_floor3_mm": own.disp_b2f3_m * 1e3})
     s = _scene_with_table(tmp_path, table)
     _, m = simulate(s, ks_ratio=5.0, r=0.4)
-    assert m["rel_rms_b1f3_pct"] < 1e-9 and m["rel_rms_b2f3_pct"] < 1e-9
-    assert abs(m["peak_diff_b1f3_pct"]) < 1e-9 and m["corr_b1f3"] == pytest.approx(1.0) and m["corr_lag_b1f3_s"] == 0.0
+    # each sample went through m -> mm -> m (two roundings, 4 u |x|), and the kernel interpolates it between
+    # two steps with theta = (t_k - (t_k - dt)) / dt = 1 to within the rounding of t_k - dt, u t_k / dt:
+    # a further 2 u (t_k / dt) |u_n - u_(n-1)|. Eq. 20 is then at most 100 max|error| / rms(x) percent.
+    t_end = float(table.t_s.iloc[-1])
+    for code, col in (("b1f3", "model1_floor3_mm"), ("b2f3", "model2_floor3_mm")):
+        x = table[col].to_numpy()
+        step = np.abs(np.diff(hist[f"disp_{code}_m"].to_numpy())).max() * 1e3
+        err = 4 * U * np.abs(x).max() + 2 * U * (t_end / 1e-4) * step
+        assert m[f"rel_rms_{code}_pct"] <= 100 * err / np.sqrt(np.mean(x**2))
+        assert abs(m[f"peak_diff_{code}_pct"]) <= 100 * err / np.abs(x).max()
+    assert m["corr_b1f3"] == pytest.approx(1.0) and m["corr_lag_b1f3_s"] == 0.0
     _, other = simulate(s, ks_ratio=1.0, r=0.4)
     assert other["rel_rms_combined_pct"] > 5.0
 
@@ -229,7 +240,18 @@ def test_shipped_synthetic_tables_regenerate(name):
     df, prov = mod.build(name)
     shipped = pd.read_parquet(SWEEPS / "experiments" / name)
     assert list(df.columns) == list(shipped.columns)
-    np.testing.assert_allclose(df.to_numpy(), shipped.to_numpy(), rtol=0, atol=1e-9)
+    # the shipped tables were made on another CPU: the truth run (5-7 s of pounding at dt = 2e-5 s) rounds
+    # differently here. Tolerance: SAFETY times what the model's own rounding does to this run (the table
+    # regenerated on the backward-error twins of its matrices; tests/tolerances.py), noise included in both
+    twins = []
+    for seed in SEEDS:
+        with pytest.MonkeyPatch.context() as mp:
+            plain = CoupledModel.system_arrays
+            mp.setattr(CoupledModel, "system_arrays", lambda self, dt, seed=seed: backward_error_twin(plain(self, dt), seed))
+            twins.append(mod.build(name)[0].to_numpy())
+    x = df.to_numpy()
+    tol = SAFETY * np.max([np.abs(t - x) for t in twins], axis=0) + floor_steps(2 * len(x) * 200, 6) * np.abs(x).max()
+    assert np.all(np.abs(shipped.to_numpy() - x) <= tol)
     assert json.loads(pq.read_schema(SWEEPS / "experiments" / name).metadata[b"provenance"])["hidden_parameters"] == prov["hidden_parameters"]
 
 

@@ -1,0 +1,143 @@
+"""Tolerances of the suite's "equal up to rounding" comparisons, each derived from an error bound.
+
+Two computations that are equal in exact arithmetic (the kernel and the NumPy reference; the lane
+kernel and the scalar kernel) differ by their rounding, propagated through the run. How much a run
+amplifies rounding depends on the run: a quiet linear stretch adds it up step by step, a contact
+event can multiply it (the impact instant moves with the state). A fixed tolerance tuned on one CPU
+is either too loose for the quiet runs or too tight for the sensitive ones on another CPU (vector
+width, fused multiply-adds and the libm differ between code-generation targets). So each
+comparison measures the run's own sensitivity with a *twin*, a computation that rounds differently
+on purpose, and allows SAFETY times what the twin shows:
+
+- against the NumPy reference: Monte Carlo arithmetic twins (tests/reference.py `noise`): every
+  solve result, velocity and acceleration of the reference multiplied by (1 + n u xi), xi uniform in
+  [-1, 1], n the degrees of freedom: one random rounding of the size of Higham's bound on a length-n
+  dot product's relative error (gamma_n ~ n u: Higham, Accuracy and Stability of Numerical
+  Algorithms, 2nd ed. 2002, eq. 3.4), applied where a program rounds, before eqs. 15-16 amplify it by
+  2/dt and 4/dt^2 (Parker, Pierce & Eggert, "Monte Carlo arithmetic: how to gamble with floating
+  point and win", Comput. Sci. Eng. 2(4), 2000);
+- against the scalar kernel (the lane kernel's grids, too many runs for the reference): backward-error
+  twins: the scalar kernel on the same model with every entry of its stored matrices (C, K, Keff^-1,
+  H, S) multiplied by (1 +/- n u), fixed random signs: the matrices as rounding leaves them when they
+  are formed (Higham ch. 3, the backward error of a matrix product or inverse is n u per entry to first
+  order). The lane kernel's own difference from the scalar kernel is of this kind: its modal
+  coordinates carry the eigenvectors' rounding into every step, the same error in every step.
+
+SAFETY: measured over the 23 kernel-vs-reference cases and the lane kernel's harmonic grids on three
+code-generation targets (the host's AVX-512 `znver4`, AVX2 with FMA `haswell`, and `generic`
+x86-64 without either), the largest ratio of the actual difference to the larger of two twins'
+differences was 8.7 (MCA, event scheme) and 5.3 (backward-error twins); one twin's difference varies
+by up to 2.6x between seeds (8 seeds). 8.7 x 2.6 = 23, rounded up to a power of two: 32.
+
+Floors: where both twins agree with the base exactly (a quantity that is identically zero, say),
+FLOOR_STEPS (the linear accumulation of one rounding per step over N steps of a non-expanding
+recurrence: Newmark average acceleration has spectral radius 1, Chopra sec. 5.5; Higham Lemma 3.1)
+still allows N n u of the quantity's scale.
+
+Near-ties: counts (impacts, compression phases) are equal unless a twin's count differs from the
+base's: then the run sits at a near-tie (an impact decided by a rounding-level difference) and any
+count between the base's and the twins' is accepted. Quantities that the event scheme sets at its
+own thresholds rather than by rounding carry those thresholds (`switch_residue_force`, phases).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: unit roundoff of IEEE 754 binary64 (half the spacing of doubles at 1)
+U = 2.0**-53
+#: the largest difference / twin-difference ratio measured (8.7) times the twins' seed variation (2.6),
+#: rounded up to a power of two (module docstring)
+SAFETY = 32.0
+#: seeds of the two twins of every comparison
+SEEDS = (1, 2)
+
+
+def rel_to_peak(x, ref) -> float:
+    """max |x - ref| / max |ref| (the absolute difference when ref is identically 0)."""
+    peak = np.max(np.abs(ref)) if np.size(ref) else 0.0
+    diff = np.max(np.abs(np.asarray(x) - np.asarray(ref))) if np.size(ref) else 0.0
+    return float(diff / peak) if peak > 0 else float(diff)
+
+
+def mca_noise(n_dof: int) -> float:
+    """Relative size of one random rounding in the Monte Carlo arithmetic twins: n u (Higham's gamma_n to
+    first order: the relative error of a length-n dot product, the core of every solve)."""
+    return n_dof * U
+
+
+def floor_steps(n_steps: int, n_dof: int) -> float:
+    """Relative rounding accumulated by n_steps of a non-expanding recurrence that rounds each of n_dof
+    components once per step: n_steps n u (Higham Lemma 3.1, errors adding linearly)."""
+    return float(n_steps) * n_dof * U
+
+
+def history_tolerance(ref: dict, twins: list[dict], key: str, n_steps: int, n_dof: int, sl=slice(None)) -> float:
+    """Tolerance on rel_to_peak(kernel[key], ref[key]): SAFETY times the larger twin difference, at least
+    the linear accumulation floor."""
+    spread = max(rel_to_peak(t[key][sl], ref[key][sl]) for t in twins)
+    return SAFETY * max(spread, floor_steps(n_steps, n_dof))
+
+
+def value_tolerance(base: np.ndarray, twins: list[np.ndarray], scale: np.ndarray, n_steps: int,
+                    n_dof: int) -> np.ndarray:
+    """Per-element tolerance on |other - base| for a per-run value: SAFETY times the larger twin
+    difference, at least the linear accumulation floor of the value's `scale` (the column's largest
+    magnitude: a peak is computed from states whose rounding is relative to the run's peaks, not to
+    the value itself, which may be near zero)."""
+    spread = np.max([np.abs(t - base) for t in twins], axis=0)
+    return SAFETY * np.maximum(spread, floor_steps(n_steps, n_dof) * np.abs(scale))
+
+
+def count_bounds(base, twins) -> tuple[np.ndarray, np.ndarray]:
+    """Counts accepted for another computation: the base's, or, where a twin's differs (a near-tie), any
+    value between the base's and the twins'."""
+    stack = np.stack([np.asarray(base)] + [np.asarray(t) for t in twins])
+    return stack.min(axis=0), stack.max(axis=0)
+
+
+def switch_residue_force(ks, up, uq):
+    """Largest |force| [N] the event scheme leaves on a pair without calling it a switch: a penetration
+    (or, under no tension, F / k_s) inside kernel._switch_tolerance of zero at a step's end does not
+    contradict the contact set, so a phase's least force may sit anywhere in +/- k_s times it. The
+    tolerance is the kernel's own rule (one home), evaluated on the floors' peak displacements."""
+    from pounding_sweep.kernel import _switch_tolerance
+
+    return np.asarray(ks) * np.vectorize(_switch_tolerance)(np.asarray(up, float), np.asarray(uq, float))
+
+
+def summation_tolerance(n_terms: int, abs_sum) -> float:
+    """|error| of a floating-point sum of n_terms terms: (n_terms - 1) u sum |terms| (Higham eq. 4.4,
+    recursive summation), for identities whose two sides are sums over the run's steps."""
+    return max(n_terms - 1, 1) * U * abs_sum
+
+
+def energy_balance_tolerance(m: dict, n_dof: int) -> float:
+    """|E_in - (KE + SE + D_struct + D_contact + E_spring + residual)| for a run's metrics `m`: both sides
+    are sums over the run's steps of increments that are each n_dof-term dot products (relative error
+    n u of their absolute terms) and are summed recursively (error (N - 1) u sum |increments|: Higham
+    eq. 4.4): N (n + 1) u times the energies' absolute scale. (The identity itself, trapezoidal work
+    against Newmark average acceleration, is exact in exact arithmetic.)"""
+    scale = (m["input_work_abs_J"] + abs(m["structural_damping_energy_J"]) + abs(m["contact_damping_energy_J"])
+             + abs(m["kinetic_energy_end_J"]) + abs(m["strain_energy_end_J"]) + abs(m["contact_spring_energy_end_J"]))
+    return summation_tolerance(int(m["steps"]) * (n_dof + 1), scale)
+
+
+def mca_twins(run, n_dof: int) -> list:
+    """The Monte Carlo arithmetic twins of a reference run: run(noise=..., seed=...) for each of SEEDS."""
+    return [run(noise=mca_noise(n_dof), seed=s) for s in SEEDS]
+
+
+def backward_error_twin(sysarr, seed: int):
+    """The scalar kernel's SystemArrays with every entry of C, K, Keff^-1, H and S multiplied by
+    (1 +/- n u), random signs from `seed`: the same model as rounding may leave it (module docstring)."""
+    import dataclasses
+
+    rng = np.random.default_rng(seed)
+    n = sysarr.m.size
+
+    def rounded(A):
+        return np.ascontiguousarray(A * (1.0 + n * U * rng.choice([-1.0, 1.0], A.shape)))
+
+    return dataclasses.replace(sysarr, C=rounded(sysarr.C), K=rounded(sysarr.K), Kinv=rounded(sysarr.Kinv),
+                               H=rounded(sysarr.H), S=rounded(sysarr.S))

@@ -132,6 +132,17 @@ def _number(token: str) -> float | None:
     return float(token.replace("d", "e").replace("D", "E"))
 
 
+def _resolution(token: str) -> float:
+    """Half a unit in the last place a number was written with ('0.003333' -> 5e-7, '1.5e-3' -> 5e-5,
+    '5' -> 0.5): how far the value may lie from the number it was rounded from."""
+    m = re.fullmatch(r"[+-]?(\d*)(?:\.(\d*))?(?:[eEdD]([+-]?\d+))?", token)
+    if m is None:
+        return 0.0
+    decimals = len(m.group(2) or "")
+    exponent = int(m.group(3) or 0)
+    return 0.5 * 10.0 ** (exponent - decimals)
+
+
 def _is_nonfinite_spelling(token: str) -> bool:
     """True for tokens Python reads as NaN or inf ('nan', '-Infinity', ...), to give them their own message."""
     try:
@@ -263,7 +274,7 @@ def read_csv_record(path, units="m/s2") -> GroundRecord:
                 raise RecordError(f"{src}, line {lineno}: {kind}: {f!r}")
             if not math.isfinite(x):
                 raise RecordError(f"{src}, line {lineno}: value overflows to inf: {f!r}")
-        rows.append((lineno, parsed[0], parsed[1]))
+        rows.append((lineno, parsed[0], parsed[1], _resolution(fields[0])))
 
     if len(rows) < 2:
         raise RecordError(f"{src}: need at least 2 data rows, found {len(rows)}")
@@ -279,12 +290,21 @@ def read_csv_record(path, units="m/s2") -> GroundRecord:
             f"{src}, line {lineno_arr[i]}: time must be strictly increasing, "
             f"got {float(t[i])!r} after {float(t[i - 1])!r}"
         )
-    dt = float(np.median(d))
-    if (d.max() - d.min()) / dt >= 1e-6:
-        i = int(np.argmax(np.abs(d - dt))) + 1
+    # the step from the first and last stamps: exact where the stamps are k dt correctly rounded (the median
+    # of the differences carries their rounding, up to n u relative). Each step and each stamp may then
+    # depart from it by the stamps' own rounding: one unit in the last place written (the finest seen:
+    # trailing zeros may be dropped; 6 decimals at 300 Hz are 1e-6 s), at most 1e-3 dt
+    dt = float((t[-1] - t[0]) / (t.size - 1))
+    unit = 2.0 * min(r[3] for r in rows)
+    allowed = min(unit, 1e-3 * dt) + 16.0 * np.finfo(float).eps * float(np.abs(t).max())
+    typical = float(np.median(d))
+    jumps = np.flatnonzero(np.abs(d - typical) > allowed)
+    off = np.abs(t - (t[0] + np.arange(t.size) * dt))
+    if jumps.size or off.max() > allowed:
+        i = int(jumps[0]) + 1 if jumps.size else int(np.argmax(off))
         raise RecordError(
-            f"{src}, line {lineno_arr[i]}: non-uniform time step {float(d[i - 1])!r} s (median {dt!r} s) "
-            f"at t={float(t[i])!r}; resample the record to a uniform step first"
+            f"{src}, line {lineno_arr[i]}: non-uniform time step: {float(d[i - 1])!r} s before t = {float(t[i])!r} s "
+            f"against {typical!r} s (stamps written to {unit:.3g} s); resample the record to a uniform step first"
         )
     return GroundRecord(name=p.stem, source=src, dt_s=dt, acc_m_s2=a * factor, description="")
 

@@ -1,4 +1,8 @@
-"""Tests for pounding_sweep.records: AT2/CSV readers, error messages, similitude, resampling."""
+"""Tests for pounding_sweep.records: AT2/CSV readers, error messages, similitude, resampling.
+
+Tolerances: a value read from text is correctly rounded (Python's float, u relative) and a unit factor
+applied to it rounds once more, against an expected value that is itself one or two roundings away:
+rtol 1e-15 is 4.5 u, 1e-14 allows the factor's own representation error (9.80665 is not binary)."""
 
 from __future__ import annotations
 
@@ -211,6 +215,22 @@ def test_csv_header_t0_shift_and_units(tmp_path):
     p3 = _write(tmp_path, "semi.csv", "0;0.1\n0.5;0.2\n1.0;0.3\n")
     r3 = read_record(p3, units="g")
     np.testing.assert_allclose(r3.acc_m_s2, np.array([0.1, 0.2, 0.3]) * G_STANDARD, rtol=1e-15)
+
+
+def test_csv_step_from_the_end_stamps_and_their_written_precision(tmp_path):
+    """The step comes from the first and last stamps (exact for stamps k dt correctly rounded, where the
+    median of the differences is off by up to n u); stamps written with few decimals (300 Hz with 6
+    decimals: each up to 5e-7 s off the grid) are accepted within one unit of their last place."""
+    t = np.arange(5176) * 0.005
+    exact = tmp_path / "exact.csv"
+    np.savetxt(exact, np.column_stack([t, np.sin(t)]), delimiter=",", fmt="%.17g")
+    assert read_csv_record(exact).dt_s == 0.005
+    t300 = np.arange(3000) / 300
+    six = _write(tmp_path, "six.csv", "t,a\n" + "".join(f"{x:.6f},{np.sin(x):.6f}\n" for x in t300))
+    rec = read_csv_record(six)
+    assert rec.dt_s == pytest.approx(1 / 300, abs=5e-7 / 2999)  # the last stamp's rounding (5e-7 s) over 2999 steps
+    skipped = _write(tmp_path, "skip.csv", "t,a\n" + "".join(f"{x:.6f},0\n" for k, x in enumerate(t300) if k != 1500))
+    _raises(["skip.csv", "line 1502", "non-uniform", "resample"], read_csv_record, skipped)
 
 
 def test_csv_errors(tmp_path):

@@ -511,6 +511,14 @@ def validate(s: Scene) -> None:
     _positive(c.ks_ratio, "[contact] ks_ratio")
     _positive(c.ks_N_per_m, "[contact] ks_N_per_m")
     _positive(c.k_ref_N_per_m, "[contact] k_ref_N_per_m")
+    # the resolved contact stiffness enters ke = k_s + 2 c / dt and the contact matrix: it must stay finite
+    for key, ratio in [("[contact] ks_ratio", c.ks_ratio)] + [("[sweep] ks_ratio", v) for v in axes.get("ks_ratio", ())]:
+        if ratio is not None and not math.isfinite(4.0 * ratio * c.k_ref_N_per_m):
+            raise ConfigError(f"{key} = {ratio!r} with [contact] k_ref_N_per_m = {c.k_ref_N_per_m!r}: k_s = ratio k_ref "
+                              "overflows (is k_ref in N/m?)")
+    for key, ks in [("[contact] ks_N_per_m", c.ks_N_per_m)] + [("[sweep] ks_N_per_m", v) for v in axes.get("ks_N_per_m", ())]:
+        if ks is not None and not math.isfinite(4.0 * ks):
+            raise ConfigError(f"{key} = {ks!r}: too large (the contact terms overflow)")
     for k in ("ks_ratio", "ks_N_per_m", "amplitude_m", "frequency_Hz", "scale"):
         for v in axes.get(k, ()):
             _positive(v, f"[sweep] {k}")

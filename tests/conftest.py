@@ -4,8 +4,17 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import os
+
 import numpy as np
 import pytest
+from hypothesis import settings
+
+# property tests draw the same examples on every run (a CI run on a fresh clone must not turn red by the
+# luck of the draw); HYPOTHESIS_PROFILE=explore draws new ones (and keeps failures in .hypothesis/)
+settings.register_profile("ci", derandomize=True, database=None)
+settings.register_profile("explore", max_examples=5000)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 REPO = Path(__file__).resolve().parents[1]
 SWEEPS = REPO / "sweeps"

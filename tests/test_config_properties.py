@@ -8,7 +8,7 @@ import math
 import tomllib
 
 import numpy as np
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from conftest import SWEEPS
@@ -57,8 +57,15 @@ def mutated_scene(draw):
     return raw
 
 
+def _with_contact(**kw):
+    raw = copy.deepcopy(BASE)
+    raw["contact"].update(kw)
+    return raw
+
+
 @settings(max_examples=1000, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(mutated_scene())
+@example(_with_contact(k_ref_N_per_m=1.797693134862316e307))  # found by hypothesis: k_s = 10 k_ref overflowed
 def test_any_scene_loads_valid_or_raises_config_error(raw):
     try:
         scene = scene_from_dict(raw, base_dir=SWEEPS, source="prop.toml")

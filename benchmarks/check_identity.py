@@ -1,0 +1,136 @@
+"""Bit-identity of results across a change that must not change them (a refactor, a reorganisation).
+
+    python benchmarks/check_identity.py run OUT_DIR        # run the fixed set of scenes into OUT_DIR
+    python benchmarks/check_identity.py compare A_DIR B_DIR  # every table of A equal to B's, bit for bit
+
+`run` writes the scenes it uses into OUT_DIR/scenes (the shipped scenes, the throughput benchmark's
+uneven grids for both lane schemes and both laws, a history-producing scene, a record and scale
+sweep, a dt = "auto" sweep) and runs each through the command line (`python -m pounding_sweep`), so
+the same script drives any version of the package. `compare` reads every Parquet table (metrics,
+best runs, histories), drops the run-time columns (wall clock), and requires every other column
+equal value for value (NaN equal to NaN, 0.0 equal to -0.0). It prints one line per table and
+exits 1 on any difference.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+SWEEPS = REPO / "sweeps"
+RECORD = SWEEPS / "records" / "RSN1605_DUZCE_DZC180.AT2"
+WALL_CLOCK = ("run_time_s",)
+
+
+def _grid(values) -> str:
+    return "[" + ", ".join(repr(float(v)) for v in values) + "]"
+
+
+def _uneven(scheme: str, law: str) -> str:
+    """bench_throughput's uneven grid (gaps 0..20 mm, k_s/k 0.01..100, r 0..1), 1 s of the 6 Hz scene."""
+    text = (SWEEPS / "paper_6hz.toml").read_text()
+    text = text.replace("duration_s = 5.0", "duration_s = 1.0")
+    head, _, _ = text.partition("[sweep]")
+    return (head.replace('law = "classic"', f'law = "{law}"').replace('scheme = "event"', f'scheme = "{scheme}"')
+            + f"\n[sweep]\ngap_m = {_grid((0.0, 0.002, 0.02))}\nks_ratio = {_grid(np.geomspace(0.01, 100, 6))}\n"
+            f"r = {_grid(np.linspace(0.0, 1.0, 5))}\n")
+
+
+def scenes(out: Path) -> dict[str, Path]:
+    """Write the scenes (copies of the shipped ones, with their relative paths made absolute)."""
+    d = out / "scenes"
+    d.mkdir(parents=True, exist_ok=True)
+    files: dict[str, str] = {}
+    for p in sorted(SWEEPS.glob("*.toml")):
+        text = p.read_text()
+        text = text.replace('"records/', f'"{SWEEPS}/records/').replace('"experiments/', f'"{SWEEPS}/experiments/')
+        files[p.stem] = text
+    for scheme in ("event", "implicit"):
+        for law in ("classic", "no_tension"):
+            files[f"uneven_{scheme}_{law}"] = _uneven(scheme, law)
+    six = (SWEEPS / "paper_6hz.toml").read_text().replace("duration_s = 5.0", "duration_s = 1.0")
+    files["histories_6hz"] = six.replace("[output]", '[output]\nhistories = ["disp_b1f3", "vel_b2f2", "abs_acc_b2f3", '
+                                                       '"force_f3", "ground_acc"]\nhistory_decimate = 7')
+    duzce = (SWEEPS / "paper_duzce.toml").read_text().replace('"records/', f'"{SWEEPS}/records/')
+    head, _, _ = duzce.partition("[sweep]")
+    files["record_scale"] = head + "\n[sweep]\nscale = [0.5, 1.0]\nks_ratio = [1.0, 10.0]\nr = [0.2, 0.8]\n"
+    auto = six.replace('dt_s = 1e-4', 'dt_s = "auto"')
+    assert auto != six, "paper_6hz.toml no longer sets dt_s = 1e-4"
+    files["auto_dt"] = auto
+    paths = {}
+    for name, text in files.items():
+        lines = [ln for ln in text.splitlines() if not ln.strip().startswith("path =")]
+        p = d / f"{name}.toml"
+        p.write_text("\n".join(lines) + "\n")
+        paths[name] = p
+    return paths
+
+
+def run(out: Path) -> int:
+    out = out.resolve()
+    for name, scene in scenes(out).items():
+        target = out / "results" / f"{name}.parquet"
+        cmd = [sys.executable, "-m", "pounding_sweep", str(scene), "--out", str(target), "--quiet", "--yes"]
+        r = subprocess.run(cmd, capture_output=True, text=True)
+        print(f"{name}: exit {r.returncode}" + (f" ({r.stderr.strip().splitlines()[-1]})" if r.returncode else ""))
+        if r.returncode:
+            return 1
+    return 0
+
+
+def _tables(d: Path) -> dict[str, Path]:
+    res = d / "results"
+    out = {}
+    for p in sorted(res.iterdir()):
+        if p.name.endswith(".parquet"):
+            out[p.name] = p
+    return out
+
+
+def compare(a: Path, b: Path) -> int:
+    import pandas as pd
+
+    ta, tb = _tables(a), _tables(b)
+    bad = 0
+    for name in sorted(set(ta) | set(tb)):
+        if name not in ta or name not in tb:
+            print(f"{name}: only in {a if name in ta else b}")
+            bad += 1
+            continue
+        x = pd.read_parquet(ta[name]).drop(columns=list(WALL_CLOCK), errors="ignore")
+        y = pd.read_parquet(tb[name]).drop(columns=list(WALL_CLOCK), errors="ignore")
+        if list(x.columns) != list(y.columns) or len(x) != len(y):
+            print(f"{name}: columns or rows differ ({x.shape} vs {y.shape})")
+            bad += 1
+            continue
+        diff = []
+        for c in x.columns:
+            u, v = x[c].to_numpy(), y[c].to_numpy()
+            if u.dtype.kind == "f" or v.dtype.kind == "f":
+                u, v = u.astype(float), v.astype(float)
+                same = (u == v) | (np.isnan(u) & np.isnan(v))
+            else:
+                same = (u == v) | (pd.isna(u) & pd.isna(v))
+            if not np.all(same):
+                diff.append(f"{c} ({int((~same).sum())} rows)")
+        print(f"{name}: {len(x)} rows x {len(x.columns)} columns " + ("identical" if not diff else "DIFFER: " + ", ".join(diff)))
+        bad += bool(diff)
+    print(f"{len(set(ta) | set(tb))} tables, {bad} differing")
+    return 1 if bad else 0
+
+
+def main(argv: list[str]) -> int:
+    if len(argv) == 2 and argv[0] == "run":
+        return run(Path(argv[1]))
+    if len(argv) == 3 and argv[0] == "compare":
+        return compare(Path(argv[1]), Path(argv[2]))
+    print(__doc__, file=sys.stderr)
+    return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -57,10 +57,10 @@ from scipy.optimize import minimize_scalar
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "tests"))
 
-from pounding_sweep.config import load_scene  # noqa: E402
-from pounding_sweep.excitation import Excitation  # noqa: E402
-from pounding_sweep.score_kernel import relative_rms_error_pct  # noqa: E402
-from pounding_sweep.simulate import simulate, with_overrides  # noqa: E402
+from pounding_sweep.scene.config import load_scene  # noqa: E402
+from pounding_sweep.model.excitation import Excitation  # noqa: E402
+from pounding_sweep.engine.score import relative_rms_error_pct  # noqa: E402
+from pounding_sweep.sweep.simulate import simulate, with_overrides  # noqa: E402
 from reference import contact_force, contact_set_systems, resolve  # noqa: E402
 
 SCENES = {"paper_6hz": REPO / "sweeps" / "paper_6hz.toml", "paper_duzce": REPO / "sweeps" / "paper_duzce.toml"}

@@ -21,9 +21,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from pounding_sweep.config import Axis, load_scene
-from pounding_sweep.executors import DaskExecutor, LocalExecutor
-from pounding_sweep.sweep import run_scene
+from pounding_sweep.scene.config import Axis, load_scene
+from pounding_sweep.sweep.executors import DaskExecutor, LocalExecutor
+from pounding_sweep.sweep.run import run_scene
 
 REPO = Path(__file__).resolve().parents[1]
 

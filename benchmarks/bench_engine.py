@@ -28,18 +28,18 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "tests"))
 
-from pounding_sweep.config import Axis, load_scene  # noqa: E402
-from pounding_sweep.simulate import simulate  # noqa: E402
-from pounding_sweep.sweep import run_scene  # noqa: E402
+from pounding_sweep.scene.config import Axis, load_scene  # noqa: E402
+from pounding_sweep.sweep.simulate import simulate  # noqa: E402
+from pounding_sweep.sweep.run import run_scene  # noqa: E402
 
 SCENE = REPO / "sweeps" / "paper_6hz.toml"
 
 COMPILE_SNIPPET = """
 import time
 t0 = time.perf_counter()
-from pounding_sweep.config import load_scene
-from pounding_sweep.sweep import prepare
-from pounding_sweep.driver import compile_kernel
+from pounding_sweep.scene.config import load_scene
+from pounding_sweep.sweep.run import prepare
+from pounding_sweep.engine.driver import compile_kernel
 p = prepare(load_scene(r"{scene}"))
 t1 = time.perf_counter()
 print(t1 - t0, compile_kernel(p.sysarr, p.opts))

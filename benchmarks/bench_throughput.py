@@ -54,11 +54,12 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "tests"))
 sys.path.insert(0, str(REPO / "benchmarks" / "peers"))
 
-from pounding_sweep import driver, kernel_lanes  # noqa: E402
-from pounding_sweep import metrics_layout as L  # noqa: E402
-from pounding_sweep.config import Axis, load_scene  # noqa: E402
-from pounding_sweep.driver import HistorySpec, RunArrays  # noqa: E402
-from pounding_sweep.sweep import prepare, run_scene  # noqa: E402
+from pounding_sweep.engine import driver
+from pounding_sweep.engine import lanes as kernel_lanes
+from pounding_sweep.engine import layout as L
+from pounding_sweep.scene.config import Axis, load_scene  # noqa: E402
+from pounding_sweep.engine.driver import HistorySpec, RunArrays  # noqa: E402
+from pounding_sweep.sweep.run import prepare, run_scene  # noqa: E402
 
 SCENE_6HZ = REPO / "sweeps" / "paper_6hz.toml"
 SCENE_DUZCE = REPO / "sweeps" / "paper_duzce.toml"
@@ -167,7 +168,7 @@ def fma_peak() -> float:
     if _FMA_PEAK is None:
         import numba
 
-        from pounding_sweep.simd import VW, vfma, vsplat, vstore
+        from pounding_sweep.engine.simd import VW, vfma, vsplat, vstore
 
         @numba.njit
         def chains(n, out):
@@ -194,9 +195,9 @@ COMPILE_SNIPPET = """
 import dataclasses, json, time
 t0 = time.perf_counter()
 import numpy as np
-from pounding_sweep import driver
-from pounding_sweep.config import load_scene
-from pounding_sweep.sweep import prepare
+from pounding_sweep.engine import driver
+from pounding_sweep.scene.config import load_scene
+from pounding_sweep.sweep.run import prepare
 s = load_scene(r"{scene}")
 s = dataclasses.replace(s, integration=dataclasses.replace(s.integration, scheme="implicit"))
 p = prepare(s)
@@ -232,7 +233,7 @@ def peers(duration: float, grid_copies: int, with_opensees: bool) -> float:
     header(f"2. one run by every method: 6 Hz, k_s = k, r = 0.4, gap 0, dt = 1e-4 s, {duration:g} s "
            f"({int(round(duration / DT)):,} steps), implicit scheme, classic law")
     from reference import ivp_reference, newmark_reference
-    from pounding_sweep.simulate import simulate
+    from pounding_sweep.sweep.simulate import simulate
 
     s = scene(duration=duration, scheme="implicit", **RUN)
     prep = prepare(s)
@@ -296,7 +297,7 @@ def peers(duration: float, grid_copies: int, with_opensees: bool) -> float:
     if with_opensees:
         try:
             from opensees_pounding import run_opensees
-            from pounding_sweep.contact import dashpot_coefficient
+            from pounding_sweep.model.contact import dashpot_coefficient
 
             m1, m2 = prep.model.pair_masses()
             ks = RUN["ks_ratio"] * s.contact.k_ref_N_per_m
@@ -433,8 +434,8 @@ def scaling(sizes: list[int], run_s: float, lengths: list[float], n_len: int) ->
 MEMORY_SNIPPET = """
 import dataclasses, json, resource, sys, time
 import numpy as np
-from pounding_sweep.config import Axis, load_scene
-from pounding_sweep.sweep import run_scene
+from pounding_sweep.scene.config import Axis, load_scene
+from pounding_sweep.sweep.run import run_scene
 n, dur, out = int(sys.argv[1]), float(sys.argv[2]), sys.argv[3]
 s = load_scene(r"{scene}")
 a = 100; b = 100; c = n // (a * b)
@@ -500,9 +501,9 @@ def cli_duzce(repeats: int) -> None:
         imp = []
         for _ in range(repeats):
             t0 = time.perf_counter()
-            subprocess.run([sys.executable, "-c", "import pounding_sweep.cli"], check=True)
+            subprocess.run([sys.executable, "-c", "import pounding_sweep.cli.run"], check=True)
             imp.append(time.perf_counter() - t0)
-        rows.append(["python -c 'import pounding_sweep.cli'", f"{min(imp):.2f}", f"{statistics.median(imp):.2f}",
+        rows.append(["python -c 'import pounding_sweep.cli.run'", f"{min(imp):.2f}", f"{statistics.median(imp):.2f}",
                      "", "", ""])
         floor = []
         for _ in range(repeats):

@@ -27,8 +27,8 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 
-from pounding_sweep.config import load_scene  # noqa: E402
-from pounding_sweep.simulate import simulate  # noqa: E402
+from pounding_sweep.scene.config import load_scene  # noqa: E402
+from pounding_sweep.sweep.simulate import simulate  # noqa: E402
 from pounding_sweep.video.io import VideoError, VideoReader  # noqa: E402
 from pounding_sweep.video.render import (  # noqa: E402
     Reflection,
@@ -38,7 +38,7 @@ from pounding_sweep.video.render import (  # noqa: E402
     render_video,
     shake_table_layout,
 )
-from pounding_sweep.video.scene import VideoSpec  # noqa: E402
+from pounding_sweep.scene.video import VideoSpec  # noqa: E402
 from pounding_sweep.video.tracker import QUALITY, track_frames, track_video  # noqa: E402
 
 

@@ -112,7 +112,8 @@ def _profile(a, perf: str, tmp: Path, pmap: Path) -> None:
     import numpy as np
 
     import bench_throughput as B
-    from pounding_sweep import driver, kernel_lanes
+    from pounding_sweep.engine import driver
+    from pounding_sweep.engine import lanes as kernel_lanes
 
     s = B.scene(base=B.SCENE_6HZ, duration=2.0, scheme=a.scheme,
                 sweep=[("gap_m", (a.gap,)), ("ks_ratio", np.geomspace(0.1, 10, 4)), ("r", np.linspace(0.2, 1, 4))])

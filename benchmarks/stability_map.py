@@ -49,8 +49,8 @@ import pandas as pd
 
 REPO = Path(__file__).resolve().parents[1]
 
-from pounding_sweep.config import Axis, load_scene  # noqa: E402
-from pounding_sweep.sweep import run_scene  # noqa: E402
+from pounding_sweep.scene.config import Axis, load_scene  # noqa: E402
+from pounding_sweep.sweep.run import run_scene  # noqa: E402
 
 SCENES = {
     # name: (scene file, amplitude axis, its values, duration [s])
@@ -86,7 +86,7 @@ def grid_scene(name: str, ks=KS, r=R, amps=None, duration: float | None = None, 
 def run_map(scenes=tuple(SCENES), ks=KS, r=R, dts=DTS, laws=LAWS, schemes=SCHEMES, amps=None, duration=None,
             threads: int = 2, kernel: str = "scalar", log=print) -> pd.DataFrame:
     """Every (scene, law, scheme, dt) grid through run_scene; one row per run, with the map's columns."""
-    from pounding_sweep import driver
+    from pounding_sweep.engine import driver
 
     forced = hasattr(driver, "FORCE_KERNEL") and kernel == "scalar"
     old = getattr(driver, "FORCE_KERNEL", None)

@@ -2,6 +2,6 @@
 
 import sys
 
-from .cli import main
+from pounding_sweep.cli import main
 
 sys.exit(main())

@@ -16,9 +16,9 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from . import __version__
-from .config import Scene
-from .simulate import simulate
+from pounding_sweep import __version__
+from pounding_sweep.scene.config import Scene
+from pounding_sweep.sweep.simulate import simulate
 
 
 def perturbed(scene: Scene, stiffness_factor: tuple[float, float], damping_factor: tuple[float, float]) -> Scene:

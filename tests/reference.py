@@ -48,9 +48,9 @@ import math
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from pounding_sweep.excitation import Excitation
-from pounding_sweep.model import CoupledModel
-from pounding_sweep.simulate import with_overrides
+from pounding_sweep.model.excitation import Excitation
+from pounding_sweep.model.coupled import CoupledModel
+from pounding_sweep.sweep.simulate import with_overrides
 
 LAWS = ("classic", "no_tension")
 SCHEMES = ("implicit", "paper", "event")

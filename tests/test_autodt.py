@@ -13,9 +13,9 @@ import pandas as pd
 import pytest
 
 from conftest import SWEEPS
-from pounding_sweep.config import Axis, ConfigError, load_scene, validate
-from pounding_sweep.simulate import simulate
-from pounding_sweep.sweep import run_scene
+from pounding_sweep.scene.config import Axis, ConfigError, load_scene, validate
+from pounding_sweep.sweep.simulate import simulate
+from pounding_sweep.sweep.run import run_scene
 
 
 def scene(tol=1e-3, dt_min=1e-6, duration=1.0, **integration):

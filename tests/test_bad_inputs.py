@@ -108,7 +108,7 @@ def test_diverging_runs_are_flagged_and_the_sweep_goes_on(tmp_path):
     """The paper's scheme at a coarse dt: the stiff-contact half of the grid blows up, the soft half
     does not. The sweep finishes (exit 0), every grid point has exactly one row, blown-up rows say
     `diverged` (and stopped early), the others are `ok` with finite metrics."""
-    from pounding_sweep.cli import main
+    from pounding_sweep.cli.run import main
 
     text = edit(edit(edit(BASE, 'scheme = "event"', 'scheme = "paper"'), "dt_s = 1e-4", "dt_s = 2e-3"),
                 "ks_ratio = [0.1, 1.0]", "ks_ratio = [0.1, 1.0, 1000.0, 10000.0]")
@@ -135,7 +135,7 @@ def test_relative_paths_resolve_against_the_scene_folder_from_any_cwd(tmp_path, 
     """Record, experiment table and output are named relative to the scene file; the command is run
     from an unrelated folder with a relative scene path. Everything is found, and the results land
     beside the scene, nothing in the working folder."""
-    from pounding_sweep.cli import main
+    from pounding_sweep.cli.run import main
 
     scenes, data, elsewhere = tmp_path / "project" / "scenes", tmp_path / "project" / "data", tmp_path / "elsewhere"
     for d in (scenes, data, elsewhere):
@@ -165,8 +165,8 @@ class _Touch:
 def test_scene_strings_are_never_executed_and_files_never_unpickled(tmp_path):
     """YAML tags, Python expressions and pickles in a scene or its files are inert: strings stay
     strings, a pickle is refused by name (.pkl) or read as the text/Parquet/video it claims to be."""
-    from pounding_sweep.cli import main
-    from pounding_sweep.config import ConfigError, load_scene
+    from pounding_sweep.cli.run import main
+    from pounding_sweep.scene.config import ConfigError, load_scene
 
     marker = tmp_path / "PWNED"
     payload = pickle.dumps(_Touch(marker))
@@ -198,11 +198,11 @@ def test_scene_strings_are_never_executed_and_files_never_unpickled(tmp_path):
 
 # Reading user files: these calls only. A new reader (or pickle, eval, YAML) must be added here on purpose.
 ALLOWED_READERS = {
-    "pd.read_csv": {"experiment.py", "plots.py"},
+    "pd.read_csv": {"model/experiment.py", "plots.py"},
     "pd.read_parquet": {"plots.py"},  # result files the sweep wrote
-    "pq.read_table": {"experiment.py", "sweep.py", "tracker.py"},  # tables; the sweep's own parts; the track cache
-    "pq.read_schema": {"results.py"},
-    "cv2.VideoCapture": {"io.py"},
+    "pq.read_table": {"model/experiment.py", "sweep/run.py", "video/tracker.py"},  # tables; our own parts; track cache
+    "pq.read_schema": {"sweep/results.py"},
+    "cv2.VideoCapture": {"video/io.py"},
 }
 FORBIDDEN = r"\bpickle\b|\beval\(|\bexec\(|__import__|\bmarshal\b|\bshelve\b|\bjoblib\b|\bdill\b|yaml|allow_pickle|" \
             r"\bnp\.load\(|read_pickle|read_excel|read_html|read_sql|read_json|read_feather|read_hdf|\bsubprocess\b|os\.system"
@@ -215,9 +215,10 @@ def test_no_reader_can_run_code():
     for py in sorted((REPO / "pounding_sweep").rglob("*.py")):
         code = "\n".join(line.split("#")[0] for line in py.read_text().splitlines())
         bad = re.findall(FORBIDDEN, code)
-        assert not bad, f"{py.name}: {bad}"
+        name = py.relative_to(REPO / "pounding_sweep").as_posix()
+        assert not bad, f"{name}: {bad}"
         for call in re.findall(r"\b(?:pd|pq|pa|np|cv2|ds)\.(?:read_\w+|load\w*|VideoCapture)\b", code):
-            found.setdefault(call, set()).add(py.name)
+            found.setdefault(call, set()).add(name)
     assert set(found) <= set(ALLOWED_READERS), found
     for call, files in found.items():
         assert files <= ALLOWED_READERS[call], (call, files)

@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 from conftest import REPO, SWEEPS
-from pounding_sweep.config import ConfigError, describe, load_scene
-from pounding_sweep.grid import Grid
+from pounding_sweep.scene.config import ConfigError, describe, load_scene
+from pounding_sweep.model.grid import Grid
 
 BASE = (SWEEPS / "paper_6hz.toml").read_text()
 SHIPPED = sorted(SWEEPS.glob("*.toml"))
@@ -78,7 +78,7 @@ def test_bad_scene_message(tmp_path, case):
     path = write(tmp_path, text)
     with pytest.raises(Exception) as exc:
         scene = load_scene(path)
-        from pounding_sweep.excitation import Excitation
+        from pounding_sweep.model.excitation import Excitation
 
         Excitation.from_scene(scene, scene.integration.dt_s)  # records are read here
     msg = str(exc.value)
@@ -132,7 +132,7 @@ def test_config_hash_changes_with_content_only(tmp_path):
 
 def test_column_properties_give_stiffness(tmp_path):
     text = BASE.replace("story_stiffness_N_per_m = 5920.0", "column_EI_Nm2 = 5.4\nn_columns = 4\nstory_height_m = 0.33609")
-    from pounding_sweep.model import CoupledModel
+    from pounding_sweep.model.coupled import CoupledModel
 
     m = CoupledModel.from_scene(load_scene(write(tmp_path, text)))
     assert m.b1.story_stiffness_N_per_m[0] == pytest.approx(6830.0, rel=1e-3)

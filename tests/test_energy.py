@@ -10,9 +10,9 @@ import pandas as pd
 import pytest
 
 from conftest import SWEEPS
-from pounding_sweep.config import Axis, load_scene
-from pounding_sweep.simulate import simulate
-from pounding_sweep.sweep import run_scene
+from pounding_sweep.scene.config import Axis, load_scene
+from pounding_sweep.sweep.simulate import simulate
+from pounding_sweep.sweep.run import run_scene
 from tolerances import energy_balance_tolerance
 
 ENERGY = ["kinetic_energy_end_J", "strain_energy_end_J", "structural_damping_energy_J", "contact_damping_energy_J",

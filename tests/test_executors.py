@@ -21,9 +21,9 @@ import pandas as pd
 import pytest
 
 from conftest import REPO, SWEEPS
-from pounding_sweep.config import Axis, load_scene
-from pounding_sweep.results import MANIFEST, part_files, read_manifest
-from pounding_sweep.sweep import OutputError, run_scene
+from pounding_sweep.scene.config import Axis, load_scene
+from pounding_sweep.sweep.results import MANIFEST, part_files, read_manifest
+from pounding_sweep.sweep.run import OutputError, run_scene
 
 pytest.importorskip("dask.distributed")
 
@@ -46,7 +46,7 @@ def table(path) -> pd.DataFrame:
 
 @pytest.fixture(scope="module")
 def dask_executor():
-    from pounding_sweep.executors import DaskExecutor
+    from pounding_sweep.sweep.executors import DaskExecutor
 
     ex = DaskExecutor(workers=2)
     yield ex

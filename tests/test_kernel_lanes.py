@@ -35,12 +35,14 @@ from conftest import SWEEPS
 from reference import newmark_reference
 from tolerances import (SEEDS, backward_error_twin, count_bounds, mca_twins, switch_residue_force,
                         value_tolerance)
-from pounding_sweep import driver, kernel, kernel_lanes
-from pounding_sweep import metrics_layout as L
-from pounding_sweep.config import Axis, load_scene
-from pounding_sweep.contact import CONTACT_LAWS
-from pounding_sweep.driver import HistorySpec, RunArrays, ScoreSpec
-from pounding_sweep.sweep import prepare
+from pounding_sweep.engine import driver
+from pounding_sweep.engine import scalar as kernel
+from pounding_sweep.engine import lanes as kernel_lanes
+from pounding_sweep.engine import layout as L
+from pounding_sweep.scene.config import Axis, load_scene
+from pounding_sweep.model.contact import CONTACT_LAWS
+from pounding_sweep.engine.driver import HistorySpec, RunArrays, ScoreSpec
+from pounding_sweep.sweep.run import prepare
 
 KS = (0.01, 0.1, 1.0, 10.0, 100.0, 1e4)
 R = (0.0, 0.4, 1.0)
@@ -243,7 +245,7 @@ def test_harmonic_grid_rows_agree(law, scheme):
 def test_record_grid_with_runs_of_unequal_length_rows_agree(tmp_path, scheme):
     """Duzce DZC180 (similitude 1/15) and a shortened copy in one sweep: groups mix records and
     lengths, so lanes end at different steps and read different ground motions."""
-    from pounding_sweep.records import read_record
+    from pounding_sweep.model.records import read_record
 
     rec = read_record(SWEEPS / "records" / "RSN1605_DUZCE_DZC180.AT2", units="g")
     short = tmp_path / "short.csv"

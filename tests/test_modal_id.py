@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pounding_sweep.modal_id import (
+from pounding_sweep.identify.modes import (
     amplitude_spectrum,
     find_peaks,
     fourier_coefficients,
@@ -18,7 +18,7 @@ from pounding_sweep.modal_id import (
     refine_peak,
     welch_psd,
 )
-from pounding_sweep.structure import build_shear_frame
+from pounding_sweep.model.structure import build_shear_frame
 
 FS = 100.0
 
@@ -83,7 +83,7 @@ def test_half_power_on_a_psd_and_welch_peak():
 
 
 def test_half_power_is_nan_when_the_band_is_not_closed():
-    from pounding_sweep.modal_id import Spectrum
+    from pounding_sweep.identify.modes import Spectrum
 
     f = np.linspace(0, 10, 101)
     rising = Spectrum(f, 1.0 + f, "amplitude", 0.1)  # never falls to 1/sqrt(2) after its peak at the end

@@ -8,16 +8,16 @@ import tomllib
 import numpy as np
 import pytest
 
-from pounding_sweep.config import BuildingConfig, load_scene
-from pounding_sweep.model import building_from_config
-from pounding_sweep.model_update import (
+from pounding_sweep.scene.config import BuildingConfig, load_scene
+from pounding_sweep.model.coupled import building_from_config
+from pounding_sweep.identify.update import (
     column_EI_for_story_stiffness,
     frequencies_Hz,
     stiffness_factor_for_f1,
     update_building,
     update_scene,
 )
-from pounding_sweep.structure import column_story_stiffness
+from pounding_sweep.model.structure import column_story_stiffness
 
 from conftest import SWEEPS
 

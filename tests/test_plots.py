@@ -13,9 +13,9 @@ from conftest import REPO, SWEEPS
 
 pytest.importorskip("matplotlib", reason="plots need the 'plot' extra (matplotlib)")
 
-from pounding_sweep import plots  # noqa: E402
-from pounding_sweep.config import load_scene  # noqa: E402
-from pounding_sweep.results import read_metadata  # noqa: E402
+from pounding_sweep import plots
+from pounding_sweep.scene.config import load_scene  # noqa: E402
+from pounding_sweep.sweep.results import read_metadata  # noqa: E402
 
 FIGURES = {"heatmaps", "displacement_history", "pounding_force", "ssp", "error_vs_runtime"}
 
@@ -23,7 +23,7 @@ FIGURES = {"heatmaps", "displacement_history", "pounding_force", "ssp", "error_v
 @pytest.fixture(scope="module")
 def scored(tmp_path_factory):
     """The shipped scored 6 Hz sweep (20 runs, refined), run once for this module."""
-    from pounding_sweep.sweep import run_scene
+    from pounding_sweep.sweep.run import run_scene
 
     out = tmp_path_factory.mktemp("scored") / "scored.parquet"
     run_scene(load_scene(SWEEPS / "scored_6hz.toml"), out_path=out, threads=1)

@@ -1,4 +1,4 @@
-"""Tests for pounding_sweep.records: AT2/CSV readers, error messages, similitude, resampling.
+"""Tests for pounding_sweep.model.records: AT2/CSV readers, error messages, similitude, resampling.
 
 Tolerances: a value read from text is correctly rounded (Python's float, u relative) and a unit factor
 applied to it rounds once more, against an expected value that is itself one or two roundings away:
@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pounding_sweep.records import (
+from pounding_sweep.model.records import (
     G_STANDARD,
     GroundRecord,
     RecordError,

@@ -20,10 +20,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pounding_sweep.config import load_scene
-from pounding_sweep.contact import damping_ratio_from_restitution, dashpot_coefficient
-from pounding_sweep.model import CoupledModel
-from pounding_sweep.simulate import simulate
+from pounding_sweep.scene.config import load_scene
+from pounding_sweep.model.contact import damping_ratio_from_restitution, dashpot_coefficient
+from pounding_sweep.model.coupled import CoupledModel
+from pounding_sweep.sweep.simulate import simulate
 from tolerances import SAFETY, rel_to_peak, count_bounds, history_tolerance, mca_twins, summation_tolerance, value_tolerance
 from reference import (
     ivp_reference,
@@ -76,7 +76,7 @@ def rel_rms(x, ref) -> float:
 
 @pytest.mark.parametrize("r", [0.0, 1e-6, 0.2, 0.4, 0.7, 1.0 - 1e-9, 1.0])
 def test_eq_10_and_eq_9_match_the_package(r):
-    """The reference's own eq. (10) agrees with pounding_sweep.contact, and so does c_j (eq. 9)."""
+    """The reference's own eq. (10) agrees with pounding_sweep.model.contact, and so does c_j (eq. 9)."""
     assert restitution_damping_ratio(r) == pytest.approx(float(damping_ratio_from_restitution(r)), rel=1e-14, abs=1e-15)
     P = resolve(scene_6hz(), r=r, ks_ratio=3.0)
     m1, m2 = CoupledModel.from_scene(scene_6hz()).pair_masses()

@@ -13,9 +13,9 @@ import pytest
 import pounding_sweep
 from tolerances import switch_residue_force
 from conftest import REPO, SWEEPS
-from pounding_sweep.config import load_scene
-from pounding_sweep.results import read_metadata, read_schema
-from pounding_sweep.sweep import run_scene
+from pounding_sweep.scene.config import load_scene
+from pounding_sweep.sweep.results import read_metadata, read_schema
+from pounding_sweep.sweep.run import run_scene
 
 
 @pytest.fixture(scope="module")
@@ -113,7 +113,7 @@ def test_separated_scene_never_touches(tmp_path):
 
 def test_record_axis_and_csv_record(tmp_path, shared_dir):
     """A [sweep] record axis runs each record; a two-column CSV record gives the same run as its AT2."""
-    from pounding_sweep.records import read_at2
+    from pounding_sweep.model.records import read_at2
 
     gm = shared_dir / "data" / "ground_motions"
     rec = read_at2(gm / "RSN1605_DUZCE_DZC180.AT2")

@@ -9,12 +9,12 @@ import pytest
 
 cv2 = pytest.importorskip("cv2")
 
-from pounding_sweep.config import load_scene  # noqa: E402
-from pounding_sweep.modal_id import identify  # noqa: E402
-from pounding_sweep.model import CoupledModel  # noqa: E402
-from pounding_sweep.model_update import update_building  # noqa: E402
-from pounding_sweep.simulate import simulate  # noqa: E402
-from pounding_sweep.sweep import run_scene  # noqa: E402
+from pounding_sweep.scene.config import load_scene  # noqa: E402
+from pounding_sweep.identify.modes import identify  # noqa: E402
+from pounding_sweep.model.coupled import CoupledModel  # noqa: E402
+from pounding_sweep.identify.update import update_building  # noqa: E402
+from pounding_sweep.sweep.simulate import simulate  # noqa: E402
+from pounding_sweep.sweep.run import run_scene  # noqa: E402
 from pounding_sweep.synthetic import make_experiment  # noqa: E402
 from pounding_sweep.video.render import (  # noqa: E402
     RenderOptions,
@@ -25,7 +25,7 @@ from pounding_sweep.video.render import (  # noqa: E402
     table_from_ground_acceleration,
     write_pulse_record,
 )
-from pounding_sweep.video.scene import VideoSpec  # noqa: E402
+from pounding_sweep.scene.video import VideoSpec  # noqa: E402
 from pounding_sweep.video.tracker import track_video, write_tracked_table  # noqa: E402
 
 from conftest import SWEEPS  # noqa: E402

@@ -15,12 +15,12 @@ import pytest
 
 cv2 = pytest.importorskip("cv2")
 
-from pounding_sweep.config import ConfigError, ExperimentConfig  # noqa: E402
-from pounding_sweep.experiment import load_experiment  # noqa: E402
-from pounding_sweep.video.cli import identify_main, track_main  # noqa: E402
+from pounding_sweep.scene.config import ConfigError, ExperimentConfig  # noqa: E402
+from pounding_sweep.model.experiment import load_experiment  # noqa: E402
+from pounding_sweep.cli.video import identify_main, track_main  # noqa: E402
 from pounding_sweep.video.io import VideoError, VideoReader, write_video  # noqa: E402
 from pounding_sweep.video.render import RenderOptions, harmonic_table, render_video, shake_table_layout  # noqa: E402
-from pounding_sweep.video.scene import VideoSpec, floor_code, parse_video_section, tracked_table  # noqa: E402
+from pounding_sweep.scene.video import VideoSpec, floor_code, parse_video_section, tracked_table  # noqa: E402
 
 from conftest import REPO  # noqa: E402
 
@@ -237,8 +237,8 @@ def test_tracked_table_hook_and_cache(video, tmp_path):
 
 
 def test_import_and_a_sweep_never_import_opencv():
-    code = ("import sys, pounding_sweep, pounding_sweep.config, pounding_sweep.sweep, pounding_sweep.experiment, "
-            "pounding_sweep.cli, pounding_sweep.modal_id, pounding_sweep.model_update, pounding_sweep.video.scene; "
+    code = ("import sys, pounding_sweep, pounding_sweep.scene.config, pounding_sweep.sweep.run, pounding_sweep.model.experiment, "
+            "pounding_sweep.cli, pounding_sweep.identify.modes, pounding_sweep.identify.update, pounding_sweep.scene.video; "
             "print('cv2' in sys.modules)")
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO)
     assert p.returncode == 0, p.stderr

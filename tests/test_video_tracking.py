@@ -12,8 +12,8 @@ import pytest
 
 cv2 = pytest.importorskip("cv2")  # in the test extra; only absent when OpenCV truly is
 
-from pounding_sweep.config import load_scene  # noqa: E402
-from pounding_sweep.simulate import simulate  # noqa: E402
+from pounding_sweep.scene.config import load_scene  # noqa: E402
+from pounding_sweep.sweep.simulate import simulate  # noqa: E402
 from pounding_sweep.video.io import VideoError  # noqa: E402
 from pounding_sweep.video.render import (  # noqa: E402
     Reflection,
@@ -23,7 +23,7 @@ from pounding_sweep.video.render import (  # noqa: E402
     render_video,
     shake_table_layout,
 )
-from pounding_sweep.video.scene import VideoSpec  # noqa: E402
+from pounding_sweep.scene.video import VideoSpec  # noqa: E402
 from pounding_sweep.video.tracker import QUALITY, track_video  # noqa: E402
 
 from conftest import SWEEPS  # noqa: E402

@@ -101,7 +101,7 @@ def switch_residue_force(ks, up, uq):
     (or, under no tension, F / k_s) inside kernel._switch_tolerance of zero at a step's end does not
     contradict the contact set, so a phase's least force may sit anywhere in +/- k_s times it. The
     tolerance is the kernel's own rule (one home), evaluated on the floors' peak displacements."""
-    from pounding_sweep.kernel import _switch_tolerance
+    from pounding_sweep.engine.scalar import _switch_tolerance
 
     return np.asarray(ks) * np.vectorize(_switch_tolerance)(np.asarray(up, float), np.asarray(uq, float))
 

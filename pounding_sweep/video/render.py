@@ -31,7 +31,7 @@ from typing import Callable
 import numpy as np
 from scipy.special import ndtr
 
-from .io import CODECS, LOSSLESS, VideoError, read_all, write_video
+from pounding_sweep.video.io import CODECS, LOSSLESS, VideoError, read_all, write_video
 
 Motion = Callable[[np.ndarray], dict]
 """t [s] (array) -> {'table': table displacement [mm], '<floor marker>': displacement relative

@@ -65,8 +65,8 @@ import pandas as pd
 from scipy.interpolate import CubicSpline
 from scipy.optimize import linear_sum_assignment
 
-from .io import VideoError, VideoReader, cv2_module
-from .scene import VideoSpec, floor_code
+from pounding_sweep.video.io import VideoError, VideoReader, cv2_module
+from pounding_sweep.scene.video import VideoSpec, floor_code
 
 QUALITY = {
     "lost": 1,  # no core found near the prediction: interpolated

@@ -582,9 +582,9 @@ def snapshot(case_dir: Path) -> set[str]:
 
 
 def run_in_process(case: Case, case_dir: Path) -> Outcome:
-    """`pounding_sweep.cli.main(argv)` in this process, as the real command would see it: NumPy's
+    """`pounding_sweep.cli.run(argv)` in this process, as the real command would see it: NumPy's
     default error handling, warnings shown as stderr lines, an escaping exception as a traceback."""
-    from pounding_sweep.cli import main
+    from pounding_sweep.cli.run import main
 
     before = snapshot(case_dir)
     out, err = io.StringIO(), io.StringIO()

@@ -18,8 +18,8 @@ import math
 
 import numpy as np
 
-from . import metrics_layout as L
-from .score_kernel import S_PEAK_NUM, S_REL_RMS_PCT
+from pounding_sweep.engine import layout as L
+from pounding_sweep.engine.score import S_PEAK_NUM, S_REL_RMS_PCT
 
 ORDER = {"event": 2, "implicit": 1, "paper": 1}  # observed orders across impacts (benchmarks/ACCURACY.md)
 
@@ -41,8 +41,8 @@ class AutoDt:
     def check_finest(self) -> None:
         """Refuse before any run a dt_min_s whose runs would be too long to integrate (the finest
         level is otherwise only built mid-sweep, after parts were written)."""
-        from .config import MAX_STEPS, ConfigError
-        from .excitation import Excitation
+        from pounding_sweep.scene.config import MAX_STEPS, ConfigError
+        from pounding_sweep.model.excitation import Excitation
 
         duration = Excitation.from_scene(self.scene, self.dt_max).max_duration_s
         steps = duration / self.dt(self.n_levels - 1)

@@ -35,11 +35,11 @@ from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic
 
-from . import metrics_layout as ML
-from .kernel import (_ag_inside, _force_extremes, _illinois, _monotonic_ns, _secant_point, _switch_tolerance,
+from pounding_sweep.engine import layout as ML
+from pounding_sweep.engine.scalar import (_ag_inside, _force_extremes, _illinois, _monotonic_ns, _secant_point, _switch_tolerance,
                      _want_contact)
-from .modal import ModalArrays, modal_arrays
-from .simd import (SCRATCH, VW, elem_ptr, f64v, fence, many, mcount, mconst, mfloat, scratch, select_bits, sget,
+from pounding_sweep.model.modal import ModalArrays, modal_arrays
+from pounding_sweep.engine.simd import (SCRATCH, VW, elem_ptr, f64v, fence, many, mcount, mconst, mfloat, scratch, select_bits, sget,
                    splat, sset, vfma, vsel, vsplat)
 
 #: runs per group, fixed at compile time (a multiple of simd.VW)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import re
 
-from . import metrics_layout as L
+from pounding_sweep.engine import layout as L
 
 _PATTERNS = {
     "disp": (L.H_DISP, "m"),
@@ -15,7 +15,7 @@ _PATTERNS = {
 
 def floor_dof(code: str, floors: tuple[int, int], key: str) -> int:
     """'b1f3' (building 1, floor 3) -> its DOF index in the coupled model."""
-    from .config import ConfigError
+    from pounding_sweep.scene.config import ConfigError
 
     m = re.fullmatch(r"b([12])f(\d+)", code)
     if not m:
@@ -28,7 +28,7 @@ def floor_dof(code: str, floors: tuple[int, int], key: str) -> int:
 
 def parse_channel(name: str, floors: tuple[int, int]) -> tuple[int, int, str]:
     """Channel name -> (kind, index, column name with unit). Index is a DOF or a pair."""
-    from .config import ConfigError
+    from pounding_sweep.scene.config import ConfigError
 
     m = re.fullmatch(r"(disp|vel|abs_acc)_(b\d+f\d+)", name)
     if m:

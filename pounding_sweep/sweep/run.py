@@ -22,19 +22,19 @@ import pyarrow.parquet as pq
 if TYPE_CHECKING:  # pandas costs 0.3 s to import: only where a table is built
     import pandas as pd
 
-from . import metrics_layout as L
-from .channels import parse_channel
-from .config import Scene
-from .contact import CONTACT_LAWS, contact_period, damping_ratio_from_restitution, dashpot_coefficient
-from .driver import HistorySpec, KernelOptions, RunArrays, ScoreSpec, compile_kernel, run_chunk
-from .excitation import Excitation
-from .grid import Grid
-from .kernel import SCHEMES
-from .model import CoupledModel, SystemArrays
-from .ranking import Ranking, Refinement, refine, score_columns, score_table_columns
-from . import __version__
-from .config import ConfigError
-from .results import (MANIFEST, PART_NAME, AtomicParquetWriter, file_metadata, histories_path, histories_table, numpy_column,
+from pounding_sweep.engine import layout as L
+from pounding_sweep.scene.channels import parse_channel
+from pounding_sweep.scene.config import Scene
+from pounding_sweep.model.contact import CONTACT_LAWS, contact_period, damping_ratio_from_restitution, dashpot_coefficient
+from pounding_sweep.engine.driver import HistorySpec, KernelOptions, RunArrays, ScoreSpec, compile_kernel, run_chunk
+from pounding_sweep.model.excitation import Excitation
+from pounding_sweep.model.grid import Grid
+from pounding_sweep.engine.scalar import SCHEMES
+from pounding_sweep.model.coupled import CoupledModel, SystemArrays
+from pounding_sweep.sweep.ranking import Ranking, Refinement, refine, score_columns, score_table_columns
+from pounding_sweep import __version__
+from pounding_sweep.scene.config import ConfigError
+from pounding_sweep.sweep.results import (MANIFEST, PART_NAME, AtomicParquetWriter, file_metadata, histories_path, histories_table, numpy_column,
                       metrics_table, part_files, part_index, read_manifest, remove_stale_temporaries, sidecar_path,
                       write_manifest, write_part)
 
@@ -115,14 +115,14 @@ def prepare(scene: Scene) -> Prepared:
     hspec, hcols = history_spec(scene, model.floors)
     score, codes = ScoreSpec.none(), []
     if scene.experiment is not None:
-        from .experiment import load_experiment, score_spec
+        from pounding_sweep.model.experiment import load_experiment, score_spec
 
         exp = load_experiment(scene.experiment, model.floors)
         score = score_spec(exp, scene.experiment, model.floors, exc.max_duration_s, dt)
         codes = list(exp.channels)
     auto = None
     if scene.integration.auto:
-        from .autodt import AutoDt
+        from pounding_sweep.sweep.autodt import AutoDt
 
         auto = AutoDt(scene, prepare)
     return Prepared(scene, model, model.system_arrays(dt), exc, Grid.from_scene(scene), opts, hspec, hcols, score, codes,
@@ -160,7 +160,7 @@ def run_scene(scene: Scene, out_path: str | Path | None = None, threads: int | N
     a summary. Parts already in the folder from an interrupted run of the same scene (same config
     hash and package version) are kept and skipped; other results there are refused unless
     `overwrite`. `executor`: one from executors.make_executor (default: the scene's [execution])."""
-    from .executors import make_executor
+    from pounding_sweep.sweep.executors import make_executor
 
     out_path = Path(out_path or scene.output.path)
     ex = scene.execution

@@ -34,7 +34,7 @@ EXECUTORS = ("local", "dask")
 MAX_AXIS_VALUES = 10_000_000  # a range longer than this is a typo, not a sweep
 MAX_STEPS = 100_000_000  # steps of one harmonic run (records: the same limit on resampling, records._MAX_SAMPLES)
 
-from .video.scene import VideoSpec  # noqa: E402  (plain data; OpenCV stays unimported)
+from pounding_sweep.scene.video import VideoSpec  # noqa: E402  (plain data; OpenCV stays unimported)
 
 # ----------------------------------------------------------------------------- sections
 
@@ -326,7 +326,7 @@ def scene_from_dict(raw: dict, base_dir: Path, source: str = "<dict>", toml_text
         video = xraw.pop("video", None)
         experiment = _build(ExperimentConfig, xraw, "experiment")
         if video is not None:
-            from .video.scene import parse_video_section  # no OpenCV import: tracking imports it lazily
+            from pounding_sweep.scene.video import parse_video_section  # no OpenCV import: tracking imports it lazily
 
             spec = parse_video_section(video, base_dir)
             experiment = dataclasses.replace(experiment, video=spec,
@@ -527,8 +527,8 @@ def validate(s: Scene) -> None:
     for v in axes.get("gap_m", ()):
         if v < 0:
             raise ConfigError(f"[sweep] gap_m = {v!r}: must be >= 0")
-    from .contact import CONTACT_LAWS
-    from .kernel import SCHEMES
+    from pounding_sweep.model.contact import CONTACT_LAWS
+    from pounding_sweep.engine.scalar import SCHEMES
 
     if c.law not in CONTACT_LAWS:
         raise ConfigError(f"[contact] law = {c.law!r}: expected one of {sorted(CONTACT_LAWS)}")
@@ -554,7 +554,7 @@ def validate(s: Scene) -> None:
     if e.format not in ("auto", "at2", "csv"):
         raise ConfigError(f"[excitation] format = {e.format!r}: expected 'auto', 'at2' or 'csv'")
     if e.units is not None:
-        from .records import _ACCEPTED_UNITS, _UNIT_ALIASES
+        from pounding_sweep.model.records import _ACCEPTED_UNITS, _UNIT_ALIASES
 
         if e.units.strip().lower().replace(" ", "") not in _UNIT_ALIASES:
             raise ConfigError(f"[excitation] units = {e.units!r}: expected one of {_ACCEPTED_UNITS}")
@@ -582,7 +582,7 @@ def validate(s: Scene) -> None:
         raise ConfigError(f"[integration] {'dt_max_s' if i.auto else 'dt_s'} = {i.first_dt_s!r}: {e.duration_s / i.first_dt_s:.3g} "
                           f"steps over [excitation] duration_s = {e.duration_s!r}, more than {MAX_STEPS:,} (dt in the wrong units?)")
     _positive(s.output.history_decimate, "[output] history_decimate")
-    from .channels import parse_channel
+    from pounding_sweep.scene.channels import parse_channel
 
     for ch in s.output.histories:
         parse_channel(ch, (len(s.building1.masses_kg), len(s.building2.masses_kg)))
@@ -648,7 +648,7 @@ def _validate_experiment(s: Scene) -> None:
     if x.max_lag_s < 0:
         raise ConfigError(f"[experiment] max_lag_s = {x.max_lag_s!r}: must be >= 0")
     _positive(x.refine_max_evals, "[experiment] refine_max_evals")
-    from .channels import floor_dof
+    from pounding_sweep.scene.channels import floor_dof
 
     floors = (len(s.building1.masses_kg), len(s.building2.masses_kg))
     seen = {}

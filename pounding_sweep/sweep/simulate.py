@@ -11,10 +11,10 @@ import dataclasses
 import numpy as np
 import pandas as pd
 
-from . import metrics_layout as L
-from .config import SWEEPABLE, ConfigError, Scene, validate
-from .ranking import score_table_columns
-from .results import status_words
+from pounding_sweep.engine import layout as L
+from pounding_sweep.scene.config import SWEEPABLE, ConfigError, Scene, validate
+from pounding_sweep.sweep.ranking import score_table_columns
+from pounding_sweep.sweep.results import status_words
 
 ALL_CHANNELS_TEMPLATE = ("disp_b{b}f{f}", "vel_b{b}f{f}", "abs_acc_b{b}f{f}")
 
@@ -54,7 +54,7 @@ def with_overrides(scene: Scene, **overrides) -> Scene:
 
 def simulate(scene: Scene, channels: list[str] | None = None, decimate: int = 1, **overrides):
     """Run one point; return (histories DataFrame with t_s first, metrics dict incl. 'status' and scores)."""
-    from .sweep import prepare
+    from pounding_sweep.sweep.run import prepare
 
     s = with_overrides(scene, **overrides)
     auto = None

@@ -17,8 +17,8 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from . import __version__
-from . import metrics_layout as L
+from pounding_sweep import __version__
+from pounding_sweep.engine import layout as L
 
 META_KEY = b"pounding_sweep"
 

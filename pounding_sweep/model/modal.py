@@ -25,8 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .model import SystemArrays
-from .structure import mass_normalised_modes
+from pounding_sweep.model.coupled import SystemArrays
+from pounding_sweep.model.structure import mass_normalised_modes
 
 #: largest relative off-diagonal of Phi^T C Phi accepted as classical damping (rounding of eigh)
 CLASSICAL_TOL = 1e-10

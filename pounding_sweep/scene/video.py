@@ -98,7 +98,7 @@ _KEYS = {f.name for f in fields(VideoSpec)} - {"positions_px"}
 
 
 def _err(key, value, what):
-    from ..config import ConfigError
+    from pounding_sweep.scene.config import ConfigError
 
     return ConfigError(f"{SECTION} {key} = {value!r}: {what}")
 
@@ -138,7 +138,7 @@ def _names(table, key, value) -> tuple[str, ...]:
 
 def parse_video_section(table: dict, base_dir: Path) -> VideoSpec:
     """Check an `[experiment.video]` table and resolve its path against the scene's folder."""
-    from ..config import ConfigError, _check_keys
+    from pounding_sweep.scene.config import ConfigError, _check_keys
 
     if not isinstance(table, dict):
         raise ConfigError(f"'video' must be a table {SECTION}, got {table!r}")
@@ -247,10 +247,10 @@ def tracked_table(spec: VideoSpec, progress=None, cache_dir: str | Path | None =
     With `cache_dir`, the table is kept as Parquet named by the video's SHA-256 and the spec, and
     read back when both are unchanged.
     """
-    from .tracker import track_video
+    from pounding_sweep.video.tracker import track_video
 
     if cache_dir is not None:
-        from .tracker import cached_track
+        from pounding_sweep.video.tracker import cached_track
 
         return cached_track(spec, Path(cache_dir), progress)
     result = track_video(spec, progress=progress)

@@ -15,7 +15,7 @@ from typing import Iterable, Iterator
 
 import numpy as np
 
-from .driver import resolve_threads
+from pounding_sweep.engine.driver import resolve_threads
 
 
 @dataclass

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .numba_config import njit_kernel
+from pounding_sweep.engine.jit import njit_kernel
 
 # slots of the per-channel score vector
 S_REL_RMS_PCT, S_PEAK_NUM, S_PEAK_NUM_TIME, S_PEAK_DIFF_PCT, S_CORR, S_CORR_MAX, S_LAG = range(7)

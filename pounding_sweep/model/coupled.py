@@ -7,8 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .config import BuildingConfig, Scene
-from .structure import ShearFrame, build_shear_frame, column_story_stiffness
+from pounding_sweep.scene.config import BuildingConfig, Scene
+from pounding_sweep.model.structure import ShearFrame, build_shear_frame, column_story_stiffness
 
 
 def building_from_config(cfg: BuildingConfig, default_name: str) -> ShearFrame:

@@ -40,9 +40,9 @@ from llvmlite import ir
 from numba.core import cgutils, types
 from numba.extending import intrinsic
 
-from . import metrics_layout as L
-from .numba_config import njit_kernel
-from .score_kernel import N_SCORES, score_channel
+from pounding_sweep.engine import layout as L
+from pounding_sweep.engine.jit import njit_kernel
+from pounding_sweep.engine.score import N_SCORES, score_channel
 
 SCHEME_IMPLICIT = 0
 SCHEME_PAPER = 1

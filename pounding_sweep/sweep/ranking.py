@@ -14,7 +14,7 @@ import pyarrow as pa
 if TYPE_CHECKING:  # pandas costs 0.3 s to import: only where a table is built
     import pandas as pd
 
-from .score_kernel import SCORE_NAMES, S_REL_RMS_PCT
+from pounding_sweep.engine.score import SCORE_NAMES, S_REL_RMS_PCT
 
 PARAM_COLUMNS = ("run_id", "ks_ratio", "ks_N_per_m", "r", "gap_m", "amplitude_m", "frequency_Hz", "record", "scale")
 

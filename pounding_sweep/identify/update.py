@@ -17,9 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .config import BuildingConfig, Scene
-from .model import building_from_config
-from .structure import modal_analysis, shear_frame_stiffness
+from pounding_sweep.scene.config import BuildingConfig, Scene
+from pounding_sweep.model.coupled import building_from_config
+from pounding_sweep.model.structure import modal_analysis, shear_frame_stiffness
 
 
 def frequencies_Hz(masses_kg, story_stiffness_N_per_m) -> np.ndarray:

@@ -10,19 +10,19 @@ import argparse
 import importlib
 import sys
 
-from .config import ConfigError, describe, load_scene
-from .experiment import ExperimentError
-from .progress import Progress
-from .records import RecordError
+from pounding_sweep.scene.config import ConfigError, describe, load_scene
+from pounding_sweep.model.experiment import ExperimentError
+from pounding_sweep.progress import Progress
+from pounding_sweep.model.records import RecordError
 
 EXIT_BAD_INPUT = 2
 
 # subcommands: `python -m pounding_sweep NAME ...` -> module:function(argv) -> exit code (imported lazily,
 # so a sweep never imports OpenCV or matplotlib)
 SUBCOMMANDS = {
-    "plot": "pounding_sweep.cli:plot_main",
-    "track": "pounding_sweep.video.cli:track_main",
-    "identify": "pounding_sweep.video.cli:identify_main",
+    "plot": "pounding_sweep.cli.run:plot_main",
+    "track": "pounding_sweep.cli.video:track_main",
+    "identify": "pounding_sweep.cli.video:identify_main",
 }
 
 
@@ -100,7 +100,7 @@ def plot_main(argv: list[str]) -> int:
     p.add_argument("results", help="a result file written by a sweep (.parquet)")
     p.add_argument("--out", help="folder for the PNGs (default: <results>_plots next to the file)")
     args = p.parse_args(argv)
-    from .plots import plot_results
+    from pounding_sweep.plots import plot_results
 
     try:
         paths = plot_results(args.results, args.out)
@@ -127,7 +127,7 @@ def main(argv: list[str] | None = None) -> int:
     scene = None
     try:
         scene = load_scene(args.scene)
-        from .sweep import run_scene  # Numba and pyarrow: after the scene is read, so bad input fails fast
+        from pounding_sweep.sweep.run import run_scene  # Numba and pyarrow: after the scene is read, so bad input fails fast
 
         if args.threads is not None and args.threads < 0:
             raise ConfigError(f"--threads {args.threads}: must be >= 0")

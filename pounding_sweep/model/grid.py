@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .config import SWEEPABLE, Scene
+from pounding_sweep.scene.config import SWEEPABLE, Scene
 
 
 @dataclass(frozen=True)

@@ -19,10 +19,10 @@ import numpy as np
 if TYPE_CHECKING:  # pandas costs 0.3 s to import: only where a table is built
     import pandas as pd
 
-    from .driver import ScoreSpec  # imports Numba: only where a score is set up, so bad input fails fast
+    from pounding_sweep.engine.driver import ScoreSpec  # imports Numba: only where a score is set up, so bad input fails fast
 
-from .channels import floor_dof
-from .config import ExperimentConfig
+from pounding_sweep.scene.channels import floor_dof
+from pounding_sweep.scene.config import ExperimentConfig
 
 
 class ExperimentError(ValueError):
@@ -117,14 +117,14 @@ _TRACKED: dict = {}  # (spec, file size, mtime) -> (table, provenance): a video 
 def _tracked(spec) -> tuple[pd.DataFrame, dict, str]:
     """Track the video of an [experiment.video] section (OpenCV, lazily imported) into the table
     format above; a video that cannot give one is an ExperimentError naming the file."""
-    from .video.io import VideoError
-    from .video.scene import tracked_table
+    from pounding_sweep.video.io import VideoError
+    from pounding_sweep.scene.video import tracked_table
 
     try:
         st = Path(spec.path).stat()
         key = (spec, st.st_size, st.st_mtime_ns)
         if key not in _TRACKED:
-            from .progress import Progress
+            from pounding_sweep.progress import Progress
 
             df, md = tracked_table(spec, progress=Progress(unit="frames"))
             _TRACKED.clear()
@@ -157,7 +157,7 @@ def score_spec(exp: Experiment, cfg: ExperimentConfig, floors: tuple[int, int], 
     Simulation time = experiment time - time_offset_s. The window defaults to all of the
     experiment that the simulation covers; a window outside that is an error.
     """
-    from .driver import ScoreSpec
+    from pounding_sweep.engine.driver import ScoreSpec
 
     ts = exp.time_s - cfg.time_offset_s
     lo, hi = (0.0, sim_duration_s) if cfg.window_s is None else cfg.window_s

@@ -24,13 +24,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import metrics_layout as L
-from .kernel import integrate_batch
-from .kernel_lanes import (LANES, ST_N, coefficient_table, excitation_profiles, integrate_lanes, lane_modes,
+from pounding_sweep.engine import layout as L
+from pounding_sweep.engine.scalar import integrate_batch
+from pounding_sweep.engine.lanes import (LANES, ST_N, coefficient_table, excitation_profiles, integrate_lanes, lane_modes,
                            lanes_ineligible_reason, size_tuples)
-from .modal import ModalArrays, modal_arrays
-from .model import SystemArrays
-from .score_kernel import N_SCORES
+from pounding_sweep.model.modal import ModalArrays, modal_arrays
+from pounding_sweep.model.coupled import SystemArrays
+from pounding_sweep.engine.score import N_SCORES
 
 
 @dataclass

@@ -68,7 +68,7 @@ def _track_parser() -> argparse.ArgumentParser:
 
 def _spec_from_args(args):
     """(VideoSpec, the file errors are about)."""
-    from .scene import SECTION, parse_video_section
+    from pounding_sweep.scene.video import SECTION, parse_video_section
 
     video = Path(args.video)
     table: dict = {}
@@ -132,9 +132,9 @@ class _Bad(Exception):
 
 def track_main(argv: list[str]) -> int:
     args = _track_parser().parse_args(argv)
-    from ..config import ConfigError
-    from ..progress import Progress
-    from .io import VideoError
+    from pounding_sweep.scene.config import ConfigError
+    from pounding_sweep.progress import Progress
+    from pounding_sweep.video.io import VideoError
 
     video = args.video
     out = Path(args.out) if args.out else Path(video).with_suffix(".tracked.csv")
@@ -142,7 +142,7 @@ def track_main(argv: list[str]) -> int:
         if out.suffix.lower() not in (".csv", ".parquet"):
             raise _Bad(out, "the output table must be .csv or .parquet", out.suffix or "no suffix")
         spec = _spec_from_args(args)
-        from .tracker import describe_quality, track_video, write_tracked_table
+        from pounding_sweep.video.tracker import describe_quality, track_video, write_tracked_table
 
         res = track_video(spec, progress=Progress(not args.quiet, unit="frames"))
         write_tracked_table(res.table(pixels=args.pixels), res.provenance, out)
@@ -203,7 +203,7 @@ def _identify_parser() -> argparse.ArgumentParser:
 
 
 def _groups(columns) -> dict:
-    from .scene import floor_code
+    from pounding_sweep.scene.video import floor_code
 
     g: dict = {}
     for c in columns:
@@ -217,10 +217,10 @@ def identify_main(argv: list[str]) -> int:
     args = _identify_parser().parse_args(argv)
     import numpy as np
 
-    from ..config import ConfigError, load_scene
-    from ..experiment import ExperimentError, read_table
-    from ..model_update import update_scene
-    from ..modal_id import identify
+    from pounding_sweep.scene.config import ConfigError, load_scene
+    from pounding_sweep.model.experiment import ExperimentError, read_table
+    from pounding_sweep.identify.update import update_scene
+    from pounding_sweep.identify.modes import identify
 
     src = args.table
     try:

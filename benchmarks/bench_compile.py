@@ -1,0 +1,111 @@
+"""Compile time of the kernels a first run pays, measured through the command line.
+
+    python benchmarks/bench_compile.py [--repeats N]
+
+For each case a scene is run twice by `python -m pounding_sweep` in a fresh process with an empty Numba
+cache (NUMBA_CACHE_DIR pointing at a new temporary folder): the first run compiles, the second loads the
+cache. The runs are 10 ms long, so both are start-up plus compile or cache load; their difference is the
+compile time a user waits for once. Cases: the README's scored scene (the scalar kernel with scoring),
+the Duzce metrics-only scene (the lane kernel), the same with another pair of story counts (4 + 2:
+what a new building pair costs), and the 6 Hz scene with histories (the scalar kernel without scoring).
+Works for any version of the package on the path (PYTHONPATH=OTHER_CHECKOUT to measure another).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+SWEEPS = REPO / "sweeps"
+
+
+def _short(text: str) -> str:
+    """The scene cut to 10 ms and one grid point (start-up and compile only)."""
+    out = []
+    skip = False
+    for line in text.splitlines():
+        s = line.strip()
+        if s.startswith("[") and s != "[sweep]":
+            skip = False
+        if s == "[sweep]":
+            skip = True
+            continue
+        if skip or s.startswith("path ="):
+            continue
+        if s.startswith("duration_s"):
+            line = "duration_s = 0.01"
+        if s.startswith("refine"):
+            line = "refine = false"
+        out.append(line)
+    text = "\n".join(out) + "\n"
+    if "duration_s" not in text:  # a record scene: cut it
+        text = text.replace("[excitation]", "[excitation]\nduration_s = 0.01", 1)
+    if "ks_ratio" not in text.split("[contact]", 1)[1].split("[", 1)[0]:
+        text = text.replace("[contact]", "[contact]\nks_ratio = 1.0", 1)
+    if "\nr = " not in text.split("[contact]", 1)[1].split("[", 1)[0]:
+        text = text.replace("[contact]", "[contact]\nr = 0.4", 1)
+    return text.replace('"records/', f'"{SWEEPS}/records/').replace('"experiments/', f'"{SWEEPS}/experiments/')
+
+
+def cases(folder: Path) -> dict[str, Path]:
+    six = (SWEEPS / "paper_6hz.toml").read_text()
+    duzce = (SWEEPS / "paper_duzce.toml").read_text()
+    texts = {
+        "scored 6 Hz (README scene; scalar kernel + scoring)": _short((SWEEPS / "scored_6hz.toml").read_text()),
+        "Duzce, metrics only (lane kernel)": _short(duzce),
+        "Duzce, 4 + 2 stories (lane kernel, new sizes)": _short(duzce).replace(
+            "masses_kg = [1.7, 1.7, 1.6]", "masses_kg = [1.7, 1.7, 1.6, 1.6]").replace(
+            "masses_kg = [0.56, 0.56, 0.45]", "masses_kg = [0.56, 0.45]"),
+        "6 Hz with histories (scalar kernel)": _short(six).replace("[output]", '[output]\nhistories = ["disp_b1f3"]'),
+    }
+    out = {}
+    for i, (name, text) in enumerate(texts.items()):
+        p = folder / f"case{i}.toml"
+        p.write_text(text)
+        out[name] = p
+    return out
+
+
+def timed_run(scene: Path, cache: Path, out: Path) -> float:
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache))
+    t0 = time.perf_counter()
+    r = subprocess.run([sys.executable, "-m", "pounding_sweep", str(scene), "--out", str(out), "--quiet", "--yes"],
+                       env=env, capture_output=True, text=True)
+    dt = time.perf_counter() - t0
+    if r.returncode:
+        raise SystemExit(f"{scene}: exit {r.returncode}: {r.stderr.strip()[-400:]}")
+    return dt
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--repeats", type=int, default=1, help="cold/warm pairs per case (the least is kept)")
+    args = ap.parse_args(argv)
+    import pounding_sweep
+
+    print(f"package: {Path(pounding_sweep.__file__).parent}")
+    rows = []
+    with tempfile.TemporaryDirectory() as d:
+        d = Path(d)
+        for name, scene in cases(d).items():
+            cold, warm = [], []
+            for k in range(args.repeats):
+                cache = d / f"cache-{scene.stem}-{k}"
+                cold.append(timed_run(scene, cache, d / f"o-{scene.stem}-{k}-a.parquet"))
+                warm.append(timed_run(scene, cache, d / f"o-{scene.stem}-{k}-b.parquet"))
+            rows.append((name, min(cold), min(warm), min(cold) - min(warm)))
+    w = max(len(r[0]) for r in rows)
+    print(f"{'case':<{w}}  {'empty cache [s]':>15}  {'warm cache [s]':>14}  {'compile [s]':>11}")
+    for name, c, wa, comp in rows:
+        print(f"{name:<{w}}  {c:15.1f}  {wa:14.1f}  {comp:11.1f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""pounding_sweep.scene."""

@@ -57,7 +57,7 @@ from scipy.optimize import minimize_scalar
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "tests"))
 
-from pounding_sweep.scene.config import load_scene  # noqa: E402
+from pounding_sweep.scene import load_scene  # noqa: E402
 from pounding_sweep.model.excitation import Excitation  # noqa: E402
 from pounding_sweep.engine.score import relative_rms_error_pct  # noqa: E402
 from pounding_sweep.sweep.simulate import simulate, with_overrides  # noqa: E402

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from pounding_sweep.scene.config import Axis, load_scene
+from pounding_sweep.scene import Axis, load_scene
 from pounding_sweep.sweep.executors import DaskExecutor, LocalExecutor
 from pounding_sweep.sweep.run import run_scene
 

@@ -28,7 +28,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "tests"))
 
-from pounding_sweep.scene.config import Axis, load_scene  # noqa: E402
+from pounding_sweep.scene import Axis, load_scene  # noqa: E402
 from pounding_sweep.sweep.simulate import simulate  # noqa: E402
 from pounding_sweep.sweep.run import run_scene  # noqa: E402
 
@@ -37,8 +37,8 @@ SCENE = REPO / "sweeps" / "paper_6hz.toml"
 COMPILE_SNIPPET = """
 import time
 t0 = time.perf_counter()
-from pounding_sweep.scene.config import load_scene
-from pounding_sweep.sweep.run import prepare
+from pounding_sweep.scene import load_scene
+from pounding_sweep.sweep.prepare import prepare
 from pounding_sweep.engine.driver import compile_kernel
 p = prepare(load_scene(r"{scene}"))
 t1 = time.perf_counter()

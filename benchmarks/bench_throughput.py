@@ -57,9 +57,9 @@ sys.path.insert(0, str(REPO / "benchmarks" / "peers"))
 from pounding_sweep.engine import driver
 from pounding_sweep.engine import lanes as kernel_lanes
 from pounding_sweep.engine import layout as L
-from pounding_sweep.scene.config import Axis, load_scene  # noqa: E402
+from pounding_sweep.scene import Axis, load_scene  # noqa: E402
 from pounding_sweep.engine.driver import HistorySpec, RunArrays  # noqa: E402
-from pounding_sweep.sweep.run import prepare, run_scene  # noqa: E402
+from pounding_sweep.sweep import prepare, run_scene  # noqa: E402
 
 SCENE_6HZ = REPO / "sweeps" / "paper_6hz.toml"
 SCENE_DUZCE = REPO / "sweeps" / "paper_duzce.toml"
@@ -196,8 +196,8 @@ import dataclasses, json, time
 t0 = time.perf_counter()
 import numpy as np
 from pounding_sweep.engine import driver
-from pounding_sweep.scene.config import load_scene
-from pounding_sweep.sweep.run import prepare
+from pounding_sweep.scene import load_scene
+from pounding_sweep.sweep.prepare import prepare
 s = load_scene(r"{scene}")
 s = dataclasses.replace(s, integration=dataclasses.replace(s.integration, scheme="implicit"))
 p = prepare(s)
@@ -434,7 +434,7 @@ def scaling(sizes: list[int], run_s: float, lengths: list[float], n_len: int) ->
 MEMORY_SNIPPET = """
 import dataclasses, json, resource, sys, time
 import numpy as np
-from pounding_sweep.scene.config import Axis, load_scene
+from pounding_sweep.scene import Axis, load_scene
 from pounding_sweep.sweep.run import run_scene
 n, dur, out = int(sys.argv[1]), float(sys.argv[2]), sys.argv[3]
 s = load_scene(r"{scene}")

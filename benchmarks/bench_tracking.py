@@ -27,7 +27,7 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 
-from pounding_sweep.scene.config import load_scene  # noqa: E402
+from pounding_sweep.scene import load_scene  # noqa: E402
 from pounding_sweep.sweep.simulate import simulate  # noqa: E402
 from pounding_sweep.video.io import VideoError, VideoReader  # noqa: E402
 from pounding_sweep.video.render import (  # noqa: E402

@@ -49,7 +49,7 @@ import pandas as pd
 
 REPO = Path(__file__).resolve().parents[1]
 
-from pounding_sweep.scene.config import Axis, load_scene  # noqa: E402
+from pounding_sweep.scene import Axis, load_scene  # noqa: E402
 from pounding_sweep.sweep.run import run_scene  # noqa: E402
 
 SCENES = {

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from pounding_sweep.scene.config import scene_from_dict, validate
+from pounding_sweep.scene import scene_from_dict, validate
 from pounding_sweep.sweep.results import read_metadata, read_schema, sidecar_path
 
 DPI = 120
@@ -195,7 +195,7 @@ def heatmap_figure(df: pd.DataFrame, md: dict, best: pd.DataFrame | None = None)
 
 def experiment_peaks(scene, md: dict) -> dict[str, tuple[float, float]]:
     """Largest |experimental displacement| [m] and its simulation time [s] per channel, in the scored window."""
-    from pounding_sweep.model.experiment import load_experiment
+    from pounding_sweep.sweep.scoring import load_experiment
 
     floors = (len(scene.building1.masses_kg), len(scene.building2.masses_kg))
     exp = load_experiment(scene.experiment, floors)
@@ -312,7 +312,7 @@ def zoom_window(scene, t_end: float, exp=None, x=None, width_s: float = 0.5) -> 
 
 def history_figures(scene, pick: dict, label: str, md: dict | None = None) -> dict:
     """Re-simulate one run and draw {'displacement_history', 'pounding_force'[, 'ssp']} figures."""
-    from pounding_sweep.model.experiment import load_experiment
+    from pounding_sweep.sweep.scoring import load_experiment
     from pounding_sweep.sweep.simulate import simulate
 
     floors = (len(scene.building1.masses_kg), len(scene.building2.masses_kg))
@@ -419,7 +419,7 @@ def accuracy_ladder(scene, dts=None, schemes=None, ref_dt: float | None = None, 
     0.5 times the scene's dt; every scheme the kernel has. Columns: scheme, dt_s, steps,
     run_time_s, rel_rms_pct, status, then ref_scheme, ref_dt_s, channel, duration_s.
     """
-    from pounding_sweep.engine.scalar import SCHEMES
+    from pounding_sweep.codes import SCHEMES
     from pounding_sweep.engine.score import relative_rms_error_pct
     from pounding_sweep.sweep.simulate import simulate
 

@@ -17,7 +17,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from pounding_sweep import __version__
-from pounding_sweep.scene.config import Scene
+from pounding_sweep.scene import Scene
 from pounding_sweep.sweep.simulate import simulate
 
 

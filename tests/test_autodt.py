@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 
 from conftest import SWEEPS
-from pounding_sweep.scene.config import Axis, ConfigError, load_scene, validate
+from pounding_sweep.scene import Axis, ConfigError, load_scene, validate
 from pounding_sweep.sweep.simulate import simulate
 from pounding_sweep.sweep.run import run_scene
 

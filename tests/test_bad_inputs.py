@@ -166,7 +166,7 @@ def test_scene_strings_are_never_executed_and_files_never_unpickled(tmp_path):
     """YAML tags, Python expressions and pickles in a scene or its files are inert: strings stay
     strings, a pickle is refused by name (.pkl) or read as the text/Parquet/video it claims to be."""
     from pounding_sweep.cli.run import main
-    from pounding_sweep.scene.config import ConfigError, load_scene
+    from pounding_sweep.scene import ConfigError, load_scene
 
     marker = tmp_path / "PWNED"
     payload = pickle.dumps(_Touch(marker))

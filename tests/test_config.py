@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from conftest import REPO, SWEEPS
-from pounding_sweep.scene.config import ConfigError, describe, load_scene
+from pounding_sweep.scene import describe, load_scene
 from pounding_sweep.model.grid import Grid
 
 BASE = (SWEEPS / "paper_6hz.toml").read_text()

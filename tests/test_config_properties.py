@@ -12,7 +12,7 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from conftest import SWEEPS
-from pounding_sweep.scene.config import ConfigError, scene_from_dict
+from pounding_sweep.scene import ConfigError, scene_from_dict
 from pounding_sweep.model.grid import Grid
 
 BASE = tomllib.loads((SWEEPS / "paper_6hz.toml").read_text())

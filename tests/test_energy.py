@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from conftest import SWEEPS
-from pounding_sweep.scene.config import Axis, load_scene
+from pounding_sweep.scene import Axis, load_scene
 from pounding_sweep.sweep.simulate import simulate
 from pounding_sweep.sweep.run import run_scene
 from tolerances import energy_balance_tolerance

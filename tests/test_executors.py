@@ -21,9 +21,10 @@ import pandas as pd
 import pytest
 
 from conftest import REPO, SWEEPS
-from pounding_sweep.scene.config import Axis, load_scene
+from pounding_sweep.scene import Axis, load_scene
 from pounding_sweep.sweep.results import MANIFEST, part_files, read_manifest
-from pounding_sweep.sweep.run import OutputError, run_scene
+from pounding_sweep.errors import OutputError
+from pounding_sweep.sweep.run import run_scene
 
 pytest.importorskip("dask.distributed")
 

@@ -14,7 +14,7 @@ import sys
 import pytest
 
 from conftest import REPO, SWEEPS
-from pounding_sweep.scene.config import ConfigError, load_scene
+from pounding_sweep.scene import ConfigError, load_scene
 from pounding_sweep.sweep.run import run_scene
 
 pytest.importorskip("cv2")
@@ -72,7 +72,7 @@ def test_sweep_scored_from_a_video_finds_the_hidden_contact_parameters(rendered)
 def test_loading_a_video_scene_does_not_import_opencv(rendered):
     d, lay = rendered
     (d / "lazy.toml").write_text(_scene_text("run.mkv", lay.names, lay.references, lay.mm_per_px))
-    code = ("import sys; from pounding_sweep.scene.config import load_scene; s = load_scene(sys.argv[1]); "
+    code = ("import sys; from pounding_sweep.scene import load_scene; s = load_scene(sys.argv[1]); "
             "print(s.experiment.video is not None, 'cv2' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code, str(d / "lazy.toml")], capture_output=True, text=True, cwd=REPO)
     assert out.stdout.split() == ["True", "False"], out.stderr

@@ -35,14 +35,15 @@ from conftest import SWEEPS
 from reference import newmark_reference
 from tolerances import (SEEDS, backward_error_twin, count_bounds, mca_twins, switch_residue_force,
                         value_tolerance)
+from pounding_sweep import codes
 from pounding_sweep.engine import driver
 from pounding_sweep.engine import scalar as kernel
 from pounding_sweep.engine import lanes as kernel_lanes
 from pounding_sweep.engine import layout as L
-from pounding_sweep.scene.config import Axis, load_scene
+from pounding_sweep.scene import Axis, load_scene
 from pounding_sweep.model.contact import CONTACT_LAWS
 from pounding_sweep.engine.driver import HistorySpec, RunArrays, ScoreSpec
-from pounding_sweep.sweep.run import prepare
+from pounding_sweep.sweep.prepare import prepare
 
 KS = (0.01, 0.1, 1.0, 10.0, 100.0, 1e4)
 R = (0.0, 0.4, 1.0)
@@ -327,7 +328,7 @@ def test_run_chunk_dispatch_and_the_eligibility_rules():
     none_h, none_s = HistorySpec.none(), ScoreSpec.none()
     why = kernel_lanes.lanes_ineligible_reason
     assert why(sysarr, none_h, opts, none_s) is None
-    assert "histories" in why(sysarr, HistorySpec(np.array([L.H_DISP]), np.array([2]), 1), opts, none_s)
+    assert "histories" in why(sysarr, HistorySpec(np.array([codes.H_DISP]), np.array([2]), 1), opts, none_s)
     score = ScoreSpec(np.array([0.1]), np.zeros((1, 1)), np.array([2]), 0, 0.01)
     assert "scoring" in why(sysarr, none_h, opts, score)
     assert "implicit" in why(sysarr, none_h, dataclasses.replace(opts, scheme=kernel.SCHEMES["paper"]), none_s)
@@ -372,7 +373,7 @@ def test_run_chunk_dispatch_and_the_eligibility_rules():
     try:
         m1, t1, h1, s1 = driver.run_chunk(sysarr, runs, rec, none_h, opts)
         assert calls and h1 is None and s1 is None and t1.shape == (runs.n,) and (t1 > 0).all()
-        hist = HistorySpec(np.array([L.H_DISP]), np.array([2]), 10)
+        hist = HistorySpec(np.array([codes.H_DISP]), np.array([2]), 10)
         m2, _, h2, _ = driver.run_chunk(sysarr, runs, rec, hist, opts)
         assert len(calls) == 1 and h2 is not None
     finally:

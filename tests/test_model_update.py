@@ -8,7 +8,7 @@ import tomllib
 import numpy as np
 import pytest
 
-from pounding_sweep.scene.config import BuildingConfig, load_scene
+from pounding_sweep.scene import BuildingConfig, load_scene
 from pounding_sweep.model.coupled import building_from_config
 from pounding_sweep.identify.update import (
     column_EI_for_story_stiffness,

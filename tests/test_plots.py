@@ -14,7 +14,7 @@ from conftest import REPO, SWEEPS
 pytest.importorskip("matplotlib", reason="plots need the 'plot' extra (matplotlib)")
 
 from pounding_sweep import plots
-from pounding_sweep.scene.config import load_scene  # noqa: E402
+from pounding_sweep.scene import load_scene  # noqa: E402
 from pounding_sweep.sweep.results import read_metadata  # noqa: E402
 
 FIGURES = {"heatmaps", "displacement_history", "pounding_force", "ssp", "error_vs_runtime"}

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pounding_sweep.scene.config import load_scene
+from pounding_sweep.scene import load_scene
 from pounding_sweep.model.contact import damping_ratio_from_restitution, dashpot_coefficient
 from pounding_sweep.model.coupled import CoupledModel
 from pounding_sweep.sweep.simulate import simulate

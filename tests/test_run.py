@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import subprocess
 import sys
 
@@ -13,7 +12,7 @@ import pytest
 import pounding_sweep
 from tolerances import switch_residue_force
 from conftest import REPO, SWEEPS
-from pounding_sweep.scene.config import load_scene
+from pounding_sweep.scene import load_scene
 from pounding_sweep.sweep.results import read_metadata, read_schema
 from pounding_sweep.sweep.run import run_scene
 

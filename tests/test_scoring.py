@@ -15,9 +15,9 @@ import pytest
 
 from conftest import REPO, SWEEPS
 from tolerances import SAFETY, SEEDS, U, backward_error_twin, floor_steps
-from pounding_sweep.scene.config import Axis, load_scene
+from pounding_sweep.scene import Axis, load_scene
 from pounding_sweep.model.coupled import CoupledModel
-from pounding_sweep.model.experiment import ExperimentError, load_experiment, score_spec
+from pounding_sweep.model.experiment import ExperimentError
 from pounding_sweep.engine.score import lagged_correlation, peak_abs, relative_rms_error_pct, score_channel
 from pounding_sweep.sweep.simulate import simulate
 from pounding_sweep.sweep.run import run_scene
@@ -171,7 +171,7 @@ def test_bad_experiment_table(tmp_path, name):
     df, pattern = _bad(name)
     s = _scene_with_table(tmp_path, df)
     with pytest.raises(ExperimentError) as e:
-        from pounding_sweep.sweep.run import prepare
+        from pounding_sweep.sweep.prepare import prepare
 
         prepare(s)
     assert "exp.csv" in str(e.value) or "window" in str(e.value)
@@ -204,7 +204,7 @@ def test_cli_bad_table_exit_2_and_no_output(tmp_path):
 
 MEM_SCRIPT = """
 import dataclasses, resource, sys
-from pounding_sweep.scene.config import load_scene, Axis
+from pounding_sweep.scene import load_scene, Axis
 from pounding_sweep.sweep.run import run_scene
 n_ks, n_r, out = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3]
 s = load_scene(sys.argv[4])
@@ -282,7 +282,7 @@ def test_non_uniform_experiment_sampling_is_refused(tmp_path):
     d = GOOD.copy()
     d.loc[3, "t_s"] = 0.06
     with pytest.raises(ExperimentError, match=r"not uniformly sampled: step 0.04 s at row 4"):
-        from pounding_sweep.sweep.run import prepare
+        from pounding_sweep.sweep.prepare import prepare
 
         prepare(_scene_with_table(tmp_path, d))
 

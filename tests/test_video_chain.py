@@ -9,7 +9,7 @@ import pytest
 
 cv2 = pytest.importorskip("cv2")
 
-from pounding_sweep.scene.config import load_scene  # noqa: E402
+from pounding_sweep.scene import load_scene  # noqa: E402
 from pounding_sweep.identify.modes import identify  # noqa: E402
 from pounding_sweep.model.coupled import CoupledModel  # noqa: E402
 from pounding_sweep.identify.update import update_building  # noqa: E402

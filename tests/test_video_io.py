@@ -6,7 +6,6 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -15,12 +14,13 @@ import pytest
 
 cv2 = pytest.importorskip("cv2")
 
-from pounding_sweep.scene.config import ConfigError, ExperimentConfig  # noqa: E402
-from pounding_sweep.model.experiment import load_experiment  # noqa: E402
+from pounding_sweep.scene import ConfigError, ExperimentConfig  # noqa: E402
+from pounding_sweep.sweep.scoring import load_experiment  # noqa: E402
 from pounding_sweep.cli.video import identify_main, track_main  # noqa: E402
 from pounding_sweep.video.io import VideoError, VideoReader, write_video  # noqa: E402
 from pounding_sweep.video.render import RenderOptions, harmonic_table, render_video, shake_table_layout  # noqa: E402
-from pounding_sweep.scene.video import VideoSpec, floor_code, parse_video_section, tracked_table  # noqa: E402
+from pounding_sweep.scene.video import VideoSpec, floor_code, parse_video_section  # noqa: E402
+from pounding_sweep.video.tracker import tracked_table  # noqa: E402
 
 from conftest import REPO  # noqa: E402
 
@@ -237,7 +237,7 @@ def test_tracked_table_hook_and_cache(video, tmp_path):
 
 
 def test_import_and_a_sweep_never_import_opencv():
-    code = ("import sys, pounding_sweep, pounding_sweep.scene.config, pounding_sweep.sweep.run, pounding_sweep.model.experiment, "
+    code = ("import sys, pounding_sweep, pounding_sweep.scene, pounding_sweep.sweep.run, pounding_sweep.model.experiment, "
             "pounding_sweep.cli, pounding_sweep.identify.modes, pounding_sweep.identify.update, pounding_sweep.scene.video; "
             "print('cv2' in sys.modules)")
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO)

@@ -12,7 +12,7 @@ import pytest
 
 cv2 = pytest.importorskip("cv2")  # in the test extra; only absent when OpenCV truly is
 
-from pounding_sweep.scene.config import load_scene  # noqa: E402
+from pounding_sweep.scene import load_scene  # noqa: E402
 from pounding_sweep.sweep.simulate import simulate  # noqa: E402
 from pounding_sweep.video.io import VideoError  # noqa: E402
 from pounding_sweep.video.render import (  # noqa: E402

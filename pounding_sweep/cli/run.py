@@ -10,7 +10,7 @@ import argparse
 import importlib
 import sys
 
-from pounding_sweep.scene.config import ConfigError, describe, load_scene
+from pounding_sweep.scene import ConfigError, describe, load_scene
 from pounding_sweep.model.experiment import ExperimentError
 from pounding_sweep.progress import Progress
 from pounding_sweep.model.records import RecordError

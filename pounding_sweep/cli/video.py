@@ -132,7 +132,7 @@ class _Bad(Exception):
 
 def track_main(argv: list[str]) -> int:
     args = _track_parser().parse_args(argv)
-    from pounding_sweep.scene.config import ConfigError
+    from pounding_sweep.scene import ConfigError
     from pounding_sweep.progress import Progress
     from pounding_sweep.video.io import VideoError
 
@@ -217,7 +217,7 @@ def identify_main(argv: list[str]) -> int:
     args = _identify_parser().parse_args(argv)
     import numpy as np
 
-    from pounding_sweep.scene.config import ConfigError, load_scene
+    from pounding_sweep.scene import ConfigError, load_scene
     from pounding_sweep.model.experiment import ExperimentError, read_table
     from pounding_sweep.identify.update import update_scene
     from pounding_sweep.identify.modes import identify

@@ -20,79 +20,18 @@ import dataclasses
 import os
 import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+
 
 import numpy as np
 
 from pounding_sweep.engine import layout as L
+from pounding_sweep.engine.inputs import HistorySpec, KernelOptions, RunArrays, ScoreSpec  # noqa: F401
 from pounding_sweep.engine.scalar import integrate_batch
 from pounding_sweep.engine.lanes import (LANES, ST_N, coefficient_table, excitation_profiles, integrate_lanes, lane_modes,
                            lanes_ineligible_reason, size_tuples)
 from pounding_sweep.model.modal import ModalArrays, modal_arrays
 from pounding_sweep.model.coupled import SystemArrays
 from pounding_sweep.engine.score import N_SCORES
-
-
-@dataclass
-class RunArrays:
-    """Per-run kernel inputs for one chunk (see kernel.integrate_batch)."""
-
-    ks: np.ndarray
-    cdash: np.ndarray  # (runs, pairs)
-    gap: np.ndarray
-    exc_kind: np.ndarray
-    exc_amp: np.ndarray
-    exc_omega: np.ndarray
-    rec_id: np.ndarray
-    nsteps: np.ndarray
-    status_in: np.ndarray
-
-    @property
-    def n(self) -> int:
-        return self.ks.size
-
-
-@dataclass(frozen=True)
-class HistorySpec:
-    """Channels to keep (kernel codes) and the decimation; empty kinds: metrics only."""
-
-    kinds: np.ndarray
-    index: np.ndarray
-    decimate: int
-
-    @classmethod
-    def none(cls) -> "HistorySpec":
-        return cls(np.zeros(0, np.int64), np.zeros(0, np.int64), 1)
-
-    @property
-    def active(self) -> bool:
-        return self.kinds.size > 0
-
-
-@dataclass(frozen=True)
-class ScoreSpec:
-    """Experiment samples to score against: simulation times, displacements [m] per channel, DOFs."""
-
-    t: np.ndarray
-    x: np.ndarray  # (channels, samples)
-    dof: np.ndarray
-    max_lag: int
-    dt_sample: float
-
-    @classmethod
-    def none(cls) -> "ScoreSpec":
-        return cls(np.zeros(0), np.zeros((0, 0)), np.zeros(0, np.int64), 0, 1.0)
-
-    @property
-    def active(self) -> bool:
-        return self.dof.size > 0
-
-
-@dataclass(frozen=True)
-class KernelOptions:
-    scheme: int
-    law: int
-    max_iter: int
 
 
 def resolve_threads(threads: int) -> int:

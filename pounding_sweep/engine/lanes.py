@@ -36,8 +36,10 @@ from numba import types
 from numba.extending import intrinsic
 
 from pounding_sweep.engine import layout as ML
-from pounding_sweep.engine.scalar import (_ag_inside, _force_extremes, _illinois, _monotonic_ns, _secant_point, _switch_tolerance,
-                     _want_contact)
+from pounding_sweep.codes import EXC_HARMONIC, EXC_RECORD, LAW_NO_TENSION, SCHEME_EVENT, SCHEME_IMPLICIT  # noqa: F401
+from pounding_sweep.engine.clock import _monotonic_ns
+from pounding_sweep.engine.events import (EVENT_MIN_FRACTION, MAX_EVENTS, _ag_inside, _force_extremes, _illinois,
+                                          _secant_point, _switch_tolerance, _want_contact)
 from pounding_sweep.model.modal import ModalArrays, modal_arrays
 from pounding_sweep.engine.simd import (SCRATCH, VW, elem_ptr, f64v, fence, many, mcount, mconst, mfloat, scratch, select_bits, sget,
                    splat, sset, vfma, vsel, vsplat)
@@ -66,15 +68,6 @@ def njit_step(fn):
 
 _inline = numba.njit(inline="always", **LANES_JIT)
 
-# codes, as in kernel.py and contact.py (repeated so that this module compiles without the scalar
-# kernel; tests/test_kernel_lanes.py checks they agree)
-SCHEME_IMPLICIT = 0
-SCHEME_EVENT = 2
-LAW_NO_TENSION = 1
-EXC_HARMONIC = 0
-EXC_RECORD = 1
-MAX_EVENTS = 16  # kernel.MAX_EVENTS
-EVENT_MIN_FRACTION = 1e-9  # kernel.EVENT_MIN_FRACTION
 # energy accumulators of a lane (the scalar step's `en`)
 E_IN, E_ABS, E_DST, E_WSP, E_WDA, E_WREL = range(6)
 
@@ -113,9 +106,8 @@ def _layout(N, P):
 # algorithms (kernel.integrate_batch's event step: _first_event, _locate_event, _switch, _fixed_set_step; and the
 # implicit scheme's active-set iteration), written for modal state. The pieces that do not depend on
 # the coordinates (the Hermite indicator, the switch tolerance, the ground motion inside a step, the
-# force extremes, the Illinois bracket update) are kernel.py's own: Numba's cache does not see an
-# edit to them from here, so after changing them clear pounding_sweep/__pycache__
-# (tests/test_kernel_lanes.py would show the drift).
+# force extremes, the Illinois bracket update) are engine/events.py's, shared with the scalar kernel
+# (the Numba cache is keyed by a hash of the engine's sources: engine/jit.py).
 
 
 # Work arrays of one lane's scalar step, flat so that calls pass a few arrays (each array argument

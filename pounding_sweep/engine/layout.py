@@ -48,8 +48,6 @@ STATUS_WORDS = {
 DIVERGED_M = 1.0e3  # a displacement beyond a kilometre is a numerical blow-up, not physics
 MEDIAN_BUFFER = 4096  # compressive phases kept per pair for the median duration
 
-# history channel kinds
-H_DISP, H_VEL, H_ABS_ACC, H_FORCE, H_GROUND_ACC = range(5)
 
 
 def n_metrics(n_dof: int, n_pairs: int) -> int:

@@ -32,69 +32,24 @@ impacts (Wriggers, Computational Contact Mechanics, 2006, sec. 9.5 on event-driv
 
 from __future__ import annotations
 
-import ctypes
 
 import numpy as np
-from llvmlite import binding as llvm_binding
-from llvmlite import ir
-from numba.core import cgutils, types
-from numba.extending import intrinsic
 
+from pounding_sweep import codes
+from pounding_sweep.codes import EXC_HARMONIC, EXC_RECORD, SCHEME_EVENT, SCHEME_IMPLICIT, SCHEME_PAPER, SCHEMES  # noqa: F401
 from pounding_sweep.engine import layout as L
+from pounding_sweep.engine.clock import _clock
+from pounding_sweep.engine.events import (EVENT_MIN_FRACTION, MAX_EVENTS, _ag_inside, _force_extremes, _illinois,  # noqa: F401
+                                          _secant_point, _switch_tolerance, _want_contact, ground_acceleration,
+                                          ground_acceleration_at)
 from pounding_sweep.engine.jit import njit_kernel
 from pounding_sweep.engine.score import N_SCORES, score_channel
 
-SCHEME_IMPLICIT = 0
-SCHEME_PAPER = 1
-SCHEME_EVENT = 2
-SCHEMES = {"implicit": SCHEME_IMPLICIT, "paper": SCHEME_PAPER, "event": SCHEME_EVENT}
-MAX_EVENTS = 16  # contact switches located inside one step before the step is taken as it is (flagged)
-EVENT_MIN_FRACTION = 1e-9  # a sub-step shorter than this fraction of dt is not integrated (rounding)
 # energy accumulator changed by _switch: the spring energy lost when a no-tension contact lets go while
 # compressed (less what it stores again when it re-engages overlapped)
 EN_W_RELEASE = 0
 EN_N = 1
 
-EXC_HARMONIC = 0  # table displacement amp * sin(omega t): ground acceleration -amp omega^2 sin(omega t)
-EXC_RECORD = 1  # ground acceleration amp * record[step] (record resampled to dt beforehand)
-
-
-# libc's clock_gettime, called from compiled code without the GIL (objmode would take it, and a
-# ctypes pointer would stop numba from caching the kernel): declare it by name, tell LLVM where it is.
-llvm_binding.add_symbol("clock_gettime", ctypes.cast(ctypes.CDLL(None).clock_gettime, ctypes.c_void_p).value)
-
-
-@intrinsic
-def _monotonic_ns(typingctx):
-    """CLOCK_MONOTONIC in nanoseconds (int64)."""
-
-    def codegen(context, builder, signature, args):
-        i32, i64 = ir.IntType(32), ir.IntType(64)
-        ts_type = ir.LiteralStructType([i64, i64])
-        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(i32, [i32, ts_type.as_pointer()]), "clock_gettime")
-        ts = cgutils.alloca_once(builder, ts_type)
-        builder.call(fn, [ir.Constant(i32, 1), ts])
-        sec = builder.load(cgutils.gep_inbounds(builder, ts, 0, 0))
-        nsec = builder.load(cgutils.gep_inbounds(builder, ts, 0, 1))
-        return builder.add(builder.mul(sec, ir.Constant(i64, 1_000_000_000)), nsec)
-
-    return types.int64(), codegen
-
-
-@njit_kernel
-def _clock():
-    """Monotonic wall clock [s]."""
-    return _monotonic_ns() * 1e-9
-
-
-@njit_kernel
-def ground_acceleration(kind, amp, omega, rec_flat, rec_off, rec_len, step, dt):
-    """Ground (table) acceleration [m/s^2] at t = step * dt."""
-    if kind == EXC_HARMONIC:
-        return -amp * omega * omega * np.sin(omega * step * dt)
-    if step < rec_len:
-        return amp * rec_flat[rec_off + step]
-    return 0.0
 
 
 @njit_kernel
@@ -581,12 +536,6 @@ def integrate_batch(
 
 
 @njit_kernel
-def ground_acceleration_at(amp, omega, t):
-    """Harmonic ground acceleration [m/s^2] at any time t (event sub-steps)."""
-    return -amp * omega * omega * np.sin(omega * t)
-
-
-@njit_kernel
 def _fixed_set_step(h, ag, u, v, a, m, C, K, i1, i2, active, k_s, c, d, A, r, un, vn, an, F):
     """One Newmark average-acceleration step of length h with the pairs in `active` in contact.
 
@@ -629,28 +578,6 @@ def _fixed_set_step(h, ag, u, v, a, m, C, K, i1, i2, active, k_s, c, d, A, r, un
 
 
 @njit_kernel
-def _want_contact(p0, p1, m0, m1, tau, h, law, k_s, c):
-    """Contact indicator at fraction tau of the step (> 0: the pair should be in contact), from the
-    cubic Hermite interpolant of the penetration (p0, p1; end slopes m0, m1 = v_rel h)."""
-    t2 = tau * tau
-    t3 = t2 * tau
-    p = (2 * t3 - 3 * t2 + 1) * p0 + (t3 - 2 * t2 + tau) * m0 + (-2 * t3 + 3 * t2) * p1 + (t3 - t2) * m1
-    if law == 0:
-        return p
-    dp = (6 * t2 - 6 * tau) * p0 + (3 * t2 - 4 * tau + 1) * m0 + (-6 * t2 + 6 * tau) * p1 + (3 * t2 - 2 * tau) * m1
-    f = p + (c / k_s) * dp / h  # no tension: in contact while penetrating and pushing (F / k_s, metres)
-    return min(p, f)
-
-
-@njit_kernel
-def _switch_tolerance(up, uq):
-    """Penetration [m] below which a contact switch is rounding, not motion: a femtometre, or 1e-12 of
-    the floors' displacement. Without it a pair resting exactly at zero penetration (gap 0 at rest)
-    would switch back and forth on rounding noise."""
-    return 1e-15 + 1e-12 * (abs(up) + abs(uq))
-
-
-@njit_kernel
 def _first_event(h, u, v, un, vn, active, just, law, k_s, c, d, i1, i2, npair, thetas, switch):
     """Fraction of the step (0..1] at which the first pair leaves its contact state, or 2.0 if none
     does; marks in `switch` the pairs whose switch falls there (bisection on the indicator)."""
@@ -681,15 +608,6 @@ def _first_event(h, u, v, un, vn, active, just, law, k_s, c, d, i1, i2, npair, t
     for j in range(npair):
         switch[j] = thetas[j] <= first + 1e-9
     return first
-
-
-@njit_kernel
-def _ag_inside(hs, h, ag_s, ag_e, harmonic, amp, om, t_s):
-    """Ground acceleration hs into the rest (length h) of a step: exact for harmonic motion, linear
-    between the record's samples otherwise."""
-    if harmonic:
-        return ground_acceleration_at(amp, om, t_s + hs)
-    return ag_s + (ag_e - ag_s) * (hs / h)
 
 
 @njit_kernel
@@ -758,37 +676,6 @@ def _locate_event(theta, h, hmin, ag_s, ag_e, harmonic, amp, om, t_s, u, v, a, m
     for j in range(npair):
         switch[j] = j == target or thetas[j] <= 1.0  # the target, and pairs crossing with it
     return hs
-
-
-@njit_kernel
-def _secant_point(lo, hi, f_lo, f_hi):
-    """The false-position point of the bracket (lo, hi), or its midpoint when that falls outside."""
-    x = hi - f_hi * (hi - lo) / (f_hi - f_lo)
-    return x if lo < x < hi else 0.5 * (lo + hi)
-
-
-@njit_kernel
-def _illinois(lo, hi, f_lo, f_hi, side, x, fx):
-    """One update of an Illinois false-position bracket (lo, hi) with f(lo) < 0 <= f(hi): x, where
-    f is fx, replaces the end of its sign; when the same end moves twice running, the other end's
-    value is halved (the modified regula falsi: Dowell & Jarratt, BIT 11, 1971). Returns (lo, hi,
-    f_lo, f_hi, side), side = 1 after the high end moved, -1 after the low end."""
-    if fx >= 0.0:
-        if side == 1:
-            f_lo *= 0.5
-        return lo, x, f_lo, fx, 1
-    if side == -1:
-        f_hi *= 0.5
-    return x, hi, fx, f_hi, -1
-
-
-@njit_kernel
-def _force_extremes(out, base, f, t):
-    if f > out[base + L.PAIR_PEAK_FORCE]:
-        out[base + L.PAIR_PEAK_FORCE] = f
-        out[base + L.PAIR_PEAK_FORCE_TIME] = t
-    if f < out[base + L.PAIR_MIN_FORCE]:
-        out[base + L.PAIR_MIN_FORCE] = f
 
 
 @njit_kernel
@@ -865,13 +752,13 @@ def _end_phase(durations, nphase, j, duration):
 
 @njit_kernel
 def _channel(kind, index, u, v, a, F, ag):
-    """Value of one history channel (see metrics_layout.H_*)."""
-    if kind == L.H_DISP:
+    """Value of one history channel (see pounding_sweep.codes.H_*)."""
+    if kind == codes.H_DISP:
         return u[index]
-    if kind == L.H_VEL:
+    if kind == codes.H_VEL:
         return v[index]
-    if kind == L.H_ABS_ACC:
+    if kind == codes.H_ABS_ACC:
         return a[index] + ag
-    if kind == L.H_FORCE:
+    if kind == codes.H_FORCE:
         return F[index]
     return ag

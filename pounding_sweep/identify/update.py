@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pounding_sweep.scene.config import BuildingConfig, Scene
+from pounding_sweep.scene import BuildingConfig, Scene
 from pounding_sweep.model.coupled import building_from_config
 from pounding_sweep.model.structure import modal_analysis, shear_frame_stiffness
 

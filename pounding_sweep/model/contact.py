@@ -12,10 +12,7 @@ import math
 
 import numpy as np
 
-#: contact-law codes passed to the kernel
-LAW_CLASSIC = 0
-LAW_NO_TENSION = 1
-CONTACT_LAWS = {"classic": LAW_CLASSIC, "no_tension": LAW_NO_TENSION}
+from pounding_sweep.codes import CONTACT_LAWS, LAW_CLASSIC, LAW_NO_TENSION  # noqa: F401  (the laws' names and codes)
 
 
 def damping_ratio_from_restitution(r):

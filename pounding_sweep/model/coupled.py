@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pounding_sweep.scene.config import BuildingConfig, Scene
+from pounding_sweep.scene import BuildingConfig, Scene
 from pounding_sweep.model.structure import ShearFrame, build_shear_frame, column_story_stiffness
 
 

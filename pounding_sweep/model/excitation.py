@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pounding_sweep.scene.config import Scene
-from pounding_sweep.engine.scalar import EXC_HARMONIC, EXC_RECORD
+from pounding_sweep.scene import Scene
+from pounding_sweep.codes import EXC_HARMONIC, EXC_RECORD
 from pounding_sweep.model.records import GroundRecord, read_record, resample, similitude_scale
 
 
@@ -51,7 +51,7 @@ class Excitation:
             arrays.append(resample(rec, dt, e.duration_s))
         lens = np.array([a.size for a in arrays], dtype=np.int64)
         if lens.min() < 2:
-            from pounding_sweep.scene.config import ConfigError
+            from pounding_sweep.scene import ConfigError
 
             k = int(lens.argmin())
             key = "dt_max_s" if scene.integration.auto else "dt_s"

@@ -1,5 +1,5 @@
-"""Tracked experimental displacement: read and check the table, and turn it into the samples
-the kernel scores each run against.
+"""Tracked experimental displacement: read and check the table (the sweep layer turns it into the
+samples the kernel scores each run against: sweep/scoring.py).
 
 Table format (CSV or Parquet, written by the video tracker too): a time column in seconds
 (default `t_s`), strictly increasing, and one column per tracked channel: the displacement of
@@ -19,14 +19,10 @@ import numpy as np
 if TYPE_CHECKING:  # pandas costs 0.3 s to import: only where a table is built
     import pandas as pd
 
-    from pounding_sweep.engine.driver import ScoreSpec  # imports Numba: only where a score is set up, so bad input fails fast
-
+from pounding_sweep.errors import ExperimentError
 from pounding_sweep.scene.channels import floor_dof
-from pounding_sweep.scene.config import ExperimentConfig
+from pounding_sweep.scene import ExperimentConfig
 
-
-class ExperimentError(ValueError):
-    """A tracked-displacement table that cannot be scored against: names the file and column."""
 
 
 @dataclass(frozen=True)
@@ -73,13 +69,18 @@ def read_table(path: str | Path) -> tuple[pd.DataFrame, dict]:
 
 
 def load_experiment(cfg: ExperimentConfig, floors: tuple[int, int]) -> Experiment:
+    """The experiment of an [experiment] section whose `table` names a file (a video is tracked by the
+    sweep layer: sweep/scoring.py), read and checked (experiment_from_table)."""
+    if cfg.video is not None:
+        raise ValueError("an [experiment.video] section is tracked by pounding_sweep.sweep.scoring.load_experiment")
+    df, md = read_table(cfg.table)
+    return experiment_from_table(df, md, cfg.table, cfg, floors)
+
+
+def experiment_from_table(df: pd.DataFrame, md: dict, where: str, cfg: ExperimentConfig,
+                          floors: tuple[int, int]) -> Experiment:
     """Read the table and check it: time column present, numeric, finite, strictly increasing;
     every mapped column present, numeric and finite; every channel a model floor."""
-    if cfg.video is not None:
-        df, md, where = _tracked(cfg.video)
-    else:
-        df, md = read_table(cfg.table)
-        where = cfg.table
     if cfg.time_column not in df.columns:
         raise ExperimentError(f"{where}: no time column '{cfg.time_column}' (columns: {', '.join(map(str, df.columns))})")
     t = _numeric(df[cfg.time_column], where, cfg.time_column)
@@ -111,32 +112,6 @@ def load_experiment(cfg: ExperimentConfig, floors: tuple[int, int]) -> Experimen
     return Experiment(str(where), t, chans, cols, md)
 
 
-_TRACKED: dict = {}  # (spec, file size, mtime) -> (table, provenance): a video is tracked once per process
-
-
-def _tracked(spec) -> tuple[pd.DataFrame, dict, str]:
-    """Track the video of an [experiment.video] section (OpenCV, lazily imported) into the table
-    format above; a video that cannot give one is an ExperimentError naming the file."""
-    from pounding_sweep.video.io import VideoError
-    from pounding_sweep.scene.video import tracked_table
-
-    try:
-        st = Path(spec.path).stat()
-        key = (spec, st.st_size, st.st_mtime_ns)
-        if key not in _TRACKED:
-            from pounding_sweep.progress import Progress
-
-            df, md = tracked_table(spec, progress=Progress(unit="frames"))
-            _TRACKED.clear()
-            _TRACKED[key] = (df, md)
-        df, md = _TRACKED[key]
-    except FileNotFoundError:
-        raise ExperimentError(f"{spec.path}: video not found ([experiment.video] path)") from None
-    except VideoError as e:
-        raise ExperimentError(str(e)) from None
-    return df, {"tracking": md}, spec.path
-
-
 def _numeric(series: pd.Series, where: str, col: str) -> np.ndarray:
     import pandas as pd
 
@@ -148,33 +123,3 @@ def _numeric(series: pd.Series, where: str, col: str) -> np.ndarray:
         v = v.item() if hasattr(v, "item") else v
         raise ExperimentError(f"{where}: column '{col}' row {k + 1}: value {v!r} is not a finite number")
     return x
-
-
-def score_spec(exp: Experiment, cfg: ExperimentConfig, floors: tuple[int, int], sim_duration_s: float,
-               dt: float) -> ScoreSpec:
-    """The samples inside the scored window, on the simulation clock, as kernel arrays.
-
-    Simulation time = experiment time - time_offset_s. The window defaults to all of the
-    experiment that the simulation covers; a window outside that is an error.
-    """
-    from pounding_sweep.engine.driver import ScoreSpec
-
-    ts = exp.time_s - cfg.time_offset_s
-    lo, hi = (0.0, sim_duration_s) if cfg.window_s is None else cfg.window_s
-    if cfg.window_s is not None and (lo < 0 or hi > sim_duration_s + 1e-9):
-        raise ExperimentError(
-            f"[experiment] window_s = [{lo}, {hi}]: outside the simulation, which covers 0 .. {sim_duration_s:.6g} s"
-        )
-    tol = 1e-12 * dt  # the kernel fills samples up to t_step + 1e-12 dt: the same tolerance here
-    keep = (ts >= lo - tol) & (ts <= hi + tol) & (ts >= 0) & (ts <= sim_duration_s + tol)
-    if keep.sum() < 2:
-        raise ExperimentError(
-            f"{exp.path}: its time range {exp.time_s[0]:.6g} .. {exp.time_s[-1]:.6g} s (offset {cfg.time_offset_s} s) "
-            f"leaves {int(keep.sum())} sample(s) (at least 2 needed) in the simulation 0 .. {sim_duration_s:.6g} s "
-            f"within the window [{lo}, {hi}]"
-        )
-    codes = list(exp.channels)
-    x = np.ascontiguousarray(np.stack([exp.channels[c][keep] for c in codes]))
-    dof = np.array([floor_dof(c, floors, "channel") for c in codes], dtype=np.int64)
-    max_lag = int(min(round(cfg.max_lag_s / exp.dt_sample), keep.sum() - 2))  # at most the window
-    return ScoreSpec(np.ascontiguousarray(ts[keep]), x, dof, max_lag, exp.dt_sample)

@@ -10,7 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pounding_sweep.scene.config import SWEEPABLE, Scene
+from pounding_sweep.scene import SWEEPABLE, Scene
+from pounding_sweep.scene.axes import KS_FORMS, ks_counterpart
 
 
 @dataclass(frozen=True)
@@ -27,10 +28,9 @@ class Grid:
             fixed[name] = getattr(getattr(scene, section), key)
         swept = {a.name for a in scene.sweep}
         # a swept ks in one form makes the other form derived, not fixed
-        if "ks_ratio" in swept:
-            fixed["ks_N_per_m"] = None
-        if "ks_N_per_m" in swept:
-            fixed["ks_ratio"] = None
+        for form in KS_FORMS:
+            if form in swept:
+                fixed[ks_counterpart(form)] = None
         for a in scene.sweep:
             fixed.pop(a.name)
         return cls(tuple((a.name, a.values) for a in scene.sweep), fixed)

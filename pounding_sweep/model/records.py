@@ -12,6 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
+from pounding_sweep.codes import ACCEPTED_UNITS, UNIT_ALIASES
+from pounding_sweep.errors import RecordError
+
 G_STANDARD = 9.80665  # m/s^2
 
 __all__ = [
@@ -26,8 +29,7 @@ __all__ = [
 ]
 
 
-class RecordError(ValueError):
-    """Bad ground-motion file: message names the file, the line (when known) and the offending value."""
+# RecordError lives in pounding_sweep.errors (raised here, imported by every reader's caller)
 
 
 # --------------------------------------------------------------------------- record
@@ -76,15 +78,8 @@ class GroundRecord:
 # --------------------------------------------------------------------------- helpers
 
 _UNIT_FACTORS = {"g": G_STANDARD, "m/s2": 1.0, "cm/s2": 0.01}
-_UNIT_ALIASES = {
-    "g": "g",
-    "m/s2": "m/s2",
-    "m/s^2": "m/s2",
-    "cm/s2": "cm/s2",
-    "cm/s^2": "cm/s2",
-    "gal": "cm/s2",
-}
-_ACCEPTED_UNITS = ", ".join(repr(u) for u in _UNIT_ALIASES)
+_UNIT_ALIASES = UNIT_ALIASES  # the accepted spellings: pounding_sweep.codes (one home)
+_ACCEPTED_UNITS = ACCEPTED_UNITS
 
 # How PEER line 3 spells units (spaces removed, upper case) -> our canonical name.
 _HEADER_UNITS = {

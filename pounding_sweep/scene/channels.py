@@ -4,19 +4,18 @@ from __future__ import annotations
 
 import re
 
-from pounding_sweep.engine import layout as L
+from pounding_sweep import codes
+from pounding_sweep.errors import ConfigError
 
 _PATTERNS = {
-    "disp": (L.H_DISP, "m"),
-    "vel": (L.H_VEL, "m_s"),
-    "abs_acc": (L.H_ABS_ACC, "m_s2"),
+    "disp": (codes.H_DISP, "m"),
+    "vel": (codes.H_VEL, "m_s"),
+    "abs_acc": (codes.H_ABS_ACC, "m_s2"),
 }
 
 
 def floor_dof(code: str, floors: tuple[int, int], key: str) -> int:
     """'b1f3' (building 1, floor 3) -> its DOF index in the coupled model."""
-    from pounding_sweep.scene.config import ConfigError
-
     m = re.fullmatch(r"b([12])f(\d+)", code)
     if not m:
         raise ConfigError(f"{key} = {code!r}: a model floor is written b<building>f<floor>, e.g. 'b1f3'")
@@ -28,8 +27,6 @@ def floor_dof(code: str, floors: tuple[int, int], key: str) -> int:
 
 def parse_channel(name: str, floors: tuple[int, int]) -> tuple[int, int, str]:
     """Channel name -> (kind, index, column name with unit). Index is a DOF or a pair."""
-    from pounding_sweep.scene.config import ConfigError
-
     m = re.fullmatch(r"(disp|vel|abs_acc)_(b\d+f\d+)", name)
     if m:
         kind, unit = _PATTERNS[m.group(1)]
@@ -39,9 +36,9 @@ def parse_channel(name: str, floors: tuple[int, int]) -> tuple[int, int, str]:
         j = int(m.group(1))
         if not 1 <= j <= min(floors):
             raise ConfigError(f"[output] histories: channel '{name}': facing floor pairs are 1..{min(floors)}")
-        return L.H_FORCE, j - 1, f"{name}_N"
+        return codes.H_FORCE, j - 1, f"{name}_N"
     if name == "ground_acc":
-        return L.H_GROUND_ACC, 0, "ground_acc_m_s2"
+        return codes.H_GROUND_ACC, 0, "ground_acc_m_s2"
     raise ConfigError(
         f"[output] histories: unknown channel '{name}' (use disp_b1f3, vel_b2f1, abs_acc_b1f2, force_f3, ground_acc)"
     )

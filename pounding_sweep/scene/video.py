@@ -1,30 +1,10 @@
-"""The `[experiment.video]` scene section: a video to track instead of (or to make) the
-`[experiment] table`. This module does not import OpenCV (config.py may import it); tracking
-imports it lazily.
+"""The `[experiment.video]` scene section: a shake-table video whose LED markers are tracked into the
+experiment table (instead of `[experiment] table`). Plain data and its checks only: OpenCV is never
+imported here (pounding_sweep.video tracks; `python -m pounding_sweep track --help` lists the same keys).
 
-How it is meant to be hooked in (the lead owns config.py and experiment.py):
-
-1. config.py: `ExperimentConfig` gains `video: VideoSpec | None = None` and `table` becomes
-   optional (exactly one of `table` and `video` given). In `scene_from_dict`, pop the `video`
-   sub-table from `raw["experiment"]` before `_build(ExperimentConfig, ...)` and parse it with
-   `parse_video_section(raw["experiment"]["video"], base_dir)` (it raises ConfigError naming
-   `[experiment.video] key = value`, and did-you-mean for unknown keys). `units` must be "mm" (the
-   tracker writes mm); `channels` may default to `spec.default_channels()` (every marker named by a
-   floor code, b1f3 or model1_floor3_mm, mapped to its floor). The scene hash should cover the
-   video's SHA-256 the way it covers the table's (`Scene.canonical`: `record_sha256[...]`).
-2. experiment.py: in `load_experiment`, when `cfg.video` is set, replace `read_table(cfg.table)` by
-   `from .video.scene import tracked_table; df, md = tracked_table(cfg.video)` (the rest of the
-   checks apply unchanged; `md` is the tracking provenance, JSON-able). Catch
-   `pounding_sweep.video.io.VideoError` where ExperimentError is caught (cli.py), or re-raise it as
-   ExperimentError (it is a ValueError whose message is `<file>: <what> (<value>)`).
-3. A sweep then tracks the video once per run of the command (about 1-2 s per 1000 frames at
-   640x480); `tracked_table(spec, cache_dir=...)` can keep the result keyed by the video's digest
-   and the spec.
-
-The table `tracked_table` returns is the README's tracked-displacement format: `t_s` (frame /
-fps, uniform), one column per floor marker (displacement relative to the table, mm, finite),
-plus `frame`, `<marker>_quality` (int bit flags, see tracker.QUALITY) and `table_in_camera_mm`,
-which scoring ignores.
+The tracked table is the README's tracked-displacement format: `t_s` (frame / fps, uniform), one
+column per floor marker (displacement relative to the table, mm), plus `frame`, `<marker>_quality`
+(bit flags, video.tracker.QUALITY) and `table_in_camera_mm`, which scoring ignores.
 """
 
 from __future__ import annotations
@@ -33,6 +13,9 @@ import math
 import re
 from dataclasses import dataclass, fields
 from pathlib import Path
+
+from pounding_sweep.errors import ConfigError
+from pounding_sweep.scene.keys import check_keys
 
 FLOOR_NAME = re.compile(r"(?:b(\d+)f(\d+)|model(\d+)_floor(\d+))(?:_mm)?")
 
@@ -98,8 +81,6 @@ _KEYS = {f.name for f in fields(VideoSpec)} - {"positions_px"}
 
 
 def _err(key, value, what):
-    from pounding_sweep.scene.config import ConfigError
-
     return ConfigError(f"{SECTION} {key} = {value!r}: {what}")
 
 
@@ -138,11 +119,9 @@ def _names(table, key, value) -> tuple[str, ...]:
 
 def parse_video_section(table: dict, base_dir: Path) -> VideoSpec:
     """Check an `[experiment.video]` table and resolve its path against the scene's folder."""
-    from pounding_sweep.scene.config import ConfigError, _check_keys
-
     if not isinstance(table, dict):
         raise ConfigError(f"'video' must be a table {SECTION}, got {table!r}")
-    _check_keys(table, _KEYS, SECTION)
+    check_keys(table, _KEYS, SECTION)
     if "path" not in table:
         raise ConfigError(f"missing key 'path' in {SECTION} (the video file to track)")
     path = table["path"]
@@ -237,21 +216,3 @@ def parse_video_section(table: dict, base_dir: Path) -> VideoSpec:
         transform=_choice(table, "transform", ("similarity", "rigid", "translation"), "similarity"),
         rest_frames=_num(table, "rest_frames", integer=True, minimum=1, default=1),
     )
-
-
-def tracked_table(spec: VideoSpec, progress=None, cache_dir: str | Path | None = None):
-    """Track the video of `spec`; return (DataFrame in the tracked-table format, provenance dict).
-
-    Raises pounding_sweep.video.io.VideoError (one line: file, what, value) for a missing or
-    unreadable video, no frames, markers not found, or a marker lost for too long.
-    With `cache_dir`, the table is kept as Parquet named by the video's SHA-256 and the spec, and
-    read back when both are unchanged.
-    """
-    from pounding_sweep.video.tracker import track_video
-
-    if cache_dir is not None:
-        from pounding_sweep.video.tracker import cached_track
-
-        return cached_track(spec, Path(cache_dir), progress)
-    result = track_video(spec, progress=progress)
-    return result.table(), result.provenance

@@ -41,7 +41,7 @@ class AutoDt:
     def check_finest(self) -> None:
         """Refuse before any run a dt_min_s whose runs would be too long to integrate (the finest
         level is otherwise only built mid-sweep, after parts were written)."""
-        from pounding_sweep.scene.config import MAX_STEPS, ConfigError
+        from pounding_sweep.scene import MAX_STEPS, ConfigError
         from pounding_sweep.model.excitation import Excitation
 
         duration = Excitation.from_scene(self.scene, self.dt_max).max_duration_s

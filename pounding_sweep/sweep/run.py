@@ -23,19 +23,17 @@ if TYPE_CHECKING:  # pandas costs 0.3 s to import: only where a table is built
     import pandas as pd
 
 from pounding_sweep.engine import layout as L
-from pounding_sweep.scene.channels import parse_channel
-from pounding_sweep.scene.config import Scene
-from pounding_sweep.model.contact import CONTACT_LAWS, contact_period, damping_ratio_from_restitution, dashpot_coefficient
-from pounding_sweep.engine.driver import HistorySpec, KernelOptions, RunArrays, ScoreSpec, compile_kernel, run_chunk
+from pounding_sweep.scene import Scene
+from pounding_sweep.engine.driver import compile_kernel
 from pounding_sweep.model.excitation import Excitation
 from pounding_sweep.model.grid import Grid
-from pounding_sweep.engine.scalar import SCHEMES
-from pounding_sweep.model.coupled import CoupledModel, SystemArrays
 from pounding_sweep.sweep.ranking import Ranking, Refinement, refine, score_columns, score_table_columns
 from pounding_sweep import __version__
-from pounding_sweep.scene.config import ConfigError
+from pounding_sweep.errors import ConfigError, OutputError  # noqa: F401
+from pounding_sweep.sweep.prepare import Prepared, prepare  # noqa: F401
+from pounding_sweep.sweep.resume import claim_output
 from pounding_sweep.sweep.results import (MANIFEST, PART_NAME, AtomicParquetWriter, file_metadata, histories_path, histories_table, numpy_column,
-                      metrics_table, part_files, part_index, read_manifest, remove_stale_temporaries, sidecar_path,
+                      metrics_table, sidecar_path,
                       write_manifest, write_part)
 
 HISTORY_CHUNK_BYTES = 256 * 2**20
@@ -64,95 +62,6 @@ class SweepSummary:
     executor: str = "local"
 
 
-@dataclass(frozen=True)
-class Prepared:
-    """A scene turned into kernel inputs, before any run: shared by sweeps, single runs and refinement."""
-
-    scene: Scene
-    model: CoupledModel
-    sysarr: SystemArrays
-    excitation: Excitation
-    grid: Grid
-    opts: KernelOptions
-    hist: HistorySpec
-    hist_columns: list[str]
-    score: ScoreSpec
-    score_codes: list[str]
-    auto: object | None = None  # autodt.AutoDt when dt_s = 'auto'
-
-    @property
-    def dt(self) -> float:
-        return self.sysarr.dt
-
-    def run(self, params: dict[str, np.ndarray], threads: int = 1, batch_runs: int = 0):
-        """Integrate the runs described by `params` (as Grid.chunk gives them)."""
-        if self.auto is not None:
-            return self.auto.run(params, threads, batch_runs)
-        runs, rec, derived = self.kernel_inputs(params)
-        metrics, run_time, hist, scores = run_chunk(self.sysarr, runs, rec, self.hist, self.opts, threads, batch_runs,
-                                                    self.score)
-        return metrics, run_time, hist, scores, derived
-
-    def kernel_inputs(self, params: dict[str, np.ndarray]):
-        """The kernel's inputs for `params` at the scene's dt: (RunArrays, record arrays, the derived
-        contact columns)."""
-        ks, c, xi, spp, status = contact_arrays(self.model, self.scene, params, self.dt)
-        ex = self.excitation.run_arrays(params)
-        runs = RunArrays(ks, c, params["gap_m"], ex["exc_kind"], ex["exc_amp"], ex["exc_omega"], ex["rec_id"],
-                         ex["nsteps"], status)
-        rec = (self.excitation.rec_flat, self.excitation.rec_off, self.excitation.rec_len)
-        return runs, rec, {"ks_N_per_m": ks, "contact_damping_ratio": xi, "steps_per_contact_period": spp}
-
-
-def prepare(scene: Scene) -> Prepared:
-    """Model, system matrices at dt, excitation, grid, history and experiment specs of a scene.
-    With dt_s = 'auto' these are at dt_max_s, and runs go through the step-doubling ladder."""
-    dt = scene.integration.first_dt_s
-    model = CoupledModel.from_scene(scene)
-    exc = Excitation.from_scene(scene, dt)
-    opts = KernelOptions(SCHEMES[scene.integration.scheme], CONTACT_LAWS[scene.contact.law],
-                         scene.integration.max_contact_iterations)
-    hspec, hcols = history_spec(scene, model.floors)
-    score, codes = ScoreSpec.none(), []
-    if scene.experiment is not None:
-        from pounding_sweep.model.experiment import load_experiment, score_spec
-
-        exp = load_experiment(scene.experiment, model.floors)
-        score = score_spec(exp, scene.experiment, model.floors, exc.max_duration_s, dt)
-        codes = list(exp.channels)
-    auto = None
-    if scene.integration.auto:
-        from pounding_sweep.sweep.autodt import AutoDt
-
-        auto = AutoDt(scene, prepare)
-    return Prepared(scene, model, model.system_arrays(dt), exc, Grid.from_scene(scene), opts, hspec, hcols, score, codes,
-                    auto)
-
-
-def contact_arrays(model: CoupledModel, scene: Scene, params: dict[str, np.ndarray], dt: float):
-    """k_s, dashpot c_j (eq. 9) per run and pair, xi_s (eq. 10), steps per contact period, flags."""
-    ks = np.where(np.isnan(params["ks_N_per_m"]), params["ks_ratio"] * scene.contact.k_ref_N_per_m, params["ks_N_per_m"])
-    m1, m2 = model.pair_masses()
-    xi = np.atleast_1d(damping_ratio_from_restitution(params["r"]))
-    c = dashpot_coefficient(ks[:, None], params["r"][:, None], m1[None, :], m2[None, :])
-    steps_per_period = contact_period(ks[:, None], m1[None, :], m2[None, :]).min(axis=1) / dt
-    status = np.where(steps_per_period < scene.integration.min_steps_per_contact_period, L.STATUS_UNDERRESOLVED, 0)
-    return ks, np.ascontiguousarray(c), xi, steps_per_period, status.astype(np.int64)
-
-
-def history_spec(scene: Scene, floors: tuple[int, int]) -> tuple[HistorySpec, list[str]]:
-    if not scene.output.histories:
-        return HistorySpec.none(), []
-    parsed = [parse_channel(ch, floors) for ch in scene.output.histories]
-    spec = HistorySpec(np.array([p[0] for p in parsed], np.int64), np.array([p[1] for p in parsed], np.int64),
-                       scene.output.history_decimate)
-    return spec, [p[2] for p in parsed]
-
-
-class OutputError(ConfigError):
-    """The output folder holds results this sweep must not mix with or overwrite unasked."""
-
-
 def run_scene(scene: Scene, out_path: str | Path | None = None, threads: int | None = None,
               progress: Callable[[int, int], None] | None = None, executor=None,
               overwrite: bool = False, confirmed: bool = False) -> SweepSummary:
@@ -178,7 +87,7 @@ def run_scene(scene: Scene, out_path: str | Path | None = None, threads: int | N
     manifest = {"config_hash": scene.config_hash(), "version": __version__, "scene": scene.name,
                 "grid_size": grid.size, "chunk_runs": chunk_runs, "parts": len(chunks)}
     hpath = histories_path(out_path) if prep.hist.active else None
-    done = _claim_output(out_path, hpath, manifest, overwrite)
+    done = claim_output(out_path, hpath, manifest, overwrite)
     todo = [c for c in chunks if c[0] not in done]
 
     how = scene.experiment.combine if scene.experiment else "mean"
@@ -259,38 +168,6 @@ class _Tally:
                 self.peak_force = max(self.peak_force, float(np.nanmax(numpy_column(table, name), initial=0.0)))
         if self.ranking is not None:
             self.ranking.update(table)
-
-
-def _claim_output(out: Path, hpath: Path | None, manifest: dict, overwrite: bool) -> set[int]:
-    """Indexes of the parts already finished for this very sweep; refuse anything else in `out`."""
-    if out.is_file():
-        if not overwrite:
-            raise OutputError(f"{out} is a file (an older single-file result?): give another --out, or --overwrite")
-        out.unlink()
-    if not out.exists():
-        return set()
-    old = read_manifest(out)
-    if overwrite:
-        for folder in (out, hpath):
-            if folder is not None and folder.is_dir():
-                for f in part_files(folder) + [folder / MANIFEST]:
-                    f.unlink(missing_ok=True)
-        sidecar_path(out, "best").unlink(missing_ok=True)
-        return set()
-    if old is None:
-        if any(out.iterdir()):
-            raise OutputError(f"{out} exists and is not a pounding_sweep result folder (no {MANIFEST}): "
-                              "give another --out")
-        return set()
-    same = {k: old.get(k) == v for k, v in manifest.items() if k != "scene"}
-    if not all(same.values()):
-        what = ", ".join(f"{k} {old.get(k)!r} here vs {manifest[k]!r} now" for k, ok in same.items() if not ok)
-        raise OutputError(f"{out} holds results of a different sweep ({what}); resuming would mix them: "
-                          "give another --out, or --overwrite to replace them")
-    remove_stale_temporaries(out)
-    if hpath is not None and hpath.is_dir():
-        remove_stale_temporaries(hpath)
-    return {part_index(p) for p in part_files(out) if part_index(p) < manifest["parts"]}
 
 
 def refine_best(prep: Prepared, best: pd.DataFrame) -> Refinement | None:

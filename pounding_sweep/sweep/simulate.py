@@ -12,7 +12,8 @@ import numpy as np
 import pandas as pd
 
 from pounding_sweep.engine import layout as L
-from pounding_sweep.scene.config import SWEEPABLE, ConfigError, Scene, validate
+from pounding_sweep.scene.axes import KS_FORMS, setting_ks
+from pounding_sweep.scene import SWEEPABLE, ConfigError, Scene, validate
 from pounding_sweep.sweep.ranking import score_table_columns
 from pounding_sweep.sweep.results import status_words
 
@@ -42,10 +43,9 @@ def with_overrides(scene: Scene, **overrides) -> Scene:
         else:
             raise ConfigError(f"simulate: unknown parameter '{key}'")
         sections.setdefault(section, {})[field] = value
-    if "ks_N_per_m" in overrides:
-        sections.setdefault("contact", {})["ks_ratio"] = None
-    if "ks_ratio" in overrides:
-        sections.setdefault("contact", {})["ks_N_per_m"] = None
+    for form in KS_FORMS:
+        if form in overrides:
+            sections.setdefault("contact", {}).update(setting_ks(form, overrides[form]))
     new = {s: dataclasses.replace(getattr(scene, s), **kv) for s, kv in sections.items()}
     out = dataclasses.replace(scene, sweep=(), **new)
     validate(out)
@@ -54,7 +54,7 @@ def with_overrides(scene: Scene, **overrides) -> Scene:
 
 def simulate(scene: Scene, channels: list[str] | None = None, decimate: int = 1, **overrides):
     """Run one point; return (histories DataFrame with t_s first, metrics dict incl. 'status' and scores)."""
-    from pounding_sweep.sweep.run import prepare
+    from pounding_sweep.sweep.prepare import prepare
 
     s = with_overrides(scene, **overrides)
     auto = None

@@ -25,16 +25,7 @@ from typing import Iterator
 
 import numpy as np
 
-
-class VideoError(ValueError):
-    """A video, or a tracking request, that cannot give a trustworthy displacement table.
-
-    `str(e)` is one line: `<file>: <what> (<value>)`.
-    """
-
-    def __init__(self, path, what: str, value=None):
-        self.path, self.what, self.value = str(path), what, value
-        super().__init__(f"{path}: {what}" + ("" if value is None else f" ({value})"))
+from pounding_sweep.errors import VideoError  # noqa: F401  (raised here; imported by callers from here too)
 
 
 #: fourcc -> container suffix this machine writes it to; lossless ones first

@@ -720,3 +720,17 @@ def cached_track(spec: VideoSpec, cache_dir: Path, progress=None):
     Path(cache_dir).mkdir(parents=True, exist_ok=True)
     write_tracked_table(df, prov, path)
     return df, prov
+
+
+def tracked_table(spec: VideoSpec, progress=None, cache_dir: str | Path | None = None):
+    """Track the video of `spec`; return (DataFrame in the tracked-table format, provenance dict).
+
+    Raises pounding_sweep.video.io.VideoError (one line: file, what, value) for a missing or
+    unreadable video, no frames, markers not found, or a marker lost for too long.
+    With `cache_dir`, the table is kept as Parquet named by the video's SHA-256 and the spec, and
+    read back when both are unchanged.
+    """
+    if cache_dir is not None:
+        return cached_track(spec, Path(cache_dir), progress)
+    result = track_video(spec, progress=progress)
+    return result.table(), result.provenance

@@ -1,0 +1,33 @@
+"""Names and the integer codes the kernels take for them, in one place: integration schemes, contact
+laws, excitation kinds, history channel kinds and record units. Every layer may import this module (it
+imports nothing), so choosing a scheme by name never loads the kernels."""
+
+from __future__ import annotations
+
+#: integration schemes (engine/scalar.py and engine/lanes.py implement them)
+SCHEME_IMPLICIT = 0
+SCHEME_PAPER = 1
+SCHEME_EVENT = 2
+SCHEMES = {"implicit": SCHEME_IMPLICIT, "paper": SCHEME_PAPER, "event": SCHEME_EVENT}
+
+#: contact laws (model/contact.py holds their parameters)
+LAW_CLASSIC = 0
+LAW_NO_TENSION = 1
+CONTACT_LAWS = {"classic": LAW_CLASSIC, "no_tension": LAW_NO_TENSION}
+
+#: excitation kinds: table displacement amp sin(omega t) (ground acceleration -amp omega^2 sin(omega t)),
+#: or a ground acceleration record resampled to dt
+EXC_HARMONIC = 0
+EXC_RECORD = 1
+
+#: history channel kinds (scene/channels.py names them: disp_b1f3, vel_..., abs_acc_..., force_f3, ground_acc)
+H_DISP, H_VEL, H_ABS_ACC, H_FORCE, H_GROUND_ACC = range(5)
+
+#: record acceleration units as a scene may spell them -> canonical name (model/records.py has the factors)
+UNIT_ALIASES = {"g": "g", "m/s2": "m/s2", "m/s^2": "m/s2", "cm/s2": "cm/s2", "cm/s^2": "cm/s2", "gal": "cm/s2"}
+ACCEPTED_UNITS = ", ".join(repr(u) for u in UNIT_ALIASES)
+
+
+def canonical_unit(units: str) -> str | None:
+    """'CM/S^2' -> 'cm/s2'; None when the spelling is not accepted."""
+    return UNIT_ALIASES.get(units.strip().lower().replace(" ", "")) if isinstance(units, str) else None

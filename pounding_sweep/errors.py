@@ -1,0 +1,36 @@
+"""Errors a user's input can cause, one class per kind of input, each a one-line message naming the
+file, the key and the value. Every layer raises them and imports nothing to do so (this module imports
+nothing); the command line prints each as `error: ...` and exits with status 2."""
+
+from __future__ import annotations
+
+
+class InputError(ValueError):
+    """Input that cannot be used: the message names the file, the key (or line) and the value."""
+
+
+class ConfigError(InputError):
+    """A scene that cannot be run: the message names the file, the key and the value."""
+
+
+class OutputError(ConfigError):
+    """The output folder holds results this sweep must not mix with or overwrite unasked."""
+
+
+class RecordError(InputError):
+    """Bad ground-motion file: the message names the file, the line (when known) and the offending value."""
+
+
+class ExperimentError(InputError):
+    """A tracked-displacement table that cannot be scored against: names the file and column."""
+
+
+class VideoError(InputError):
+    """A video, or a tracking request, that cannot give a trustworthy displacement table.
+
+    `str(e)` is one line: `<file>: <what> (<value>)`.
+    """
+
+    def __init__(self, path, what: str, value=None):
+        self.path, self.what, self.value = str(path), what, value
+        super().__init__(f"{path}: {what}" + ("" if value is None else f" ({value})"))

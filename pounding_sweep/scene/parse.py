@@ -1,0 +1,211 @@
+"""TOML -> a Scene: keys checked (did-you-mean for unknown ones), values coerced to the field types,
+relative paths resolved against the scene file, then validated (scene/validate.py). Every error is one
+ConfigError naming the file, the key and the value."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+import types
+import typing
+from pathlib import Path
+
+from pounding_sweep.errors import ConfigError
+from pounding_sweep.scene.axes import SWEEPABLE
+from pounding_sweep.scene.schema import (MAX_AXIS_VALUES, SECTIONS, TOP_KEYS, Axis, ExperimentConfig, Scene)
+from pounding_sweep.scene.keys import check_keys
+from pounding_sweep.scene.validate import validate
+
+
+def load_scene(path: str | Path) -> Scene:
+    """Read, resolve and validate a scene file; raise ConfigError naming file, key and value."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as e:
+        raise ConfigError(f"{path}: cannot read scene file ({e.strerror or e})") from None
+    except UnicodeDecodeError as e:
+        raise ConfigError(f"{path}: not UTF-8 text ({e.reason} at byte {e.start})") from None
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(f"{path}: TOML syntax error: {e}{_toml_line(text, str(e))}") from None
+    try:
+        return scene_from_dict(raw, base_dir=path.resolve().parent, source=str(path), toml_text=text)
+    except ConfigError as e:
+        raise ConfigError(f"{path}: {e}") from None
+
+
+def _toml_line(text: str, message: str) -> str:
+    """The line a TOML error points at, as written (tomllib names only its number); at column 1
+    also the statement before it, which is usually the one left unfinished (an unclosed array)."""
+    import re
+
+    lines = text.splitlines()
+
+    def show(i: int) -> str:
+        line = lines[i].strip()
+        return repr(line[:80] + " ..." if len(line) > 80 else line)
+
+    def before(i: int) -> int:
+        return max((k for k in range(i) if lines[k].strip() and not lines[k].lstrip().startswith("#")), default=-1)
+
+    m = re.search(r"at line (\d+), column (\d+)", message)
+    if m and 1 <= int(m.group(1)) <= len(lines):
+        i = int(m.group(1)) - 1
+        prev = before(i) if m.group(2) == "1" else -1
+        return f": {show(i)}" + (f" (after line {prev + 1}: {show(prev)})" if prev >= 0 else "")
+    i = before(len(lines))  # "at end of document": the last statement
+    return f": {show(i)} (line {i + 1})" if i >= 0 else ""
+
+
+def scene_from_dict(raw: dict, base_dir: Path, source: str = "<dict>", toml_text: str = "") -> Scene:
+    """Build a Scene from parsed TOML (keys checked, types coerced, values validated)."""
+    check_keys(raw, TOP_KEYS, "top level")
+    for req in ("building1", "building2", "contact", "excitation"):
+        if req not in raw:
+            raise ConfigError(f"missing section [{req}]")
+    sections = {}
+    for name, cls in SECTIONS.items():
+        table = raw.get(name, {})
+        if not isinstance(table, dict):
+            raise ConfigError(f"'{name}' must be a table [{name}], got {type(table).__name__} {table!r}")
+        sections[name] = _build(cls, table, name)
+    name = _typed(raw.get("name", Path(source).stem), str, "name")
+    if not name or any(c in name for c in '/\\\x00') or name in (".", ".."):
+        raise ConfigError(f"name = {name!r}: a scene name is also the default output file name; "
+                          "use letters, digits, '-', '_' or '.', no path separators")
+    desc = _typed(raw.get("description", ""), str, "description")
+    exc = sections["excitation"]
+    if exc.record is not None:
+        sections["excitation"] = dataclasses.replace(exc, record=str((base_dir / exc.record).resolve()))
+    out = sections["output"]
+    out_path = out.path or f"results/{name}.parquet"
+    sections["output"] = dataclasses.replace(out, path=str((base_dir / out_path).resolve()))
+    sweep = _parse_sweep(raw.get("sweep", {}), base_dir)
+    experiment = None
+    if "experiment" in raw:
+        if not isinstance(raw["experiment"], dict):
+            raise ConfigError(f"'experiment' must be a table [experiment], got {raw['experiment']!r}")
+        xraw = dict(raw["experiment"])
+        video = xraw.pop("video", None)
+        experiment = _build(ExperimentConfig, xraw, "experiment")
+        if video is not None:
+            from pounding_sweep.scene.video import parse_video_section  # no OpenCV import: tracking imports it lazily
+
+            spec = parse_video_section(video, base_dir)
+            experiment = dataclasses.replace(experiment, video=spec,
+                                             channels=experiment.channels or spec.default_channels())
+        if experiment.table is not None:
+            experiment = dataclasses.replace(experiment, table=str((base_dir / experiment.table).resolve()))
+    scene = Scene(name=name, description=desc, sweep=sweep, source=source, toml_text=toml_text,
+                  experiment=experiment, **sections)
+    validate(scene)
+    return scene
+
+
+def _build(cls, table: dict, section: str):
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    check_keys(table, fields, f"[{section}]")
+    hints = typing.get_type_hints(cls)
+    kwargs = {}
+    for name, f in fields.items():
+        key = f"[{section}] {name}"
+        if name in table:
+            kwargs[name] = _coerce(table[name], hints[name], key)
+        elif f.default is dataclasses.MISSING:
+            raise ConfigError(f"missing key '{name}' in [{section}] ({f.metadata['doc']})")
+    return cls(**kwargs)
+
+
+def _coerce(value, hint, key: str):
+    """Check a TOML value against a field type; ints are accepted for floats, scalars for tuples."""
+    origin = typing.get_origin(hint)
+    if origin in (typing.Union, types.UnionType):
+        args = [a for a in typing.get_args(hint) if a is not type(None)]
+        if isinstance(value, str) and str in args:  # float | str: a word goes to str, the rest to the number
+            return _coerce(value, str, key)
+        return _coerce(value, args[0], key)
+    if origin is tuple:
+        item = typing.get_args(hint)[0]
+        seq = value if isinstance(value, list) else [value]
+        if not seq:
+            raise ConfigError(f"{key} = []: needs at least one value")
+        return tuple(_typed(v, item, key) for v in seq)
+    return _typed(value, hint, key)
+
+
+def _typed(value, typ, key: str):
+    if typ is bool:
+        if not isinstance(value, bool):
+            raise ConfigError(f"{key} = {value!r}: expected true or false")
+        return value
+    if typ is dict:
+        if not isinstance(value, dict) or not value:
+            raise ConfigError(f"{key} = {value!r}: expected a non-empty table of name = value")
+        return {str(k): _typed(v, str, f"{key}.{k}") for k, v in value.items()}
+    if typ is float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(f"{key} = {value!r}: expected a number")
+        value = float(value)
+        if not math.isfinite(value):
+            raise ConfigError(f"{key} = {value!r}: must be finite")
+        return value
+    if typ is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ConfigError(f"{key} = {value!r}: expected an integer")
+        return value
+    if typ is str:
+        if not isinstance(value, str):
+            raise ConfigError(f"{key} = {value!r}: expected a string")
+        if "\x00" in value:
+            raise ConfigError(f"{key} = {value!r}: contains a NUL character")
+        return value
+    raise TypeError(typ)  # pragma: no cover - a field type the loader does not know
+
+
+def _parse_sweep(table, base_dir: Path) -> tuple[Axis, ...]:
+    if not isinstance(table, dict):
+        raise ConfigError(f"'sweep' must be a table [sweep], got {table!r}")
+    check_keys(table, SWEEPABLE, "[sweep]")
+    axes = []
+    for name, spec in table.items():
+        key = f"[sweep] {name}"
+        if name == "record":
+            vals = spec if isinstance(spec, list) else [spec]
+            if not vals:
+                raise ConfigError(f"{key} = []: an axis needs at least one value")
+            vals = tuple(str((base_dir / _typed(v, str, key)).resolve()) for v in vals)
+        elif isinstance(spec, dict):
+            vals = _range_values(spec, key)
+        else:
+            vals = _coerce(spec, tuple[float, ...], key)
+        if len(set(vals)) != len(vals):
+            raise ConfigError(f"{key} = {list(vals)!r}: repeated values")
+        axes.append(Axis(name, vals))
+    return tuple(axes)
+
+
+def _range_values(spec: dict, key: str) -> tuple[float, ...]:
+    import numpy as np
+
+    check_keys(spec, {"start", "stop", "num", "spacing"}, key)
+    for req in ("start", "stop", "num"):
+        if req not in spec:
+            raise ConfigError(f"{key}: a range needs 'start', 'stop' and 'num' (missing '{req}')")
+    start = _typed(spec["start"], float, f"{key}.start")
+    stop = _typed(spec["stop"], float, f"{key}.stop")
+    num = _typed(spec["num"], int, f"{key}.num")
+    spacing = _typed(spec.get("spacing", "linear"), str, f"{key}.spacing")
+    if num < 1:
+        raise ConfigError(f"{key}.num = {num}: must be at least 1")
+    if num > MAX_AXIS_VALUES:
+        raise ConfigError(f"{key}.num = {num:,}: more than {MAX_AXIS_VALUES:,} values on one axis")
+    if spacing == "linear":
+        return tuple(float(x) for x in np.linspace(start, stop, num))
+    if spacing == "log":
+        if start <= 0 or stop <= 0:
+            raise ConfigError(f"{key}: log spacing needs start and stop > 0 (got {start}, {stop})")
+        return tuple(float(x) for x in np.geomspace(start, stop, num))
+    raise ConfigError(f"{key}.spacing = {spacing!r}: expected 'linear' or 'log'")

@@ -1,0 +1,200 @@
+"""The scene as frozen dataclasses: every section and key, with the docstring `--describe` prints.
+
+Plain data, no checks (scene/parse.py builds them from TOML, scene/validate.py checks them).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+from pounding_sweep.scene.video import VideoSpec  # plain data; OpenCV stays unimported
+
+
+def _f(doc: str, default=dataclasses.MISSING, **kw):
+    if default is dataclasses.MISSING:
+        return field(metadata={"doc": doc}, **kw)
+    return field(default=default, metadata={"doc": doc}, **kw)
+
+
+EXECUTORS = ("local", "dask")
+MAX_AXIS_VALUES = 10_000_000  # a range longer than this is a typo, not a sweep
+MAX_STEPS = 100_000_000  # steps of one harmonic run (records: the same limit on resampling, records._MAX_SAMPLES)
+MAX_GRID = 50_000_000
+
+# ----------------------------------------------------------------------------- sections
+
+
+@dataclass(frozen=True)
+class BuildingConfig:
+    """One shear frame. Floor 1 is the lowest. Give story stiffnesses, or column EI + count + height."""
+
+    masses_kg: tuple[float, ...] = _f("floor masses [kg], floor 1 first")
+    name: str = _f("label used in outputs", "")
+    story_stiffness_N_per_m: tuple[float, ...] | None = _f(
+        "lateral stiffness of each story [N/m] (one value: the same for every story)", None
+    )
+    column_EI_Nm2: tuple[float, ...] | None = _f("column flexural stiffness EI [N m^2] (k = n_columns 12 EI / h^3)", None)
+    n_columns: int | None = _f("columns per story (with column_EI_Nm2)", None)
+    story_height_m: tuple[float, ...] | None = _f("story height h [m] (with column_EI_Nm2)", None)
+    damping_ratio: float | None = _f("Rayleigh damping ratio matched at damping_modes (0.0105 = 1.05 %)", None)
+    damping_modes: tuple[int, ...] = _f("the two modes (1-based) at which damping_ratio holds", (1, 2))
+    rayleigh_a0_per_s: float | None = _f("explicit Rayleigh mass coefficient a0 [1/s] (instead of damping_ratio)", None)
+    rayleigh_a1_s: float | None = _f("explicit Rayleigh stiffness coefficient a1 [s] (instead of damping_ratio)", None)
+
+
+@dataclass(frozen=True)
+class ContactConfig:
+    """Kelvin-Voigt element at each facing floor pair (eqs. 8-10)."""
+
+    r: float = _f("coefficient of restitution r in [0, 1] (eq. 10)")
+    gap_m: float = _f("seismic gap d [m] between facing floors at rest", 0.0)
+    ks_ratio: float | None = _f("contact stiffness as a ratio k_s / k_ref", None)
+    ks_N_per_m: float | None = _f("contact stiffness k_s [N/m] (instead of ks_ratio)", None)
+    k_ref_N_per_m: float = _f("reference story stiffness k for ks_ratio [N/m] (paper: 6830)", 6830.0)
+    law: str = _f("'classic' (eq. 8, may pull briefly before separation) or 'no_tension' (force >= 0)", "classic")
+
+
+@dataclass(frozen=True)
+class ExcitationConfig:
+    """Table motion: harmonic displacement, or a recorded ground acceleration."""
+
+    type: str = _f("'harmonic' or 'record'")
+    name: str = _f("label used in outputs", "")
+    amplitude_m: float | None = _f("harmonic: table displacement amplitude [m]", None)
+    frequency_Hz: float | None = _f("harmonic: table frequency [Hz]", None)
+    duration_s: float | None = _f("length of the run [s] (record: default its own length; longer pads zeros)", None)
+    record: str | None = _f("record: path of a PEER .AT2 or a two-column CSV (time [s], acceleration)", None)
+    format: str = _f("record format: 'auto' (by suffix), 'at2' or 'csv'", "auto")
+    units: str | None = _f("record acceleration units: 'g', 'm/s2' or 'cm/s2' (default: the format's)", None)
+    scale: float = _f("factor on the record's acceleration", 1.0)
+    length_scale: float = _f("similitude length scale lambda_L (eqs. 17-19): time / sqrt(lambda_L), acceleration kept", 1.0)
+
+
+@dataclass(frozen=True)
+class IntegrationConfig:
+    """Time integration: Newmark average acceleration (gamma = 1/2, beta = 1/4)."""
+
+    dt_s: float | str = _f("time step [s], or 'auto': per run, halved from dt_max_s until the run's result changes "
+                           "by less than dt_tolerance (step doubling with a Richardson estimate)", 1e-4)
+    dt_tolerance: float = _f("dt_s = 'auto': relative error allowed in the scored errors (fractions of the "
+                             "experiment's RMS) and peaks, or without an experiment in the peak displacements and forces",
+                             1e-3)
+    dt_max_s: float = _f("dt_s = 'auto': the coarsest step tried [s]", 2e-3)
+    dt_min_s: float = _f("dt_s = 'auto': the finest step tried [s]; runs above the tolerance there are flagged", 1e-6)
+    scheme: str = _f("'implicit' (contact in the step, active set), 'event' (steps split at contact switches: second order) "
+                     "or 'paper' (trial force as load, sec. 2)", "event")
+    max_contact_iterations: int = _f("active-set iterations per step before a step counts as unsettled", 16)
+    min_steps_per_contact_period: float = _f("flag runs with fewer steps per contact period 2 pi sqrt(m_eff/k_s)", 20.0)
+
+    @property
+    def auto(self) -> bool:
+        return self.dt_s == "auto"
+
+    @property
+    def first_dt_s(self) -> float:
+        """The fixed dt, or with 'auto' the coarsest one tried."""
+        return self.dt_max_s if self.auto else self.dt_s
+
+
+@dataclass(frozen=True)
+class OutputConfig:
+    """Where results go and which time histories to keep."""
+
+    path: str = _f("Parquet file of one row per run (relative to the scene file)", "")
+    histories: tuple[str, ...] = _f(
+        "history channels: disp_b1f3, vel_b2f1, abs_acc_b1f3, force_f3, ground_acc (none: metrics only)", ()
+    )
+    history_decimate: int = _f("keep every n-th step of the histories", 1)
+
+
+@dataclass(frozen=True)
+class ExecutionConfig:
+    """How the grid is run on this machine."""
+
+    threads: int = _f("worker threads of the local executor (0: all cores)", 0)
+    batch_runs: int = _f("runs handed to a thread at a time (0: automatic)", 0)
+    executor: str = _f("'local' (threads in this process) or 'dask' (Dask distributed: a LocalCluster, or the "
+                       "scheduler at dask_address)", "local")
+    dask_address: str = _f("scheduler address, e.g. 'tcp://10.0.0.5:8786' (empty: start a LocalCluster here)", "")
+    dask_workers: int = _f("worker processes of the LocalCluster, one thread each (0: all cores)", 0)
+    chunk_runs: int = _f("runs per result part (Parquet file) and per task", 4096)
+    max_runs: int = _f("largest grid run without confirmation (the command line's --yes lifts it)", 2_000_000)
+
+
+@dataclass(frozen=True)
+class ExperimentConfig:
+    """Tracked displacement to score every run against (CSV or Parquet; see the README's format)."""
+
+    table: str | None = _f("path of the tracked-displacement table (.csv or .parquet); or an [experiment.video] "
+                           "section to track a video instead", None)
+    channels: dict | None = _f("table column -> model floor, e.g. {model1_floor3 = 'b1f3'} (with a video: default "
+                               "every marker named by a floor)", None)
+    time_column: str = _f("name of the time column [s]", "t_s")
+    units: str = _f("units of the displacement columns: 'mm' or 'm'", "mm")
+    window_s: tuple[float, ...] | None = _f("[start, end] of the compared window in simulation time [s] (default: all overlap)", None)
+    time_offset_s: float = _f("experiment time minus simulation time [s] (the table's t = offset is the simulation's t = 0)", 0.0)
+    max_lag_s: float = _f("largest lag searched for the best correlation [s]", 0.1)
+    combine: str = _f("how channels combine into one error: 'mean', 'max' or 'rms' of their eq. 20 errors", "mean")
+    refine: bool = _f("after the grid, minimise the combined error over continuous k_s/k and r (scipy.optimize)", False)
+    refine_max_evals: int = _f("simulations the refinement may spend", 80)
+    video: VideoSpec | None = _f("[experiment.video]: a shake-table video whose LED markers are tracked into the "
+                                 "table (see python -m pounding_sweep track --help for its keys)", None)
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One sweep axis: a scene parameter and its values."""
+
+    name: str
+    values: tuple
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A whole scene, resolved and validated. Paths are absolute."""
+
+    name: str
+    description: str
+    building1: BuildingConfig
+    building2: BuildingConfig
+    contact: ContactConfig
+    excitation: ExcitationConfig
+    integration: IntegrationConfig
+    output: OutputConfig
+    execution: ExecutionConfig
+    sweep: tuple[Axis, ...]
+    source: str  # the scene file
+    toml_text: str  # the scene file as written
+    experiment: ExperimentConfig | None = None
+
+    def canonical(self) -> dict:
+        """Resolved scene as plain data (what the hash covers): scene/hashing.py."""
+        from pounding_sweep.scene.hashing import canonical
+
+        return canonical(self)
+
+    def config_hash(self) -> str:
+        """SHA-256 of the canonical scene: identifies a sweep (Parquet metadata, resume)."""
+        from pounding_sweep.scene.hashing import config_hash
+
+        return config_hash(self)
+
+    def axis_values(self, name: str) -> tuple:
+        """The values of the sweep axis `name` (empty when it is not swept)."""
+        for a in self.sweep:
+            if a.name == name:
+                return a.values
+        return ()
+
+
+SECTIONS = {
+    "building1": BuildingConfig,
+    "building2": BuildingConfig,
+    "contact": ContactConfig,
+    "excitation": ExcitationConfig,
+    "integration": IntegrationConfig,
+    "output": OutputConfig,
+    "execution": ExecutionConfig,
+}
+TOP_KEYS = {"name", "description", "sweep", "experiment", *SECTIONS}

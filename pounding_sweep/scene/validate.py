@@ -1,0 +1,199 @@
+"""The physical and logical checks a scene must pass after its types are right: positive masses and
+stiffnesses, r in [0, 1], one form of k_s, known schemes, laws and units, channels that name floors,
+sizes that fit. Each failure is one ConfigError naming the key and the value."""
+
+from __future__ import annotations
+
+import math
+
+from pounding_sweep.codes import ACCEPTED_UNITS, CONTACT_LAWS, SCHEMES, canonical_unit
+from pounding_sweep.errors import ConfigError
+from pounding_sweep.scene.axes import check_ks
+from pounding_sweep.scene.channels import floor_dof, parse_channel
+from pounding_sweep.scene.schema import EXECUTORS, MAX_GRID, MAX_STEPS, BuildingConfig, Scene
+
+
+def _positive(value, key):
+    if value is not None and not value > 0:
+        raise ConfigError(f"{key} = {value!r}: must be > 0")
+
+
+def validate(s: Scene) -> None:
+    """Physical and logical checks that the type coercion cannot make."""
+    for bname in ("building1", "building2"):
+        b: BuildingConfig = getattr(s, bname)
+        n = len(b.masses_kg)
+        for v in b.masses_kg:
+            _positive(v, f"[{bname}] masses_kg")
+        has_k = b.story_stiffness_N_per_m is not None
+        has_ei = b.column_EI_Nm2 is not None
+        if has_k == has_ei:
+            raise ConfigError(f"[{bname}]: give either story_stiffness_N_per_m or column_EI_Nm2 (+ n_columns, story_height_m), not {'both' if has_k else 'neither'}")
+        lists = {"story_stiffness_N_per_m": b.story_stiffness_N_per_m, "column_EI_Nm2": b.column_EI_Nm2, "story_height_m": b.story_height_m}
+        for k, vals in lists.items():
+            if vals is None:
+                continue
+            if len(vals) not in (1, n):
+                raise ConfigError(f"[{bname}] {k} has {len(vals)} values for {n} floors (give 1 or {n})")
+            for v in vals:
+                _positive(v, f"[{bname}] {k}")
+        if has_ei and (b.n_columns is None or b.story_height_m is None):
+            raise ConfigError(f"[{bname}]: column_EI_Nm2 needs n_columns and story_height_m")
+        if b.n_columns is not None:
+            _positive(b.n_columns, f"[{bname}] n_columns")
+        _check_story_stiffness(b, bname, n)
+        explicit = b.rayleigh_a0_per_s is not None or b.rayleigh_a1_s is not None
+        if explicit and b.damping_ratio is not None:
+            raise ConfigError(f"[{bname}]: give damping_ratio or rayleigh_a0_per_s/rayleigh_a1_s, not both")
+        for k in ("rayleigh_a0_per_s", "rayleigh_a1_s"):
+            v = getattr(b, k)
+            if v is not None and v < 0:
+                raise ConfigError(f"[{bname}] {k} = {v!r}: must be >= 0")
+        if b.damping_ratio is not None and not 0 <= b.damping_ratio < 1:
+            raise ConfigError(f"[{bname}] damping_ratio = {b.damping_ratio!r}: must lie in [0, 1)")
+        if len(b.damping_modes) != 2 or len(set(b.damping_modes)) != 2 or not all(1 <= m <= n for m in b.damping_modes):
+            if n > 1:
+                raise ConfigError(f"[{bname}] damping_modes = {list(b.damping_modes)}: two different modes between 1 and {n}")
+    c = s.contact
+    axes = {a.name: a.values for a in s.sweep}
+    _check_r(c.r, "[contact] r")
+    for v in axes.get("r", ()):
+        _check_r(v, "[sweep] r")
+    check_ks(c, axes)
+    _positive(c.ks_ratio, "[contact] ks_ratio")
+    _positive(c.ks_N_per_m, "[contact] ks_N_per_m")
+    _positive(c.k_ref_N_per_m, "[contact] k_ref_N_per_m")
+    for k in ("ks_ratio", "ks_N_per_m", "amplitude_m", "frequency_Hz", "scale"):
+        for v in axes.get(k, ()):
+            _positive(v, f"[sweep] {k}")
+    if c.gap_m < 0:
+        raise ConfigError(f"[contact] gap_m = {c.gap_m!r}: must be >= 0")
+    for v in axes.get("gap_m", ()):
+        if v < 0:
+            raise ConfigError(f"[sweep] gap_m = {v!r}: must be >= 0")
+    if c.law not in CONTACT_LAWS:
+        raise ConfigError(f"[contact] law = {c.law!r}: expected one of {sorted(CONTACT_LAWS)}")
+    e = s.excitation
+    if e.type not in ("harmonic", "record"):
+        raise ConfigError(f"[excitation] type = {e.type!r}: expected 'harmonic' or 'record'")
+    if e.type == "harmonic":
+        for k in ("amplitude_m", "frequency_Hz", "duration_s"):
+            if getattr(e, k) is None and k not in axes:
+                raise ConfigError(f"[excitation] missing key '{k}' for a harmonic excitation")
+            _positive(getattr(e, k), f"[excitation] {k}")
+        if "record" in axes or e.record is not None:
+            raise ConfigError("[excitation] record: only for a record excitation (type = 'record')")
+    else:
+        if e.record is None and "record" not in axes:
+            raise ConfigError("[excitation] missing key 'record' (path of the .AT2 or .csv file)")
+        for k in ("amplitude_m", "frequency_Hz"):
+            if getattr(e, k) is not None or k in axes:
+                raise ConfigError(f"[excitation] {k}: only for a harmonic excitation")
+        _positive(e.duration_s, "[excitation] duration_s")
+    _positive(e.scale, "[excitation] scale")
+    _positive(e.length_scale, "[excitation] length_scale")
+    if e.format not in ("auto", "at2", "csv"):
+        raise ConfigError(f"[excitation] format = {e.format!r}: expected 'auto', 'at2' or 'csv'")
+    if e.units is not None:
+        if canonical_unit(e.units) is None:
+            raise ConfigError(f"[excitation] units = {e.units!r}: expected one of {ACCEPTED_UNITS}")
+    i = s.integration
+    if isinstance(i.dt_s, str):
+        if i.dt_s != "auto":
+            raise ConfigError(f"[integration] dt_s = {i.dt_s!r}: expected a time step in seconds or 'auto'")
+        _positive(i.dt_tolerance, "[integration] dt_tolerance")
+        _positive(i.dt_min_s, "[integration] dt_min_s")
+        if not i.dt_max_s > i.dt_min_s:
+            raise ConfigError(f"[integration] dt_max_s = {i.dt_max_s!r}: must be larger than dt_min_s = {i.dt_min_s!r}")
+        if s.output.histories:
+            raise ConfigError("[output] histories need one time step for all runs: give [integration] dt_s a number "
+                              "(not 'auto'), e.g. the dt_s an 'auto' sweep chose")
+    else:
+        _positive(i.dt_s, "[integration] dt_s")
+    if i.scheme not in SCHEMES:
+        raise ConfigError(f"[integration] scheme = {i.scheme!r}: expected one of {sorted(SCHEMES)}")
+    _positive(i.max_contact_iterations, "[integration] max_contact_iterations")
+    if i.min_steps_per_contact_period < 0:
+        raise ConfigError(f"[integration] min_steps_per_contact_period = {i.min_steps_per_contact_period!r}: must be >= 0")
+    if e.type == "harmonic" and e.duration_s is not None and i.first_dt_s >= e.duration_s:
+        raise ConfigError(f"[integration] dt_s = {i.first_dt_s!r}: must be shorter than [excitation] duration_s = {e.duration_s!r}")
+    if e.type == "harmonic" and e.duration_s is not None and e.duration_s / i.first_dt_s > MAX_STEPS:
+        raise ConfigError(f"[integration] {'dt_max_s' if i.auto else 'dt_s'} = {i.first_dt_s!r}: {e.duration_s / i.first_dt_s:.3g} "
+                          f"steps over [excitation] duration_s = {e.duration_s!r}, more than {MAX_STEPS:,} (dt in the wrong units?)")
+    _positive(s.output.history_decimate, "[output] history_decimate")
+    for ch in s.output.histories:
+        parse_channel(ch, (len(s.building1.masses_kg), len(s.building2.masses_kg)))
+    if s.execution.threads < 0:
+        raise ConfigError(f"[execution] threads = {s.execution.threads}: must be >= 0")
+    if s.execution.batch_runs < 0:
+        raise ConfigError(f"[execution] batch_runs = {s.execution.batch_runs}: must be >= 0")
+    if s.execution.executor not in EXECUTORS:
+        raise ConfigError(f"[execution] executor = {s.execution.executor!r}: expected one of {list(EXECUTORS)}")
+    if s.execution.dask_workers < 0:
+        raise ConfigError(f"[execution] dask_workers = {s.execution.dask_workers}: must be >= 0")
+    if s.execution.max_runs < 1:
+        raise ConfigError(f"[execution] max_runs = {s.execution.max_runs}: must be >= 1")
+    if s.execution.chunk_runs < 1:
+        raise ConfigError(f"[execution] chunk_runs = {s.execution.chunk_runs}: must be >= 1")
+    if s.experiment is not None:
+        _validate_experiment(s)
+    n = 1
+    for a in s.sweep:
+        n *= len(a.values)
+    if n > MAX_GRID:
+        raise ConfigError(f"[sweep]: {n} grid points exceed the limit of {MAX_GRID}")
+
+
+def _check_story_stiffness(b: BuildingConfig, bname: str, n: int) -> None:
+    """Each story's stiffness, as the model forms it (k = n_columns 12 EI / h^3 from columns), must be a
+    positive number whose stiffness matrix (2 k on the diagonal) stays finite: 1e308 N/m, or an EI and
+    h that overflow, would otherwise end in the model's arithmetic."""
+    if b.story_stiffness_N_per_m is not None:
+        for k in b.story_stiffness_N_per_m:
+            if not math.isfinite(2.0 * k):
+                raise ConfigError(f"[{bname}] story_stiffness_N_per_m = {k!r}: too large (the stiffness matrix overflows)")
+        return
+    ei, h = (v if len(v) == n else v * n for v in (b.column_EI_Nm2, b.story_height_m))
+    for e, hh in zip(ei, h):
+        try:
+            k = b.n_columns * 12.0 * e / hh**3
+        except OverflowError:  # h^3 beyond the largest float
+            k = 0.0
+        except ZeroDivisionError:  # h^3 below the smallest
+            k = math.inf
+        if not (k > 0 and math.isfinite(2.0 * k)):
+            raise ConfigError(f"[{bname}] column_EI_Nm2 = {e!r}, n_columns = {b.n_columns}, story_height_m = {hh!r}: "
+                              f"k = n_columns 12 EI / h^3 = {k!r} N/m, not a usable story stiffness")
+
+
+def _validate_experiment(s: Scene) -> None:
+    x = s.experiment
+    if (x.table is None) == (x.video is None):
+        raise ConfigError("[experiment]: give either table = '...' (a tracked-displacement table) or an "
+                          "[experiment.video] section (a video to track), not " + ("both" if x.table else "neither"))
+    if x.video is not None and x.units != "mm":
+        raise ConfigError(f"[experiment] units = {x.units!r}: a tracked video gives millimetres; use 'mm'")
+    if not x.channels:
+        raise ConfigError("[experiment] channels: map at least one table column to a floor, e.g. "
+                          "channels = { model1_floor3_mm = 'b1f3' }")
+    if x.units not in ("mm", "m"):
+        raise ConfigError(f"[experiment] units = {x.units!r}: expected 'mm' or 'm'")
+    if x.combine not in ("mean", "max", "rms"):
+        raise ConfigError(f"[experiment] combine = {x.combine!r}: expected 'mean', 'max' or 'rms'")
+    if x.window_s is not None and (len(x.window_s) != 2 or not x.window_s[0] < x.window_s[1]):
+        raise ConfigError(f"[experiment] window_s = {list(x.window_s)}: expected [start, end] with start < end")
+    if x.max_lag_s < 0:
+        raise ConfigError(f"[experiment] max_lag_s = {x.max_lag_s!r}: must be >= 0")
+    _positive(x.refine_max_evals, "[experiment] refine_max_evals")
+    floors = (len(s.building1.masses_kg), len(s.building2.masses_kg))
+    seen = {}
+    for col, target in x.channels.items():
+        floor_dof(target, floors, f"[experiment] channels.{col}")
+        if target in seen:
+            raise ConfigError(f"[experiment] channels: '{seen[target]}' and '{col}' both map to floor '{target}'")
+        seen[target] = col
+
+
+def _check_r(r, key):
+    if not 0.0 <= r <= 1.0:
+        raise ConfigError(f"{key} = {r!r}: the coefficient of restitution must lie in [0, 1]")

@@ -113,8 +113,7 @@ def run_inputs(prep, copies=1, points=1):
     """Kernel inputs of the scene's first `points` grid points, repeated `copies` times."""
     runs, rec, _ = prep.kernel_inputs(prep.grid.chunk(0, points))
     if copies > 1:
-        runs = RunArrays(*(np.ascontiguousarray(np.repeat(getattr(runs, f.name), copies, axis=0))
-                           for f in dataclasses.fields(RunArrays)))
+        runs = RunArrays(*(np.ascontiguousarray(np.repeat(a, copies, axis=0)) for a in runs))
     return runs, rec
 
 
@@ -348,35 +347,32 @@ def threads_table(n_r: int, duration: float, rounds: int) -> None:
     nc = len(cores)
     rows = []
     for scheme in ("event", "implicit"):
-        prep = prepare(uneven_scene(n_r, duration, scheme))
-        params = prep.grid.chunk(0, prep.grid.size)
-        names = L.metric_columns(prep.model.floors, prep.model.n_pairs)
+        names = None
         for kern in ("lanes", "scalar"):
-            driver.FORCE_KERNEL = "scalar" if kern == "scalar" else None
-            try:
-                m = prep.run(params, threads=1)[0]  # warm
-                steps = float(m[:, names.index("steps")].sum())
-                imp = m[:, names.index("impacts_f3")]
-                solo, alls, effs, even, busy, infl = [], [], [], [], [], []
-                for _ in range(rounds if kern == "lanes" else max(2, rounds // 4)):
-                    ts = [_pinned(lambda: prep.run(params, threads=1), {c}) for c in cores]
-                    c0 = time.process_time()
-                    t_all = best_of(lambda: prep.run(params, threads=nc), 1)[0]
-                    cpu = time.process_time() - c0  # every thread's CPU time (the waiting main thread's is ~0)
-                    solo.append(min(ts))
-                    alls.append(t_all)
-                    effs.append(min(ts) / (nc * t_all))
-                    busy.append(cpu / (nc * t_all))
-                    infl.append(cpu / (sum(ts) / nc))
-                    if max(ts) <= 1.05 * min(ts):
-                        even.append(effs[-1])
-                med = statistics.median
-                rows.append([scheme, f"{kern} kernel", f"{min(solo):.3f}", f"{min(alls):.3f}",
-                             fmt_rate(steps / min(alls)), f"{med(effs):.0%} ({min(effs):.0%}..{max(effs):.0%})",
-                             f"{med(even):.0%} ({len(even)} of {len(effs)})" if even else f"none of {len(effs)}",
-                             f"{med(busy):.0%}", f"{med(infl):.2f}", f"{int(imp.min())}..{int(imp.max())}"])
-            finally:
-                driver.FORCE_KERNEL = None
+            prep = prepare(uneven_scene(n_r, duration, scheme), kernel=kern)
+            params = prep.grid.chunk(0, prep.grid.size)
+            names = L.metric_columns(prep.model.floors, prep.model.n_pairs)
+            m = prep.run(params, threads=1)[0]  # warm
+            steps = float(m[:, names.index("steps")].sum())
+            imp = m[:, names.index("impacts_f3")]
+            solo, alls, effs, even, busy, infl = [], [], [], [], [], []
+            for _ in range(rounds if kern == "lanes" else max(2, rounds // 4)):
+                ts = [_pinned(lambda: prep.run(params, threads=1), {c}) for c in cores]
+                c0 = time.process_time()
+                t_all = best_of(lambda: prep.run(params, threads=nc), 1)[0]
+                cpu = time.process_time() - c0  # every thread's CPU time (the waiting main thread's is ~0)
+                solo.append(min(ts))
+                alls.append(t_all)
+                effs.append(min(ts) / (nc * t_all))
+                busy.append(cpu / (nc * t_all))
+                infl.append(cpu / (sum(ts) / nc))
+                if max(ts) <= 1.05 * min(ts):
+                    even.append(effs[-1])
+            med = statistics.median
+            rows.append([scheme, f"{kern} kernel", f"{min(solo):.3f}", f"{min(alls):.3f}",
+                         fmt_rate(steps / min(alls)), f"{med(effs):.0%} ({min(effs):.0%}..{max(effs):.0%})",
+                         f"{med(even):.0%} ({len(even)} of {len(effs)})" if even else f"none of {len(effs)}",
+                         f"{med(busy):.0%}", f"{med(infl):.2f}", f"{int(imp.min())}..{int(imp.max())}"])
     header(f"3. grid throughput and parallel efficiency: gaps 0/2/20 mm x k_s/k 0.01..100 (6, log) x r 0..1 ({n_r}); "
            f"{prep.grid.size} runs of {duration:g} s; each round: 1 thread pinned to each core, then {nc} threads")
     table(rows, ["scheme", "kernel", "1 core, best [s]", f"{nc} cores, best [s]", f"steps/s on {nc}",
@@ -557,11 +553,12 @@ def profile(peak: float) -> None:
             driver.run_chunk_lanes(prep.sysarr, runs, rec, prep.opts, 1)
             best, stats = float("inf"), None
             for _ in range(3):
+                counters = np.zeros(kernel_lanes.ST_N, np.int64)
                 t0 = time.thread_time()
-                m, _ = driver.run_chunk_lanes(prep.sysarr, runs, rec, prep.opts, 1)
+                m, _ = driver.run_chunk_lanes(prep.sysarr, runs, rec, prep.opts, 1, stats=counters)
                 t = time.thread_time() - t0
                 if t < best:
-                    best, stats = t, driver.LAST_LANE_STATS.copy()
+                    best, stats = t, counters
             steps = float(m[:, L.metric_columns(prep.model.floors, prep.model.n_pairs).index("steps")].sum())
             fix_n, fix_ns, calls, vsteps = (int(stats[k]) for k in (kernel_lanes.ST_FIXUPS, kernel_lanes.ST_FIX_NS,
                                                                      kernel_lanes.ST_CALLS, kernel_lanes.ST_VSTEPS))

@@ -86,40 +86,30 @@ def grid_scene(name: str, ks=KS, r=R, amps=None, duration: float | None = None, 
 def run_map(scenes=tuple(SCENES), ks=KS, r=R, dts=DTS, laws=LAWS, schemes=SCHEMES, amps=None, duration=None,
             threads: int = 2, kernel: str = "scalar", log=print) -> pd.DataFrame:
     """Every (scene, law, scheme, dt) grid through run_scene; one row per run, with the map's columns."""
-    from pounding_sweep.engine import driver
-
-    forced = hasattr(driver, "FORCE_KERNEL") and kernel == "scalar"
-    old = getattr(driver, "FORCE_KERNEL", None)
-    if forced:
-        driver.FORCE_KERNEL = "scalar"
     frames = []
-    try:
-        with tempfile.TemporaryDirectory() as tmp:
-            for name in scenes:
-                for law in laws:
-                    for scheme in schemes:
-                        for dt in dts:
-                            s = grid_scene(name, ks, r, (amps or {}).get(name), (duration or {}).get(name), dt, scheme,
-                                           law)
-                            t0 = time.perf_counter()
-                            out = Path(tmp) / f"{name}_{law}_{scheme}_{dt:g}.parquet"
-                            summary = run_scene(s, out_path=out, threads=threads, overwrite=True)
-                            df = pd.read_parquet(summary.path)
-                            df.insert(0, "dt_s", dt)
-                            df.insert(0, "scheme", scheme)
-                            df.insert(0, "law", law)
-                            df.insert(0, "scene", name)
-                            df["duration_s"] = s.excitation.duration_s
-                            df["amplitude"] = df[SCENES[name][1]]
-                            frames.append(df)
-                            d = classify(df)
-                            log(f"  {name:11s} {law:10s} {scheme:8s} dt {dt:6.0e} s: {len(df):3d} runs, diverged "
-                                f"{int(d.diverged.sum()):3d}, energy made {int(d.energy_made.sum()):3d}, flagged "
-                                f"{int(d.energy_flag.sum()):3d}, max |gap| {np.nanmax(np.abs(d.balance_gap)):.1e} "
-                                f"({time.perf_counter() - t0:.1f} s)")
-    finally:
-        if forced:
-            driver.FORCE_KERNEL = old
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in scenes:
+            for law in laws:
+                for scheme in schemes:
+                    for dt in dts:
+                        s = grid_scene(name, ks, r, (amps or {}).get(name), (duration or {}).get(name), dt, scheme,
+                                       law)
+                        t0 = time.perf_counter()
+                        out = Path(tmp) / f"{name}_{law}_{scheme}_{dt:g}.parquet"
+                        summary = run_scene(s, out_path=out, threads=threads, overwrite=True, kernel=kernel)
+                        df = pd.read_parquet(summary.path)
+                        df.insert(0, "dt_s", dt)
+                        df.insert(0, "scheme", scheme)
+                        df.insert(0, "law", law)
+                        df.insert(0, "scene", name)
+                        df["duration_s"] = s.excitation.duration_s
+                        df["amplitude"] = df[SCENES[name][1]]
+                        frames.append(df)
+                        d = classify(df)
+                        log(f"  {name:11s} {law:10s} {scheme:8s} dt {dt:6.0e} s: {len(df):3d} runs, diverged "
+                            f"{int(d.diverged.sum()):3d}, energy made {int(d.energy_made.sum()):3d}, flagged "
+                            f"{int(d.energy_flag.sum()):3d}, max |gap| {np.nanmax(np.abs(d.balance_gap)):.1e} "
+                            f"({time.perf_counter() - t0:.1f} s)")
     cols = None
     for f in frames:  # the amplitude axis differs between scenes: keep the union of columns
         cols = list(f.columns) if cols is None else cols + [c for c in f.columns if c not in cols]

@@ -276,7 +276,7 @@ def test_uneven_lengths_and_a_diverging_run_in_one_group(scheme):
     n = 40
     rng = np.random.default_rng(7)
     pick = lambda a: np.repeat(a, n, axis=0).copy()  # noqa: E731
-    runs = RunArrays(*(pick(getattr(base, f.name)) for f in dataclasses.fields(RunArrays)))
+    runs = RunArrays(*(pick(a) for a in base))
     runs.ks[:] = 6830.0 * rng.choice([0.1, 1.0, 10.0], n)
     runs.cdash[:] = runs.cdash * np.sqrt(runs.ks / base.ks)[:, None] * rng.choice([0.0, 0.5, 1.0], n)[:, None]
     runs.gap[:] = rng.choice([0.0, 5e-4], n)
@@ -313,11 +313,11 @@ def test_a_run_does_not_depend_on_its_lane_group_or_thread(scheme):
     """Runs permuted (they land in other lanes and groups) and 2 threads: the same rows."""
     prep, runs, rec, lanes, _ = harmonic_grid("classic", scheme)
     perm = np.random.default_rng(3).permutation(runs.n)
-    shuffled = RunArrays(*(np.ascontiguousarray(getattr(runs, f.name)[perm]) for f in dataclasses.fields(RunArrays)))
+    shuffled = runs.take(perm)
     again, _ = driver.run_chunk_lanes(prep.sysarr, shuffled, rec, prep.opts, threads=2)
     assert_rows_identical(again, lanes[perm])
     # a group of one: the run alone with 15 parked lanes
-    one = RunArrays(*(np.ascontiguousarray(getattr(runs, f.name)[7:8]) for f in dataclasses.fields(RunArrays)))
+    one = runs.take(slice(7, 8))
     alone, _ = driver.run_chunk_lanes(prep.sysarr, one, rec, prep.opts)
     assert_rows_identical(alone, lanes[7:8])
 
@@ -331,14 +331,14 @@ def test_run_chunk_dispatch_and_the_eligibility_rules():
     assert "histories" in why(sysarr, HistorySpec(np.array([codes.H_DISP]), np.array([2]), 1), opts, none_s)
     score = ScoreSpec(np.array([0.1]), np.zeros((1, 1)), np.array([2]), 0, 0.01)
     assert "scoring" in why(sysarr, none_h, opts, score)
-    assert "implicit" in why(sysarr, none_h, dataclasses.replace(opts, scheme=kernel.SCHEMES["paper"]), none_s)
+    assert "implicit" in why(sysarr, none_h, opts._replace(scheme=kernel.SCHEMES["paper"]), none_s)
     for name, code in kernel.SCHEMES.items():  # every scheme but implicit and event
-        ok = why(sysarr, none_h, dataclasses.replace(opts, scheme=code), none_s) is None
+        ok = why(sysarr, none_h, opts._replace(scheme=code), none_s) is None
         assert ok == (name in SCHEMES)
-    assert why(sysarr, none_h, dataclasses.replace(opts, max_iter=0), none_s) is not None
+    assert why(sysarr, none_h, opts._replace(max_iter=0), none_s) is not None
     # the event scheme takes no active-set iteration
-    assert why(sysarr, none_h, dataclasses.replace(opts, scheme=kernel.SCHEMES["event"], max_iter=0), none_s) is None
-    assert why(sysarr, none_h, dataclasses.replace(opts, law=7), none_s) is not None
+    assert why(sysarr, none_h, opts._replace(scheme=kernel.SCHEMES["event"], max_iter=0), none_s) is None
+    assert why(sysarr, none_h, opts._replace(law=7), none_s) is not None
     coupled = dataclasses.replace(sysarr, K=sysarr.K + 1e-30)
     assert "coupled" in why(coupled, none_h, opts, none_s)
     C = sysarr.C.copy()

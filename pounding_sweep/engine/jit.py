@@ -1,14 +1,111 @@
-"""Numba flags in one place. No fastmath anywhere: NaN/inf guards and bit-identical results
-across executors depend on strict IEEE arithmetic."""
+"""Numba flags and the on-disk cache of the compiled kernels, in one place.
+
+No fastmath anywhere: NaN/inf guards and bit-identical results across executors depend on strict IEEE
+arithmetic.
+
+The cache cannot go stale: Numba keys a cached function by its own source file only, so an edit to a
+function it calls in another file (the event pieces both kernels share, a flag here) would leave an
+old compiled kernel in use. Every engine function is therefore cached in a folder named by a hash of
+all the engine's sources (this folder's .py files and pounding_sweep/codes.py): any edit there means
+a new folder and a fresh compile, never a stale kernel. The folder lies under $NUMBA_CACHE_DIR when it
+is set, else under the user's cache ($XDG_CACHE_HOME or ~/.cache)/pounding_sweep; the newest
+KEEP_CACHES engine folders are kept, older ones (ours, by their name) removed. Where no such folder
+can be written, Numba's own cache beside the sources is used.
+"""
 
 from __future__ import annotations
 
+import hashlib
+import os
+import re
+import shutil
+from pathlib import Path
+
 import numba
 
-#: serial kernels: released GIL so a thread pool can run them side by side; cached on disk.
+HERE = Path(__file__).resolve().parent
+#: the sources whose compiled code the cache holds
+SOURCES = sorted(HERE.glob("*.py")) + [HERE.parent / "codes.py"]
+KEEP_CACHES = 3
+_CACHE_NAME = re.compile(r"engine-[0-9a-f]{16}")
+
+#: serial kernels: released GIL so a thread pool can run them side by side; cached on disk
 KERNEL_JIT = dict(nogil=True, cache=True, fastmath=False, error_model="numpy")
+#: the lane kernel: the same, without bounds checks
+LANES_JIT = dict(nogil=True, cache=True, fastmath=False, error_model="numpy", boundscheck=False)
+
+
+def engine_hash(sources=None) -> str:
+    """SHA-256 (16 hex digits) of the engine's sources, names and contents."""
+    h = hashlib.sha256()
+    for p in sources or SOURCES:
+        h.update(p.name.encode() + b"\0" + p.read_bytes() + b"\0")
+    return h.hexdigest()[:16]
+
+
+def _root() -> Path:
+    base = os.environ.get("NUMBA_CACHE_DIR")
+    if base:
+        return Path(base) / "pounding_sweep"
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "pounding_sweep"
+
+
+def _cache_dir() -> Path | None:
+    """This engine's cache folder, created; None where it cannot be (then Numba's default applies)."""
+    root = _root()
+    folder = root / f"engine-{engine_hash()}"
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        probe = folder / ".writable"
+        probe.touch()
+        probe.unlink()
+    except OSError:
+        return None
+    try:  # older engines' folders: ours by their name; the newest few are kept for other checkouts
+        old = sorted((p for p in root.iterdir() if p.is_dir() and _CACHE_NAME.fullmatch(p.name) and p != folder),
+                     key=lambda p: p.stat().st_mtime, reverse=True)
+        for p in old[KEEP_CACHES - 1:]:
+            shutil.rmtree(p, ignore_errors=True)
+    except OSError:
+        pass
+    return folder
+
+
+CACHE_DIR = _cache_dir()
+
+
+def _cached(decorate):
+    """Apply a Numba decorator with config.CACHE_DIR set to CACHE_DIR (Numba reads it when the function
+    is decorated), leaving the setting as it was for anyone else."""
+    def wrap(fn):
+        if CACHE_DIR is None:
+            return decorate(fn)
+        saved = numba.config.CACHE_DIR
+        numba.config.CACHE_DIR = str(CACHE_DIR)
+        try:
+            return decorate(fn)
+        finally:
+            numba.config.CACHE_DIR = saved
+    return wrap
 
 
 def njit_kernel(fn):
     """Decorate a serial numerical kernel with the project's flags."""
-    return numba.njit(**KERNEL_JIT)(fn)
+    return _cached(numba.njit(**KERNEL_JIT))(fn)
+
+
+def njit_lanes(fn):
+    """Decorate a lane kernel function that allocates (Numba's reference-counted runtime on)."""
+    return _cached(numba.njit(**LANES_JIT))(fn)
+
+
+def njit_step(fn):
+    """Decorate a function of the lane kernel's time loop: it allocates nothing, so it is compiled without
+    Numba's runtime, whose atomic reference counts on every array argument took a third of the scalar
+    steps' time; called only from compiled code, so without the Python and C entry wrappers (their
+    argument boxing was a good part of the compile time)."""
+    return _cached(numba.njit(_nrt=False, no_cpython_wrapper=True, no_cfunc_wrapper=True, **LANES_JIT))(fn)
+
+
+#: inlined into its callers at Numba's IR level (the lane kernel's vector helpers)
+inline = numba.njit(inline="always", **LANES_JIT)

@@ -29,7 +29,6 @@ Floor counts are compile-time constants (the lengths of the tuples nt, n1t), so 
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 from llvmlite import ir
 from numba import types
@@ -38,6 +37,8 @@ from numba.extending import intrinsic
 from pounding_sweep.engine import layout as ML
 from pounding_sweep.codes import EXC_HARMONIC, EXC_RECORD, LAW_NO_TENSION, SCHEME_EVENT, SCHEME_IMPLICIT  # noqa: F401
 from pounding_sweep.engine.clock import _monotonic_ns
+from pounding_sweep.engine.jit import LANES_JIT, inline, njit_lanes, njit_step  # noqa: F401
+from pounding_sweep.engine.inputs import LaneWork
 from pounding_sweep.engine.events import (EVENT_MIN_FRACTION, MAX_EVENTS, _ag_inside, _force_extremes, _illinois,
                                           _secant_point, _switch_tolerance, _want_contact)
 from pounding_sweep.model.modal import ModalArrays, modal_arrays
@@ -47,26 +48,7 @@ from pounding_sweep.engine.simd import (SCRATCH, VW, elem_ptr, f64v, fence, many
 #: runs per group, fixed at compile time (a multiple of simd.VW)
 LANES = 8
 
-#: strict IEEE (no fastmath: NaN checks need it), no GIL, cached on disk. Literal here on purpose: a
-#: flag passed through a factory would not invalidate Numba's cache when changed.
-LANES_JIT = dict(nogil=True, cache=True, fastmath=False, error_model="numpy", boundscheck=False)
-
-
-def njit_lanes(fn):
-    """Decorate a lane kernel function that allocates (Numba's reference-counted runtime on)."""
-    return numba.njit(**LANES_JIT)(fn)
-
-
-def njit_step(fn):
-    """Decorate a function of the time loop: it allocates nothing, so it is compiled without Numba's
-    runtime, whose atomic reference counts on every array argument took a third of the scalar
-    steps' time; called only from compiled code, so without the Python and C entry wrappers (their
-    argument boxing was a good part of the compile time)."""
-    return numba.njit(_nrt=False, no_cpython_wrapper=True, no_cfunc_wrapper=True, **LANES_JIT)(fn)
-
-
-
-_inline = numba.njit(inline="always", **LANES_JIT)
+_inline = inline
 
 # energy accumulators of a lane (the scalar step's `en`)
 E_IN, E_ABS, E_DST, E_WSP, E_WDA, E_WREL = range(6)
@@ -640,10 +622,20 @@ def _lane_factors(W, l, P, k_s, cdash, run, dt, Wm, B, I, A, r_R):
 
 
 @njit_step
-def _lane_step(W, l, src, dst, step, dt, scheme, law, max_iter, harmonic, amp, om, phi, psi, Wm, cdash, run, N, N1,
-               P, Z, B, I, A, orow, dur, nph):
+def _lane_step(W, l, src, dst, step, run, model, opts, runs, work):
     """One lane's whole step in scalar code, from its start state (buffer src) to buffer dst, with
-    its metric and energy rows updated. Returns False when the state is no longer finite."""
+    its metric and energy rows updated (run: the lane's run; model LaneModel, opts KernelOptions, runs
+    RunArrays, work LaneWork: engine/inputs.py). Returns False when the state is no longer finite."""
+    dt, phi, psi, Wm = model.dt, model.phi, model.psi, model.W
+    scheme, law, max_iter = opts
+    cdash = runs.cdash
+    harmonic = runs.exc_kind[run] == EXC_HARMONIC
+    amp = runs.exc_amp[run]
+    om = runs.exc_omega[run]
+    Z, B, I, A, orow, dur, nph = work
+    N = phi.shape[0]
+    N1 = len(model.n1t)
+    P = min(N1, N - N1)
     r_q0, r_q1, r_g, r_f, r_pen, r_act, r_inc, r_cac, r_end, r_cd, r_R, r_s, r_met = _layout(N, P)
     k_s = W[(r_s + S_KS) * LANES + l]
     gap = W[(r_s + S_GAP) * LANES + l]
@@ -1282,40 +1274,20 @@ def _count_act(W, l, P, r_act, act_pair, sign):
 
 
 @njit_lanes
-def integrate_lanes(
-    order,  # run indices, grouped LANES at a time: group g is order[g * LANES:(g + 1) * LANES]
-    g_start,
-    g_stop,
-    dt,
-    scheme,
-    law,
-    max_iter,
-    # structure: nt, n1t are tuples of length N and N1 (floor counts fixed at compile time)
-    nt,
-    n1t,
-    ms,  # (phi, psi, om2, dmp, gam): modal.ModalArrays, for the scalar steps
-    Wm,  # W = Psi^T diag(cf) Psi at dt
-    Cv,  # coefficient_table: the vector code's coefficients
-    # per run
-    ks,
-    cdash,
-    gap,
-    status_in,
-    nsteps,
-    exc_kind,
-    exc_amp,
-    exc_omega,
-    coef,
-    pid,
-    prof,
-    # outputs
-    metrics,
-    redo,
-    stats,  # int64[ST_N]: work counters of this call (ST_*), added to
-):
-    """Integrate groups g_start..g_stop-1 of `order`; fill metrics[run] (metrics_layout), or set
-    redo[run] = 1 for a run that diverged (the driver reruns it with the scalar kernel, which decides
-    where it stops and what its row holds)."""
+def integrate_lanes(order, g_start, g_stop, model, opts, runs, excitation, out):
+    """Integrate groups g_start..g_stop-1 of `order` (run indices, LANES at a time: group g is
+    order[g * LANES:(g + 1) * LANES]); fill out.metrics[run] (engine/layout.py), or set out.redo[run] = 1
+    for a run that diverged (the driver reruns it with the scalar kernel, which decides where it stops
+    and what its row holds); add the work counters (ST_*) to out.stats.
+
+    Records (engine/inputs.py): model LaneModel (its nt, n1t are tuples of length N and N1: the floor
+    counts, fixed at compile time), opts KernelOptions, runs RunArrays, excitation LaneExcitation
+    (ground acceleration coef[run] * prof[pid[run], step]), out LaneOutputs."""
+    dt, nt, n1t, phi, psi, om2, dmp, gam, Wm, Cv = model
+    scheme, law, max_iter = opts
+    ks, cdash, gap, exc_kind, exc_amp, exc_omega, rec_id, nsteps, status_in = runs
+    coef, pid, prof = excitation
+    metrics, redo, stats = out
     N = len(nt)
     N1 = len(n1t)
     P = min(N1, N - N1)
@@ -1334,7 +1306,6 @@ def integrate_lanes(
     stale = np.zeros(LANES, dtype=np.bool_)  # lanes with a compressive phase open on a pair out of contact
     stale_at = np.zeros(LANES, dtype=np.int64)  # ... since the end of this step
     # the scalar step's work arrays (see Z_*, B_*, I_*)
-    phi, psi, om2, dmp, gam = ms
     Z = np.zeros((ZR, max(N, P, 6)))
     for k in range(N):
         Z[Z_OM2, k] = om2[k]
@@ -1344,6 +1315,7 @@ def integrate_lanes(
     I = np.zeros((2, max(P, max_iter + 1)), dtype=np.int64)
     A = np.zeros((P, 2 * P))
     orow = np.zeros(ML.PER_DOF * N + ML.PER_PAIR * P)
+    work = LaneWork(Z, B, I, A, orow, dur, nph)
     n_runs = order.size
     for g in range(g_start, g_stop):
         base = g * LANES
@@ -1428,9 +1400,7 @@ def integrate_lanes(
                         run = lane_run[l]
                         n_act += _count_act(W, l, P, r_act, act_pair, -1)
                         t0_ = _monotonic_ns()
-                        ok = _lane_step(W, l, src, dst, step, dt, scheme, law, max_iter,
-                                        exc_kind[run] == EXC_HARMONIC, exc_amp[run], exc_omega[run], phi, psi, Wm,
-                                        cdash, run, N, N1, P, Z, B, I, A, orow, dur, nph)
+                        ok = _lane_step(W, l, src, dst, step, run, model, opts, runs, work)
                         stats[ST_FIX_NS] += _monotonic_ns() - t0_
                         stats[ST_FIXUPS] += 1
                         n_act += _count_act(W, l, P, r_act, act_pair, 1)

@@ -92,54 +92,20 @@ def _contact_forces(S, z0, bb, ke, active, n_pairs, idx, Asmall, rhs, F):
 
 
 @njit_kernel
-def integrate_batch(
-    start,
-    stop,
-    # structure, shared by the batch (dt fixed)
-    dt,
-    m,
-    C,
-    K,
-    Kinv,
-    H,
-    S,
-    i1,
-    i2,
-    scheme,
-    law,
-    max_iter,
-    # per run
-    ks,
-    cdash,
-    gap,
-    exc_kind,
-    exc_amp,
-    exc_omega,
-    rec_id,
-    nsteps,
-    status_in,
-    # records, flattened
-    rec_flat,
-    rec_off,
-    rec_len,
-    # histories (hist.shape[0] == 0: none kept)
-    hist_kind,
-    hist_index,
-    decimate,
-    hist,
-    # experiment to score against (exp_t.size == 0: no scoring)
-    exp_t,
-    exp_x,
-    exp_dof,
-    max_lag,
-    exp_dt,
-    # outputs
-    metrics,
-    run_time,
-    scores,
-):
-    """Integrate runs start..stop-1; fill metrics[run] (see metrics_layout), run_time[run] and,
-    when an experiment is given, scores[run, channel, :] (see score_kernel)."""
+def integrate_batch(start, stop, model, opts, runs, records, histories, experiment, out):
+    """Integrate runs start..stop-1 of the chunk: fill out.metrics[run] (engine/layout.py), out.run_time[run],
+    the histories out.hist[run] when histories.kinds is not empty, and, when experiment.dof is not empty,
+    out.scores[run, channel, :] (engine/score.py).
+
+    Records (engine/inputs.py): model Structure, opts KernelOptions, runs RunArrays, records Records,
+    histories HistorySpec, experiment ScoreSpec, out Outputs."""
+    dt, m, C, K, Kinv, H, S, i1, i2 = model
+    scheme, law, max_iter = opts
+    ks, cdash, gap, exc_kind, exc_amp, exc_omega, rec_id, nsteps, status_in = runs
+    rec_flat, rec_off, rec_len = records
+    hist_kind, hist_index, decimate = histories
+    exp_t, exp_x, exp_dof, max_lag, exp_dt = experiment
+    metrics, run_time, hist, scores = out
     n = m.shape[0]
     npair = i1.shape[0]
     nch = hist_kind.shape[0]

@@ -11,7 +11,7 @@ import numpy as np
 from pounding_sweep.codes import CONTACT_LAWS, SCHEMES
 from pounding_sweep.engine import layout as L
 from pounding_sweep.engine.driver import run_chunk
-from pounding_sweep.engine.inputs import HistorySpec, KernelOptions, RunArrays, ScoreSpec
+from pounding_sweep.engine.inputs import HistorySpec, KernelOptions, Records, RunArrays, ScoreSpec
 from pounding_sweep.model.contact import contact_period, damping_ratio_from_restitution, dashpot_coefficient
 from pounding_sweep.model.coupled import CoupledModel, SystemArrays
 from pounding_sweep.model.excitation import Excitation
@@ -35,6 +35,7 @@ class Prepared:
     score: ScoreSpec
     score_codes: list[str]
     auto: object | None = None  # autodt.AutoDt when dt_s = 'auto'
+    kernel: str = "auto"  # engine.driver.KERNELS: which kernel runs the chunks
 
     @property
     def dt(self) -> float:
@@ -46,7 +47,7 @@ class Prepared:
             return self.auto.run(params, threads, batch_runs)
         runs, rec, derived = self.kernel_inputs(params)
         metrics, run_time, hist, scores = run_chunk(self.sysarr, runs, rec, self.hist, self.opts, threads, batch_runs,
-                                                    self.score)
+                                                    self.score, self.kernel)
         return metrics, run_time, hist, scores, derived
 
     def kernel_inputs(self, params: dict[str, np.ndarray]):
@@ -56,13 +57,14 @@ class Prepared:
         ex = self.excitation.run_arrays(params)
         runs = RunArrays(ks, c, params["gap_m"], ex["exc_kind"], ex["exc_amp"], ex["exc_omega"], ex["rec_id"],
                          ex["nsteps"], status)
-        rec = (self.excitation.rec_flat, self.excitation.rec_off, self.excitation.rec_len)
+        rec = Records(self.excitation.rec_flat, self.excitation.rec_off, self.excitation.rec_len)
         return runs, rec, {"ks_N_per_m": ks, "contact_damping_ratio": xi, "steps_per_contact_period": spp}
 
 
-def prepare(scene: Scene) -> Prepared:
+def prepare(scene: Scene, kernel: str = "auto") -> Prepared:
     """Model, system matrices at dt, excitation, grid, history and experiment specs of a scene.
-    With dt_s = 'auto' these are at dt_max_s, and runs go through the step-doubling ladder."""
+    With dt_s = 'auto' these are at dt_max_s, and runs go through the step-doubling ladder.
+    `kernel`: which kernel runs its chunks (engine.driver.KERNELS; "auto": the lane kernel where it can)."""
     dt = scene.integration.first_dt_s
     model = CoupledModel.from_scene(scene)
     exc = Excitation.from_scene(scene, dt)
@@ -80,9 +82,9 @@ def prepare(scene: Scene) -> Prepared:
     if scene.integration.auto:
         from pounding_sweep.sweep.autodt import AutoDt
 
-        auto = AutoDt(scene, prepare)
+        auto = AutoDt(scene, lambda s: prepare(s, kernel))
     return Prepared(scene, model, model.system_arrays(dt), exc, Grid.from_scene(scene), opts, hspec, hcols, score, codes,
-                    auto)
+                    auto, kernel)
 
 
 def contact_arrays(model: CoupledModel, scene: Scene, params: dict[str, np.ndarray], dt: float):

@@ -64,11 +64,12 @@ class SweepSummary:
 
 def run_scene(scene: Scene, out_path: str | Path | None = None, threads: int | None = None,
               progress: Callable[[int, int], None] | None = None, executor=None,
-              overwrite: bool = False, confirmed: bool = False) -> SweepSummary:
+              overwrite: bool = False, confirmed: bool = False, kernel: str = "auto") -> SweepSummary:
     """Run every grid point of the scene into a Parquet dataset folder (one part per chunk); return
     a summary. Parts already in the folder from an interrupted run of the same scene (same config
     hash and package version) are kept and skipped; other results there are refused unless
-    `overwrite`. `executor`: one from executors.make_executor (default: the scene's [execution])."""
+    `overwrite`. `executor`: one from executors.make_executor (default: the scene's [execution]);
+    `kernel`: engine.driver.KERNELS ("scalar": every chunk on the scalar kernel)."""
     from pounding_sweep.sweep.executors import make_executor
 
     out_path = Path(out_path or scene.output.path)
@@ -77,7 +78,7 @@ def run_scene(scene: Scene, out_path: str | Path | None = None, threads: int | N
     if size > ex.max_runs and not confirmed:
         raise ConfigError(f"[sweep] gives {size:,} runs, more than [execution] max_runs = {ex.max_runs:,}: "
                           "confirm with --yes (or raise max_runs) if that many is meant")
-    prep = prepare(scene)
+    prep = prepare(scene, kernel)
     grid, model, exc = prep.grid, prep.model, prep.excitation
     chunk_runs = ex.chunk_runs
     if prep.hist.active:
@@ -102,7 +103,7 @@ def run_scene(scene: Scene, out_path: str | Path | None = None, threads: int | N
 
     exe = executor or make_executor(ex.executor, threads if threads is not None else ex.threads, ex.dask_address,
                                     ex.dask_workers)
-    compile_s = compile_kernel(prep.sysarr, prep.opts, prep.hist, prep.score)  # the kernel this sweep uses
+    compile_s = compile_kernel(prep.sysarr, prep.opts, prep.hist, prep.score, kernel)  # the kernel this sweep uses
     t_run = time.perf_counter()
     try:
         for res in exe.map(prep, todo):

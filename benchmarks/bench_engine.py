@@ -26,7 +26,6 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "tests"))
 
 from pounding_sweep.scene import Axis, load_scene  # noqa: E402
 from pounding_sweep.sweep.simulate import simulate  # noqa: E402
@@ -63,7 +62,7 @@ def rel_rms(x, ref):
 
 
 def per_run_table(duration: float) -> list[tuple]:
-    from reference import ivp_reference, newmark_reference
+    from pounding_sweep.reference import ivp_reference, newmark_reference
 
     scene = load_scene(SCENE)
     scene = dataclasses.replace(scene, excitation=dataclasses.replace(scene.excitation, duration_s=duration))

@@ -51,7 +51,6 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "tests"))
 sys.path.insert(0, str(REPO / "benchmarks" / "peers"))
 
 from pounding_sweep.engine import driver
@@ -231,7 +230,7 @@ def compile_times() -> None:
 def peers(duration: float, grid_copies: int, with_opensees: bool) -> float:
     header(f"2. one run by every method: 6 Hz, k_s = k, r = 0.4, gap 0, dt = 1e-4 s, {duration:g} s "
            f"({int(round(duration / DT)):,} steps), implicit scheme, classic law")
-    from reference import ivp_reference, newmark_reference
+    from pounding_sweep.reference import ivp_reference, newmark_reference
     from pounding_sweep.sweep.simulate import simulate
 
     s = scene(duration=duration, scheme="implicit", **RUN)

@@ -8,7 +8,7 @@ Grid, per scene, law (classic, no_tension), scheme (event, implicit, paper) and 
 1e-3, 5e-3 s): k_s/k in {1e-2, 1e-1, 1, 10, 1e2, 1e3, 1e4} x r in {0, 1e-3, 0.2, 0.6, 1} x a large
 excitation (harmonic: amplitude 2 and 10 mm; Duzce: record scale 1 and 5), 70 runs each, run by
 `pounding_sweep.sweep.run_scene` on scenes built with `dataclasses.replace` (as
-tests/test_energy.py does). Durations: the 6 Hz scene 1 s (its first 6 cycles: the runs pound from
+tests/engine/test_energy.py does). Durations: the 6 Hz scene 1 s (its first 6 cycles: the runs pound from
 the first cycle on), the Duzce record its whole 6.68 s (its strong motion is at 1-3 s); the same
 for every dt, so a dt = 1e-5 s Duzce run has 668 000 steps.
 
@@ -50,6 +50,8 @@ import pandas as pd
 REPO = Path(__file__).resolve().parents[1]
 
 from pounding_sweep.scene import Axis, load_scene  # noqa: E402
+from pounding_sweep.accuracy import (ENERGY_TERMS, MADE_TOL, classify, divergence_by_steps, paper_boundary,  # noqa: E402,F401
+                                     threshold_in_steps)
 from pounding_sweep.sweep.run import run_scene  # noqa: E402
 
 SCENES = {
@@ -64,9 +66,6 @@ LAWS = ("classic", "no_tension")
 SCHEMES = ("event", "implicit", "paper")
 QUICK = dict(scenes=("paper_6hz",), ks=(1e-2, 1.0, 1e4), r=(0.0, 1.0), amps={"paper_6hz": (0.01,)},
              dts=(1e-4, 5e-3), duration={"paper_6hz": 0.2})
-ENERGY_TERMS = ["kinetic_energy_end_J", "strain_energy_end_J", "structural_damping_energy_J",
-                "contact_damping_energy_J", "contact_spring_energy_end_J"]
-MADE_TOL = 1e-6  # balance_gap below -MADE_TOL: energy made by the numerics
 
 
 def grid_scene(name: str, ks=KS, r=R, amps=None, duration: float | None = None, dt: float = 1e-4,
@@ -116,23 +115,6 @@ def run_map(scenes=tuple(SCENES), ks=KS, r=R, dts=DTS, laws=LAWS, schemes=SCHEME
     return classify(pd.concat(frames, ignore_index=True)[cols])
 
 
-def classify(df: pd.DataFrame) -> pd.DataFrame:
-    """The map's per-run columns (see the module docstring)."""
-    df = df.copy()
-    num = df.select_dtypes("number").drop(columns=[c for c in ("amplitude_m", "scale", "frequency_Hz")
-                                                   if c in df.columns and df[c].isna().any()])
-    df["diverged"] = df.status.str.contains("diverged")
-    df["nonfinite"] = ~np.isfinite(num.to_numpy(float)).all(axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        df["balance_gap"] = (df.input_energy_J - df[ENERGY_TERMS].sum(axis=1)) / df.input_work_abs_J
-    df["energy_made"] = df.balance_gap < -MADE_TOL
-    df["energy_flag"] = df.status.str.contains("energy_residual")
-    df["blown_up"] = df.diverged | ~(df.balance_gap.abs() <= 1.0)
-    df["unsettled"] = df.status.str.contains("contact_unsettled")
-    df["underresolved"] = df.status.str.contains("contact_underresolved")
-    df["category"] = np.where(df.diverged | df.nonfinite, "diverged",
-                              np.where(df.energy_flag | df.energy_made, "energy", "ok"))
-    return df
 
 
 def summary(df: pd.DataFrame, by=("scheme", "law", "dt_s")) -> pd.DataFrame:
@@ -155,57 +137,10 @@ def ks_dt_table(df: pd.DataFrame, scheme: str, what: str = "diverged") -> pd.Dat
     return d.pivot_table(index="ks_ratio", columns="dt_s", values=what, aggfunc="sum").astype(int)
 
 
-def paper_boundary(df: pd.DataFrame, scheme: str = "paper") -> pd.DataFrame:
-    """Per k_s/k: the smallest dt at which a run diverges (and at which a run diverges or is energy-flagged),
-    the largest dt at which none does, and the steps per contact period at those dts."""
-    d = df[df.scheme == scheme]
-    rows = []
-    for ks, g in d.groupby("ks_ratio"):
-        spp = g.groupby("dt_s").steps_per_contact_period.min()
-        div = g[g.diverged].dt_s
-        bad = g[g.diverged | g.energy_flag].dt_s
-        ok_dts = sorted(set(g.dt_s) - set(div))
-        rows.append({
-            "ks_ratio": ks,
-            "smallest_dt_diverged_s": div.min() if len(div) else np.nan,
-            "steps_per_period_there": spp.get(div.min(), np.nan) if len(div) else np.nan,
-            "largest_dt_stable_s": max([t for t in ok_dts if t < (div.min() if len(div) else np.inf)], default=np.nan),
-            "smallest_dt_diverged_or_energy_s": bad.min() if len(bad) else np.nan,
-            "diverged_per_dt": " ".join(f"{int(g[g.dt_s == t].diverged.sum())}/{int((g.dt_s == t).sum())}"
-                                        for t in sorted(g.dt_s.unique())),
-        })
-    return pd.DataFrame(rows)
 
 
-def threshold_in_steps(df: pd.DataFrame, scheme: str = "paper") -> pd.DataFrame:
-    """Does divergence follow one variable, steps per contact period (spp = 2 pi sqrt(m_eff / k_s) / dt,
-    the same thing as k_s dt^2 / m_eff = (2 pi / spp)^2)? Per r: the largest spp of a diverged run and the
-    smallest spp of a stable run below it (a clean threshold: every run with more steps is stable)."""
-    d = df[df.scheme == scheme]
-    rows = []
-    for r, g in d.groupby("r"):
-        div = g[g.diverged]
-        spp_div = div.steps_per_contact_period.max() if len(div) else np.nan
-        stable_below = g[~g.diverged & (g.steps_per_contact_period <= spp_div)] if len(div) else g.iloc[:0]
-        rows.append({"r": r, "diverged": len(div), "runs": len(g), "max_spp_diverged": spp_div,
-                     "stable_runs_with_fewer_steps": len(stable_below),
-                     "min_spp_stable": g[~g.diverged].steps_per_contact_period.min(),
-                     "ks_dt2_over_meff_at_max_spp_diverged": (2 * math.pi / spp_div) ** 2 if len(div) else np.nan})
-    return pd.DataFrame(rows)
 
 
-def divergence_by_steps(df: pd.DataFrame, scheme: str = "paper", what: str = "diverged") -> pd.DataFrame:
-    """Runs with `what` per value of steps per contact period (rows; the (k_s/k, dt) cells that have it) and r
-    (columns): if divergence follows k_s dt^2 / m_eff, cells of equal steps at different (k_s, dt) agree."""
-    d = df[df.scheme == scheme].assign(spp=lambda x: x.steps_per_contact_period.round(3))
-    t = d.pivot_table(index="spp", columns="r", values=what, aggfunc="sum").astype(int)
-    t.columns = [f"r={c:g}" for c in t.columns]
-    n = d.groupby("spp").size()
-    t["all"] = t.sum(axis=1).astype(str) + "/" + n.astype(str)
-    t["cells (k_s/k, dt)"] = d.groupby("spp").apply(
-        lambda g: " ".join(f"({k:g},{t_:g})" for k, t_ in sorted(set(zip(g.ks_ratio, g.dt_s)))), include_groups=False)
-    t["ks_dt2/m_eff"] = [(2 * math.pi / v) ** 2 for v in t.index]
-    return t.sort_index(ascending=False)
 
 
 def format_counts(t: pd.DataFrame) -> str:

@@ -10,19 +10,17 @@ import argparse
 import importlib
 import sys
 
-from pounding_sweep.scene import ConfigError, describe, load_scene
-from pounding_sweep.model.experiment import ExperimentError
+from pounding_sweep.cli.common import EXIT_BAD_INPUT
+from pounding_sweep.errors import ConfigError, ExperimentError, RecordError
 from pounding_sweep.progress import Progress
-from pounding_sweep.model.records import RecordError
-
-EXIT_BAD_INPUT = 2
+from pounding_sweep.scene import describe, load_scene
 
 # subcommands: `python -m pounding_sweep NAME ...` -> module:function(argv) -> exit code (imported lazily,
 # so a sweep never imports OpenCV or matplotlib)
 SUBCOMMANDS = {
-    "plot": "pounding_sweep.cli.run:plot_main",
-    "track": "pounding_sweep.cli.video:track_main",
-    "identify": "pounding_sweep.cli.video:identify_main",
+    "plot": "pounding_sweep.cli.plot:plot_main",
+    "track": "pounding_sweep.cli.track:track_main",
+    "identify": "pounding_sweep.cli.identify:identify_main",
 }
 
 
@@ -89,26 +87,6 @@ def _with_execution(scene, args):
     if args.dask_address and "executor" not in changes:
         changes["executor"] = "dask"
     return dataclasses.replace(scene, execution=dataclasses.replace(scene.execution, **changes)) if changes else scene
-
-
-def plot_main(argv: list[str]) -> int:
-    """`python -m pounding_sweep plot RESULTS [--out DIR]`: the figures of a result file as PNGs."""
-    p = argparse.ArgumentParser(prog="python -m pounding_sweep plot",
-                                description="Write PNG figures of a sweep's result file: error or force heatmaps over "
-                                "(k_s/k, r), the best run's displacement and force histories over the experiment's, "
-                                "and numerical-against-experimental plots. Needs the 'plot' extra (matplotlib).")
-    p.add_argument("results", help="a result file written by a sweep (.parquet)")
-    p.add_argument("--out", help="folder for the PNGs (default: <results>_plots next to the file)")
-    args = p.parse_args(argv)
-    from pounding_sweep.plots import plot_results
-
-    try:
-        paths = plot_results(args.results, args.out)
-    except (ConfigError, RecordError, ExperimentError, OSError, KeyError) as e:
-        print(f"error: {args.results}: cannot plot ({type(e).__name__}: {e})", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    print("\n".join(str(x) for x in paths))
-    return 0
 
 
 def main(argv: list[str] | None = None) -> int:

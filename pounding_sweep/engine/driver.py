@@ -117,7 +117,7 @@ def run_chunk_lanes(sys: SystemArrays, runs: RunArrays, rec, opts: KernelOptions
     time, the likely costliest first (longest first; within a length, by excitation, then smallest
     gap), so the last to finish is a cheap
     one. A run's time is its group's time shared among the group's runs. Runs that diverged in a
-    lane are rerun by the scalar kernel. (Grouping changes no result: see test_kernel_lanes.)
+    lane are rerun by the scalar kernel. (Grouping changes no result: see tests/engine/test_lanes.py.)
     """
     n = runs.n
     n_metrics = L.n_metrics(sys.m.size, sys.i1.size)

@@ -5,7 +5,7 @@ and "implicit"), computed with other algebra: each building's modes (modal.py) t
 2N x 2N solve into N scalar recurrences (mode k: dq = cq q + cr r + cf fsum, two fused
 multiply-adds and two additions), the floors are Phi q, and contact at the step end is solved
 through the lane's precomputed (I + diag(kappa) W)_SS^-1 of its contact set S. Results agree with
-the scalar kernel to rounding (tests/test_kernel_lanes.py states the tolerance), not bit for bit.
+the scalar kernel to rounding (tests/engine/test_lanes.py states the tolerance), not bit for bit.
 
 Per step, for a group of LANES runs (chunks of VW lanes):
 - quiet (no lane in contact at the step start): modes, floors, energy increments, per-floor peaks.

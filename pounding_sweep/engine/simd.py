@@ -79,6 +79,14 @@ def fence(builder, v):
 
 
 @intrinsic
+def vload(typingctx, arr, idx):
+    """arr[idx:idx + VW] as a vector (no bounds check)."""
+    def codegen(context, builder, sig, args):
+        return builder.load(elem_ptr(context, builder, sig.args[0], args[0], args[1]), align=8)
+    return f64v(arr, idx), codegen
+
+
+@intrinsic
 def vstore(typingctx, arr, idx, v):
     """arr[idx:idx + VW] = v (no bounds check)."""
     def codegen(context, builder, sig, args):

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pounding_sweep.scene.config import load_scene
+from pounding_sweep.scene import load_scene
 from pounding_sweep.synthetic import make_experiment, write_experiment
 
 HERE = Path(__file__).resolve().parent

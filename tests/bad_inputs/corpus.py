@@ -1,5 +1,5 @@
 """The bad-input corpus of issue 8: every case, what it feeds the command line, and what the one
-error line must name. This table is the only place a case is defined; `tests/test_bad_inputs.py`
+error line must name. This table is the only place a case is defined; `tests/cli/test_bad_inputs.py`
 runs every case, `make_outcomes.py` writes the message each case gets into OUTCOMES.md.
 
 A case is a small generated file set in its own folder: `scene.toml` (the base scene below with

@@ -1,4 +1,4 @@
-"""Slow, obviously-correct references the Numba kernel is tested against.
+"""The discrete references: the kernels' Newmark schemes on the full coupled system, plain NumPy.
 
 Nothing here is fast on purpose: every step assembles and solves the full coupled system with
 NumPy, so the arithmetic can be read line by line against the equations it implements.
@@ -34,10 +34,7 @@ Three references:
 * `newmark_reference(scheme="event")`: Newmark with each step split where a pair switches: the
   switch instants found by scipy's brentq on the sub-step map (the kernel uses an interpolant
   estimate and false position), every sub-step a full np.linalg.solve.
-* `ivp_reference`: the continuous-time problem integrated by `scipy.integrate.solve_ivp` to
-  1e-10 relative tolerance, one smooth piece per contact set, restarting at contact events
-  located by root finding. It shares no discretisation with the kernel, so the difference
-  between the two is the kernel's time-discretisation error.
+(The continuous-time reference is reference/ivp.py; closed forms without contact reference/closed_form.py.)
 """
 
 from __future__ import annotations
@@ -46,7 +43,6 @@ import dataclasses
 import math
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from pounding_sweep.model.excitation import Excitation
 from pounding_sweep.model.coupled import CoupledModel
@@ -414,213 +410,6 @@ def _event_step(P: Problem, k: int, u, v, a, active, ag, stats, max_events: int 
     stats["contact_time"] += np.where(active, h, 0.0)
     stats["peak_force"] = np.maximum(stats["peak_force"], np.where(active, F, 0.0))
     return u, v, a, F, active, unsettled
-
-
-# ----------------------------------------------------------------------------- continuous time
-
-
-def contact_set_systems(P: Problem):
-    """system(active) -> (Asys, f0): y' = Asys y + f0 (+ the ground motion term) in y = (u, v) for the
-    contact set `active` (a tuple of bools): the Kelvin-Voigt springs and dashpots of the pairs in
-    contact join K and C, and k_s d g_j the load (eqs. 1-2, 8). Cached per set."""
-    n, p = P.n_dof, P.n_pairs
-    Minv = np.linalg.inv(P.M)  # diagonal (lumped masses): an exact inverse
-    systems: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
-
-    def system(active: tuple) -> tuple[np.ndarray, np.ndarray]:
-        if active not in systems:
-            Ka, Ca, fa = P.K.copy(), P.C.copy(), np.zeros(n)
-            for j in range(p):
-                if active[j]:
-                    g = P.G[:, j]
-                    Ka += P.ks * np.outer(g, g)
-                    Ca += P.c[j] * np.outer(g, g)
-                    fa += P.ks * P.gap * g
-            Asys = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ Ka, -Minv @ Ca]])
-            systems[active] = (Asys, np.concatenate([np.zeros(n), Minv @ fa]))
-        return systems[active]
-
-    return system
-
-
-def contact_force(P: Problem, j: int, y: np.ndarray) -> np.ndarray:
-    """Eq. (8) formula for pair j (whether or not in contact); y = (u, v) may be (2n,) or (2n, m)."""
-    g = P.G[:, j]
-    n = P.n_dof
-    return P.ks * (g @ y[:n] - P.gap) + P.c[j] * (g @ y[n:])
-
-
-def ivp_reference(scene, t_end=None, rtol=1e-10, atol=1e-13, method="DOP853", max_step=1e-3, dt_out=None,
-                  **overrides) -> dict:
-    """The continuous-time problem (eqs. 1-2 and 8) by solve_ivp, one smooth piece per contact set.
-
-    First-order form y = (u, v). With a fixed set A of pairs in contact, eq. (8) is linear in y:
-
-        M v' = -(K + sum_A k_s g g^T) u - (C + sum_A c_j g g^T) v + sum_A k_s d g - M 1 ag(t),
-
-    so every piece is a linear ODE with a smooth (harmonic) right-hand side, which an explicit
-    high-order method integrates to tolerance without trouble. The contact set changes only at
-    events, each the zero of one continuous function per pair:
-
-        h_j = g_j.u - d                            (classic: contact iff penetration > 0)
-        h_j = min(g_j.u - d, F_j / k_s)            (no_tension: iff penetration AND force > 0)
-
-    watched upward for pairs out of contact and downward for pairs in contact. Each event is
-    terminal: the piece ends at the root (found by solve_ivp on the dense output), the pair
-    flips, and a fresh solve_ivp starts from the event state. Nothing is ever integrated across
-    a discontinuity of the right-hand side (the dashpot force jumps at impact under the classic
-    law), which is what keeps the high order and the tight tolerance meaningful.
-
-    Method: DOP853 (explicit Runge-Kutta 8(5,3) with a 7th-order dense output). The pieces are
-    not stiff: the largest |eigenvalue| of any piece of the 6 Hz scene is 170-460 1/s (k_s/k
-    from 0.1 to 10, all pairs in contact; building 2's third mode and the contact spring on the
-    reduced floor mass), so at the steps a 1e-10 tolerance asks for (well under a millisecond)
-    an explicit method is far inside its stability region; Radau would pay a linear solve per
-    stage for stiffness the problem does not have, at a lower order (5). max_step (1 ms, under a
-    tenth of the shortest contact period, 14 ms at k_s/k = 10) keeps steps short enough that a
-    brief contact cannot hide between two event checks.
-
-    Returns t (uniform grid, spacing dt_out, default the scene's dt_s, up to t_end or the
-    scene's duration), u, v, a
-    (relative accelerations from the equation of motion), F, active on that grid, the events as
-    a list of (time, pair, "contact" | "separation"), impacts per pair and the Problem.
-    Harmonic excitation only.
-    """
-    P = resolve(scene, **overrides)
-    if P.exc_kind != "harmonic":
-        raise NotImplementedError("ivp_reference: harmonic excitation only")
-    n, p, ks, d = P.n_dof, P.n_pairs, P.ks, P.gap
-    t_end = P.nsteps * P.dt if t_end is None else float(t_end)
-    drive = np.concatenate([np.zeros(n), np.ones(n) * P.amp * P.omega**2])  # -1 ag(t) = 1 A w^2 sin(w t)
-    system = contact_set_systems(P)
-
-    def force(j: int, y: np.ndarray) -> np.ndarray:
-        return contact_force(P, j, y)
-
-    def event_function(j: int):
-        def h(t, y):
-            pen = P.G[:, j] @ y[:n] - d
-            if P.law == "no_tension":
-                return min(pen, force(j, y) / ks)
-            return pen
-
-        h.terminal = True
-        return h
-
-    dt_out = P.dt if dt_out is None else float(dt_out)
-    grid = np.arange(int(math.floor(t_end / dt_out + 1e-9)) + 1) * dt_out
-    Y = np.full((grid.size, 2 * n), np.nan)
-    ACT = np.zeros((grid.size, p), dtype=bool)
-    events: list[tuple[float, int, str]] = []
-    y = np.zeros(2 * n)
-    t0 = 0.0
-    active = tuple(False for _ in range(p))
-    stalls = 0
-    while True:
-        Asys, f0 = system(active)
-        evs = []
-        for j in range(p):
-            h = event_function(j)
-            h.direction = -1.0 if active[j] else 1.0
-            evs.append(h)
-        sol = solve_ivp(lambda t, yy: Asys @ yy + f0 + drive * math.sin(P.omega * t), (t0, t_end), y,
-                        method=method, rtol=rtol, atol=atol, max_step=max_step, events=evs, dense_output=True)
-        if sol.status < 0:
-            raise RuntimeError(f"ivp_reference: solve_ivp failed at t = {sol.t[-1]}: {sol.message}")
-        t1 = sol.t[-1]
-        sel = (grid >= t0) & (grid <= t1)
-        if np.any(sel):
-            Y[sel] = sol.sol(grid[sel]).T
-            ACT[sel] = active
-        if sol.status == 0:
-            break
-        # which pair's event ended the piece (the earliest; ties are not expected)
-        hits = [(te[0], j) for j, te in enumerate(sol.t_events) if te.size]
-        te, j = min(hits)
-        y = sol.y_events[j][0].copy()
-        stalls = stalls + 1 if te - t0 < 1e-12 else 0
-        if stalls > 10:
-            raise RuntimeError(f"ivp_reference: contact set chatters at t = {te}")
-        active = tuple((not a) if i == j else a for i, a in enumerate(active))
-        events.append((float(te), j, "contact" if active[j] else "separation"))
-        t0 = te
-
-    u, v = Y[:, :n], Y[:, n:]
-    F = np.zeros((grid.size, p))
-    for j in range(p):
-        F[:, j] = np.where(ACT[:, j], force(j, Y.T), 0.0)
-    ag = -P.amp * P.omega**2 * np.sin(P.omega * grid)
-    # relative acceleration from the equation of motion, M a = -C v - K u - G F - M 1 ag
-    a = (-(v @ P.C.T) - (u @ P.K.T) - F @ P.G.T) @ np.linalg.inv(P.M).T - ag[:, None]
-    impacts = np.array([sum(1 for e in events if e[1] == j and e[2] == "contact") for j in range(p)])
-    return dict(t=grid, u=u, v=v, a=a, F=F, active=ACT, ag=ag, events=events, impacts=impacts, problem=P)
-
-
-# ----------------------------------------------------------------------------- linear (no contact)
-
-
-def classical_modes(M, C, K):
-    """Undamped modes of (K, M), mass-normalised (phi^T M phi = I), and their damping ratios.
-
-    Solved through the Cholesky factor M = L L^T (a symmetric eigenproblem of L^-1 K L^-T).
-    Raises if C is not diagonal in these modes (modal superposition would then not decouple).
-    """
-    Linv = np.linalg.inv(np.linalg.cholesky(M))
-    w2, psi = np.linalg.eigh(Linv @ K @ Linv.T)
-    phi = Linv.T @ psi
-    Cm = phi.T @ C @ phi
-    off = Cm - np.diag(np.diag(Cm))
-    if np.max(np.abs(off)) > 1e-9 * np.max(np.abs(Cm)):
-        raise ValueError("damping is not classical: the modal equations would be coupled")
-    wn = np.sqrt(w2)
-    return wn, phi, np.diag(Cm) / (2.0 * wn)
-
-
-def modal_harmonic_response(M, C, K, amp, omega, t) -> np.ndarray:
-    """Exact u(t) (len(t), n) of M u'' + C u' + K u = -M 1 ag, ag = -amp omega^2 sin(omega t), from rest.
-
-    Classically damped (Rayleigh) systems decouple in the undamped modes phi_m:
-    q_m'' + 2 z_m w_m q_m' + w_m^2 q_m = -Gamma_m ag(t), Gamma_m = phi_m^T M 1 (Chopra sec. 13.1),
-    i.e. a harmonic load p0 sin(omega t) with p0 = Gamma_m amp omega^2 per unit modal mass. Each
-    mode is Chopra's harmonic solution (sec. 3.2): steady state C1 sin + D1 cos with
-    C1 = p0/w^2 (1 - b^2)/((1 - b^2)^2 + (2 z b)^2), D1 = p0/w^2 (-2 z b)/(...), b = omega / w,
-    plus the damped transient e^{-z w t}(A cos wD t + B sin wD t) fixed by q(0) = q'(0) = 0.
-    """
-    wn, phi, zeta = classical_modes(M, C, K)
-    gamma = phi.T @ M @ np.ones(M.shape[0])
-    t = np.asarray(t, dtype=float)
-    u = np.zeros((t.size, M.shape[0]))
-    for m in range(wn.size):
-        w, z = wn[m], zeta[m]
-        p0 = gamma[m] * amp * omega**2
-        b = omega / w
-        den = (1.0 - b**2) ** 2 + (2.0 * z * b) ** 2
-        c1 = p0 / w**2 * (1.0 - b**2) / den
-        d1 = p0 / w**2 * (-2.0 * z * b) / den
-        wd = w * math.sqrt(1.0 - z**2)
-        a_ = -d1  # q(0) = a_ + d1 = 0
-        b_ = (z * w * a_ - c1 * omega) / wd  # q'(0) = -z w a_ + wd b_ + c1 omega = 0
-        q = np.exp(-z * w * t) * (a_ * np.cos(wd * t) + b_ * np.sin(wd * t)) + c1 * np.sin(omega * t) + d1 * np.cos(omega * t)
-        u += np.outer(q, phi[:, m])
-    return u
-
-
-def modal_free_vibration(M, C, K, u0, v0, t) -> np.ndarray:
-    """Exact u(t) (len(t), n) of M u'' + C u' + K u = 0 from u(0) = u0, u'(0) = v0 (classical damping).
-
-    Modal initial conditions q0 = phi^T M u0, q0' = phi^T M v0 (mass-normalised phi), then per
-    mode Chopra eq. (2.2.4): q(t) = e^{-z w t} (q0 cos wD t + (q0' + z w q0) / wD sin wD t).
-    """
-    wn, phi, zeta = classical_modes(M, C, K)
-    q0, qd0 = phi.T @ M @ u0, phi.T @ M @ v0
-    t = np.asarray(t, dtype=float)
-    u = np.zeros((t.size, M.shape[0]))
-    for m in range(wn.size):
-        w, z = wn[m], zeta[m]
-        wd = w * math.sqrt(1.0 - z**2)
-        q = np.exp(-z * w * t) * (q0[m] * np.cos(wd * t) + (qd0[m] + z * w * q0[m]) / wd * np.sin(wd * t))
-        u += np.outer(q, phi[:, m])
-    return u
 
 
 def paper_scheme_reference(scene, **overrides) -> dict:

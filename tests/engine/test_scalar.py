@@ -15,17 +15,18 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
+
+from conftest import SWEEPS
 
 from pounding_sweep.scene import load_scene
 from pounding_sweep.model.contact import damping_ratio_from_restitution, dashpot_coefficient
 from pounding_sweep.model.coupled import CoupledModel
 from pounding_sweep.sweep.simulate import simulate
 from tolerances import SAFETY, rel_to_peak, count_bounds, history_tolerance, mca_twins, summation_tolerance, value_tolerance
-from reference import (
+from pounding_sweep.reference import (
     ivp_reference,
     modal_free_vibration,
     modal_harmonic_response,
@@ -34,7 +35,7 @@ from reference import (
     restitution_damping_ratio,
 )
 
-SCENE_6HZ = Path(__file__).resolve().parents[1] / "sweeps" / "paper_6hz.toml"
+SCENE_6HZ = SWEEPS / "paper_6hz.toml"
 SHORT_S = 1.0  # duration of the kernel-vs-Newmark comparisons (rounding grows with time, see below)
 
 

@@ -7,10 +7,13 @@ rtol 1e-15 is 4.5 u, 1e-14 allows the factor's own representation error (9.80665
 from __future__ import annotations
 
 import math
+
 from pathlib import Path
 
 import numpy as np
 import pytest
+
+from conftest import SHARED
 
 from pounding_sweep.model.records import (
     G_STANDARD,
@@ -23,7 +26,7 @@ from pounding_sweep.model.records import (
     similitude_scale,
 )
 
-GM_DIR = Path(__file__).resolve().parents[2] / "shared" / "data" / "ground_motions"
+GM_DIR = SHARED / "data" / "ground_motions"
 
 # file -> (NPTS, DT, published PGA in g)
 PUBLISHED = {

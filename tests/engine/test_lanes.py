@@ -32,7 +32,7 @@ import numpy as np
 import pytest
 
 from conftest import SWEEPS
-from reference import newmark_reference
+from pounding_sweep.reference import newmark_reference
 from tolerances import (SEEDS, backward_error_twin, count_bounds, mca_twins, switch_residue_force,
                         value_tolerance)
 from pounding_sweep import codes
@@ -70,7 +70,7 @@ def chunk_inputs(prep, params=None):
     return runs, rec
 
 
-# (ks_ratio, r, gap_m, law, scheme): test_reference's pounding cases, both laws and both lane schemes
+# (ks_ratio, r, gap_m, law, scheme): tests/engine/test_scalar.py's pounding cases, both laws and both lane schemes
 NUMPY_REFERENCE_CASES = [
     (1.0, 0.4, 0.0, "classic", "implicit"),
     (10.0, 0.0, 1e-3, "classic", "implicit"),

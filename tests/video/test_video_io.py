@@ -16,7 +16,8 @@ cv2 = pytest.importorskip("cv2")
 
 from pounding_sweep.scene import ConfigError, ExperimentConfig  # noqa: E402
 from pounding_sweep.sweep.scoring import load_experiment  # noqa: E402
-from pounding_sweep.cli.video import identify_main, track_main  # noqa: E402
+from pounding_sweep.cli.identify import identify_main  # noqa: E402
+from pounding_sweep.cli.track import track_main  # noqa: E402
 from pounding_sweep.video.io import VideoError, VideoReader, write_video  # noqa: E402
 from pounding_sweep.video.render import RenderOptions, harmonic_table, render_video, shake_table_layout  # noqa: E402
 from pounding_sweep.scene.video import VideoSpec, floor_code, parse_video_section  # noqa: E402

@@ -1,0 +1,91 @@
+"""`python -m pounding_sweep identify TABLE ...`: modal identification of a displacement table and, with
+--scene, the model update that matches each building's first frequency (identify/table.py does the work).
+
+Exit status 0 when done, 2 on bad input with one line `error: <file>: <what> (<value>)` on stderr and no
+file written (the updated sections go to `<out>.tmp`, renamed when complete).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+
+from pounding_sweep.cli.common import EXIT_BAD_INPUT, Bad, split_list
+
+VIDEO_SUFFIXES = {".mkv", ".avi", ".mp4", ".mov", ".m4v", ".webm"}
+
+
+def _identify_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="python -m pounding_sweep identify",
+        description="Modal identification from a displacement table (e.g. one written by track): spectrum peaks, "
+        "damping (half-power bandwidth; logarithmic decrement with --free-vibration) and mode-shape ratios per "
+        "building; with --scene, the model update that matches each building's first frequency (paper sec. 3).",
+    )
+    p.add_argument("table", help="displacement table, .csv or .parquet, with a time column")
+    p.add_argument("--columns", help="columns to analyse, comma-separated (default: every displacement column)")
+    p.add_argument("--time-column", default="t_s", help="time column [s] (default t_s)")
+    p.add_argument("--modes", type=int, default=3, help="modes per building (default 3)")
+    p.add_argument("--fmin", type=float, default=0.0, help="lowest frequency considered [Hz]")
+    p.add_argument("--fmax", type=float, help="highest frequency considered [Hz]")
+    p.add_argument("--start", type=float, default=0.0, help="analyse from this time on [s] (e.g. after the release)")
+    p.add_argument("--free-vibration", action="store_true", help="the record is free vibration: also logarithmic decrement")
+    p.add_argument("--scene", help="scene whose buildings are updated to the identified first frequencies")
+    p.add_argument("--update-damping", action="store_true", help="with --scene, also set damping_ratio to the identified one")
+    p.add_argument("--out", help="with --scene: write the updated [buildingN] sections to this TOML file")
+    return p
+
+
+def identify_main(argv: list[str]) -> int:
+    args = _identify_parser().parse_args(argv)
+    import numpy as np
+
+    from pounding_sweep.errors import InputError
+    from pounding_sweep.identify.table import identify_table, model_updates
+    from pounding_sweep.model.experiment import read_table
+    from pounding_sweep.scene import load_scene
+
+    src = args.table
+    try:
+        if Path(src).suffix.lower() in VIDEO_SUFFIXES:
+            raise Bad(src, "identify reads a displacement table: track the video first", "python -m pounding_sweep track VIDEO")
+        if args.out and not args.scene:
+            raise Bad(args.out, "--out writes updated buildings: it needs --scene", "--out without --scene")
+        df, _ = read_table(src)
+        ident = identify_table(df, src, args.time_column, split_list(args.columns) if args.columns else None,
+                               args.modes, args.fmin, args.fmax, args.start, args.free_vibration)
+        scene = load_scene(args.scene) if args.scene else None
+        updates = model_updates(ident, scene, args.update_damping) if scene is not None else []
+        text = "".join(u.toml() + "\n" for u in updates)
+        if args.out:
+            out = Path(args.out)
+            tmp = out.with_name(out.name + ".tmp")
+            try:
+                tmp.write_text(f"# written by python -m pounding_sweep identify {src}\n" + text, encoding="utf-8")
+                os.replace(tmp, out)
+            except OSError as e:
+                tmp.unlink(missing_ok=True)
+                raise Bad(out, "cannot write", e.strerror or e) from None
+    except (Bad, InputError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    for b, r in sorted(ident.results.items()):
+        head = f"building {b}" if b else "other columns"
+        print(f"{head} ({', '.join(r.channels)}; shapes relative to {r.reference}; {ident.fs:g} samples/s, "
+              f"resolution {r.spectrum.resolution_Hz:.3g} Hz)")
+        for k, m in enumerate(r.modes, 1):
+            ld = "" if m.damping_log_decrement is None else f", log decrement {100 * m.damping_log_decrement:.2f} %"
+            hp = "n/a" if not np.isfinite(m.damping_half_power) else f"{100 * m.damping_half_power:.2f} %"
+            shape = ", ".join(f"{c} {v:+.3f}" for c, v in m.shape.items())
+            print(f"  mode {k}: {m.frequency_Hz:.4f} Hz, damping half-power {hp}{ld}; shape {shape}")
+        for n in r.notes:
+            print(f"  note: {n}")
+    if updates:
+        print()
+        for u in updates:
+            print(f"{u.section}: f1 {u.f1_model_Hz:.4f} -> {u.f1_target_Hz:.4f} Hz: stiffness x {u.factor:.4f}")
+        print()
+        print(text if not args.out else f"updated sections written to {args.out}")
+    return 0

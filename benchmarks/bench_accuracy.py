@@ -53,12 +53,22 @@ import pandas as pd
 
 REPO = Path(__file__).resolve().parents[1]
 
-from pounding_sweep.scene import load_scene  # noqa: E402
-from pounding_sweep.accuracy import (DTS, SCHEMES, check_against_ivp_reference, cost_per_step, equal_cost_ratios,  # noqa: E402
-                                     equal_time_ratios, ladder, local_orders, observed_order, reference_self_check,
-                                     richardson_check)
+from pounding_sweep.accuracy import (
+    DTS,
+    SCHEMES,
+    check_against_ivp_reference,
+    cost_per_step,
+    equal_cost_ratios,  # noqa: E402
+    equal_time_ratios,
+    ladder,
+    local_orders,
+    observed_order,
+    reference_self_check,
+    richardson_check,
+)
 from pounding_sweep.reference import resolve  # noqa: E402
 from pounding_sweep.reference.ivp import REF_ATOL, REF_RTOL, SAMPLE_DT, TOP, continuous_reference  # noqa: E402,F401
+from pounding_sweep.scene import load_scene  # noqa: E402
 
 SCENES = {"paper_6hz": REPO / "sweeps" / "paper_6hz.toml", "paper_duzce": REPO / "sweeps" / "paper_duzce.toml"}
 DURATION_S = {"paper_6hz": 5.0, "paper_duzce": 6.68}
@@ -70,78 +80,82 @@ RICHARDSON_DT_MIN = 5e-6  # finer, the kernel's rounding floor (Newmark in total
 def base_scene(name: str, duration_s: float):
     """The shipped scene's base point, no sweep, the given duration."""
     s = load_scene(SCENES[name])
-    return dataclasses.replace(s, sweep=(), experiment=None,
-                               excitation=dataclasses.replace(s.excitation, duration_s=float(duration_s)))
-
-
-
-
-
-
+    return dataclasses.replace(
+        s, sweep=(), experiment=None, excitation=dataclasses.replace(s.excitation, duration_s=float(duration_s))
+    )
 
 
 # ----------------------------------------------------------------------------- what the table says
 
 
-
-
-
-
-
-
-
-
-
-
 def format_table(df: pd.DataFrame) -> str:
     """The ladder as a fixed-width table (orders between neighbouring dts per scheme)."""
-    lines = [f"{'scheme':8s} {'dt [s]':>8s} {'steps':>8s} {'time [ms]':>10s} {'relRMS b1f3%':>13s} {'relRMS b2f3%':>13s} "
-             f"{'order':>6s} {'peak u err%':>11s} {'peak F3 err%':>12s} {'imp f3':>6s} {'ref':>4s}  status"]
+    lines = [
+        f"{'scheme':8s} {'dt [s]':>8s} {'steps':>8s} {'time [ms]':>10s} {'relRMS b1f3%':>13s} {'relRMS b2f3%':>13s} "
+        f"{'order':>6s} {'peak u err%':>11s} {'peak F3 err%':>12s} {'imp f3':>6s} {'ref':>4s}  status"
+    ]
     for scheme, g in df.groupby("scheme", sort=False):
         g = g.sort_values("dt_s", ascending=False)
         orders = local_orders(g)
         for (_, r), o in zip(g.iterrows(), orders):
-            lines.append(f"{scheme:8s} {r.dt_s:8.1e} {r.steps:8d} {r.run_time_s * 1e3:10.3f} {r.rel_rms_b1f3_pct:13.3e} "
-                         f"{r.rel_rms_b2f3_pct:13.3e} {o:6.2f} {r.peak_disp_err_pct:11.3e} {r.peak_force_err_pct:12.3e} "
-                         f"{r.impacts_f3:6d} {r.ref_impacts_f3:4d}  {r.status}")
+            lines.append(
+                f"{scheme:8s} {r.dt_s:8.1e} {r.steps:8d} {r.run_time_s * 1e3:10.3f} {r.rel_rms_b1f3_pct:13.3e} "
+                f"{r.rel_rms_b2f3_pct:13.3e} {o:6.2f} {r.peak_disp_err_pct:11.3e} {r.peak_force_err_pct:12.3e} "
+                f"{r.impacts_f3:6d} {r.ref_impacts_f3:4d}  {r.status}"
+            )
     return "\n".join(lines)
-
-
 
 
 # ----------------------------------------------------------------------------- main
 
 
-def run_scene_ladder(name: str, quick: bool, ks_ratio: float, r: float | None, repeats: int, out_dir: Path,
-                     log=print) -> dict:
+def run_scene_ladder(
+    name: str, quick: bool, ks_ratio: float, r: float | None, repeats: int, out_dir: Path, log=print
+) -> dict:
     dur = (QUICK_DURATION_S if quick else DURATION_S)[name]
     dts = QUICK_DTS if quick else DTS
     scene = base_scene(name, dur)
     ov = {"ks_ratio": ks_ratio, "r": scene.contact.r if r is None else r}
     log(f"\n[load average before: {_loadavg()}]")
-    log(f"=== {name}: k_s/k = {ov['ks_ratio']:g}, r = {ov['r']:g}, law {scene.contact.law}, {dur:g} s, "
-        f"dt {dts[0]:g} .. {dts[-1]:g} s ===")
+    log(
+        f"=== {name}: k_s/k = {ov['ks_ratio']:g}, r = {ov['r']:g}, law {scene.contact.law}, {dur:g} s, "
+        f"dt {dts[0]:g} .. {dts[-1]:g} s ==="
+    )
     ref = continuous_reference(scene, **ov)
-    log(f"reference: DOP853 rtol {ref.rtol:g} atol {REF_ATOL:g}, {len(ref.events)} contact events "
-        f"(impacts per pair {ref.impacts.tolist()}), peak F3 {ref.peak_force[TOP - 1]:.6f} N, {ref.wall_s:.1f} s wall")
+    log(
+        f"reference: DOP853 rtol {ref.rtol:g} atol {REF_ATOL:g}, {len(ref.events)} contact events "
+        f"(impacts per pair {ref.impacts.tolist()}), peak F3 {ref.peak_force[TOP - 1]:.6f} N, {ref.wall_s:.1f} s wall"
+    )
     check = reference_self_check(scene, ref, **ov)
-    log(f"reference vs itself at rtol {check['rtol_check']:g}: rel RMS {check['rel_rms_pct']:.1e} %, peak u "
+    log(
+        f"reference vs itself at rtol {check['rtol_check']:g}: rel RMS {check['rel_rms_pct']:.1e} %, peak u "
         f"{check['peak_disp_pct']:.1e} %, peak F {check['peak_force_pct']:.1e} %, event times {check['event_time_s']:.1e} s, "
-        f"same event sequence: {check['same_events']}")
+        f"same event sequence: {check['same_events']}"
+    )
     if scene.excitation.type == "harmonic":
         iv = check_against_ivp_reference(scene, ref, **ov)
-        log(f"reference vs tests/reference.py ivp_reference (same tolerance): rel RMS {iv['rel_rms_pct']:.1e} %, "
-            f"same impacts: {iv['same_impacts']}")
+        log(
+            f"reference vs tests/reference.py ivp_reference (same tolerance): rel RMS {iv['rel_rms_pct']:.1e} %, "
+            f"same impacts: {iv['same_impacts']}"
+        )
     df = ladder(scene, ref, dts, SCHEMES, repeats, log=log, **ov)
-    df["scene"], df["ks_ratio"], df["r"], df["law"], df["duration_s"] = name, ov["ks_ratio"], ov["r"], scene.contact.law, dur
+    df["scene"], df["ks_ratio"], df["r"], df["law"], df["duration_s"] = (
+        name,
+        ov["ks_ratio"],
+        ov["r"],
+        scene.contact.law,
+        dur,
+    )
     df["ref_scheme"] = f"solve_ivp DOP853 rtol {ref.rtol:g} (continuous time)"
     df["steps_per_contact_period"] = contact_period_s(scene, ov) / df.dt_s
     df["ref_selfcheck_rel_rms_pct"] = check["rel_rms_pct"]
     log(f"[load average after the ladder: {_loadavg()}]")
     rich_dt = min(d for d in dts if d >= RICHARDSON_DT_MIN)
     rich = richardson_check(scene, ref, rich_dt, **ov)
-    log(f"Richardson check (event, dt {rich_dt:g} and {2 * rich_dt:g} s): event {rich['event_err_pct']:.2e} %, "
-        f"extrapolated {rich['richardson_err_pct']:.2e} % off the reference")
+    log(
+        f"Richardson check (event, dt {rich_dt:g} and {2 * rich_dt:g} s): event {rich['event_err_pct']:.2e} %, "
+        f"extrapolated {rich['richardson_err_pct']:.2e} % off the reference"
+    )
     out_dir.mkdir(parents=True, exist_ok=True)
     csv = out_dir / f"bench_accuracy_{name}{'_quick' if quick else ''}.csv"
     df.to_csv(csv, index=False)
@@ -158,27 +172,37 @@ def report(df: pd.DataFrame, csv: Path, log=print) -> dict:
     for s, (o, lo, hi, npts) in orders.items():
         log(f"observed order {s:8s}: {o:5.2f}  (rel RMS, least squares over dt {lo:g} .. {hi:g} s, {npts} points)")
     same_dt = df[df.scheme == "paper"].set_index("dt_s").rel_rms_pct
-    log("paper scheme's error / event scheme's, at equal run time (the paper curve interpolated at the event run's "
-        "time) and at equal dt:")
+    log(
+        "paper scheme's error / event scheme's, at equal run time (the paper curve interpolated at the event run's "
+        "time) and at equal dt:"
+    )
     for _, rr in ratios.iterrows():
         e_dt = same_dt.get(rr.dt_s, np.nan)
-        log(f"  event dt {rr.dt_s:8.1e} s, {rr.run_time_s * 1e3:8.3f} ms: event {rr.event_pct:.3e} %, paper at that time "
+        log(
+            f"  event dt {rr.dt_s:8.1e} s, {rr.run_time_s * 1e3:8.3f} ms: event {rr.event_pct:.3e} %, paper at that time "
             f"{rr.paper_at_same_time_pct:.3e} % (ratio {rr.ratio:6.3g}); paper at that dt {e_dt:.3e} % "
-            f"(ratio {e_dt / rr.event_pct:6.3g})")
+            f"(ratio {e_dt / rr.event_pct:6.3g})"
+        )
     cost = equal_cost_ratios(df)
-    log(f"the same with run time modelled as cost per step x steps (median kernel time per step over dt <= 2.5e-4 s: "
+    log(
+        f"the same with run time modelled as cost per step x steps (median kernel time per step over dt <= 2.5e-4 s: "
         f"event {cost_per_step(df, 'event') * 1e9:.0f} ns, paper {cost_per_step(df, 'paper') * 1e9:.0f} ns, implicit "
-        f"{cost_per_step(df, 'implicit') * 1e9:.0f} ns):")
+        f"{cost_per_step(df, 'implicit') * 1e9:.0f} ns):"
+    )
     for _, rr in cost.iterrows():
-        log(f"  event dt {rr.dt_s:8.1e} s: paper at equal cost runs dt {rr.paper_dt_s:8.2e} s, error "
-            f"{rr.paper_at_same_cost_pct:.3e} % (ratio {rr.ratio:6.3g})")
+        log(
+            f"  event dt {rr.dt_s:8.1e} s: paper at equal cost runs dt {rr.paper_dt_s:8.2e} s, error "
+            f"{rr.paper_at_same_cost_pct:.3e} % (ratio {rr.ratio:6.3g})"
+        )
     png = csv.with_suffix(".png")
     r0 = df.iloc[0]
     try:
         from pounding_sweep.plots import error_vs_runtime_figure
 
-        title = (f"{r0.scene}: k_s/k = {r0.ks_ratio:g}, r = {r0.r:g}, {r0.law}, {r0.duration_s:g} s; error of the top floors' "
-                 f"displacement (larger of the two buildings)\nagainst {r0.ref_scheme}")
+        title = (
+            f"{r0.scene}: k_s/k = {r0.ks_ratio:g}, r = {r0.r:g}, {r0.law}, {r0.duration_s:g} s; error of the top floors' "
+            f"displacement (larger of the two buildings)\nagainst {r0.ref_scheme}"
+        )
         fig = error_vs_runtime_figure(df, title)
         _decade_ticks(fig.axes[0].xaxis)
         fig.savefig(png, dpi=120)

@@ -59,9 +59,9 @@ def cases(folder: Path) -> dict[str, Path]:
     texts = {
         "scored 6 Hz (README scene; scalar kernel + scoring)": _short((SWEEPS / "scored_6hz.toml").read_text()),
         "Duzce, metrics only (lane kernel)": _short(duzce),
-        "Duzce, 4 + 2 stories (lane kernel, new sizes)": _short(duzce).replace(
-            "masses_kg = [1.7, 1.7, 1.6]", "masses_kg = [1.7, 1.7, 1.6, 1.6]").replace(
-            "masses_kg = [0.56, 0.56, 0.45]", "masses_kg = [0.56, 0.45]"),
+        "Duzce, 4 + 2 stories (lane kernel, new sizes)": _short(duzce)
+        .replace("masses_kg = [1.7, 1.7, 1.6]", "masses_kg = [1.7, 1.7, 1.6, 1.6]")
+        .replace("masses_kg = [0.56, 0.56, 0.45]", "masses_kg = [0.56, 0.45]"),
         "6 Hz with histories (scalar kernel)": _short(six).replace("[output]", '[output]\nhistories = ["disp_b1f3"]'),
     }
     out = {}
@@ -75,8 +75,12 @@ def cases(folder: Path) -> dict[str, Path]:
 def timed_run(scene: Path, cache: Path, out: Path) -> float:
     env = dict(os.environ, NUMBA_CACHE_DIR=str(cache))
     t0 = time.perf_counter()
-    r = subprocess.run([sys.executable, "-m", "pounding_sweep", str(scene), "--out", str(out), "--quiet", "--yes"],
-                       env=env, capture_output=True, text=True)
+    r = subprocess.run(
+        [sys.executable, "-m", "pounding_sweep", str(scene), "--out", str(out), "--quiet", "--yes"],
+        env=env,
+        capture_output=True,
+        text=True,
+    )
     dt = time.perf_counter() - t0
     if r.returncode:
         raise SystemExit(f"{scene}: exit {r.returncode}: {r.stderr.strip()[-400:]}")

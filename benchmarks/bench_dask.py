@@ -36,9 +36,11 @@ def scene(runs: int, chunk_runs: int, duration_s: float):
     return dataclasses.replace(
         s,
         excitation=dataclasses.replace(s.excitation, duration_s=duration_s),
-        sweep=(Axis("ks_ratio", tuple(np.geomspace(0.05, 50.0, n_ks).tolist())),
-               Axis("r", tuple(np.linspace(0.0, 1.0, n_r).tolist())),
-               Axis("gap_m", tuple(np.linspace(0.0, 0.004, n_gap).tolist()))),
+        sweep=(
+            Axis("ks_ratio", tuple(np.geomspace(0.05, 50.0, n_ks).tolist())),
+            Axis("r", tuple(np.linspace(0.0, 1.0, n_r).tolist())),
+            Axis("gap_m", tuple(np.linspace(0.0, 0.004, n_gap).tolist())),
+        ),
         execution=dataclasses.replace(s.execution, chunk_runs=chunk_runs),
     )
 
@@ -71,9 +73,20 @@ def main() -> None:
                 b = pd.read_parquet(Path(d) / f"dask_{chunk}.parquet").drop(columns="run_time_s")
                 same = a.shape == b.shape and a.equals(b)
                 tl, td = min(times["local"]), min(times["dask"])
-                rows.append(dict(runs=res.runs, steps_per_run=int(res.steps / res.runs), part_runs=chunk, parts=res.parts,
-                                 local_s=tl, dask_s=td, overhead_pct=100 * (td / tl - 1),
-                                 runs_per_s_local=res.runs / tl, runs_per_s_dask=res.runs / td, identical=same))
+                rows.append(
+                    dict(
+                        runs=res.runs,
+                        steps_per_run=int(res.steps / res.runs),
+                        part_runs=chunk,
+                        parts=res.parts,
+                        local_s=tl,
+                        dask_s=td,
+                        overhead_pct=100 * (td / tl - 1),
+                        runs_per_s_local=res.runs / tl,
+                        runs_per_s_dask=res.runs / td,
+                        identical=same,
+                    )
+                )
     finally:
         dask.close()
     df = pd.DataFrame(rows)

@@ -28,8 +28,8 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 
 from pounding_sweep.scene import Axis, load_scene  # noqa: E402
-from pounding_sweep.sweep.simulate import simulate  # noqa: E402
 from pounding_sweep.sweep.run import run_scene  # noqa: E402
+from pounding_sweep.sweep.simulate import simulate  # noqa: E402
 
 SCENE = REPO / "sweeps" / "paper_6hz.toml"
 
@@ -95,8 +95,11 @@ def grid_scaling(n_r: int) -> list[tuple]:
     scene = load_scene(SCENE)
     # k_s/k from 0.01 (soft, long contacts) to 100 (stiff, many short ones) and gaps from 0 to
     # 20 mm (no contact at all): runs of very different cost in one grid
-    sweep = (Axis("gap_m", (0.0, 0.002, 0.02)), Axis("ks_ratio", tuple(np.geomspace(0.01, 100, 6))),
-             Axis("r", tuple(np.linspace(0.0, 1.0, n_r))))
+    sweep = (
+        Axis("gap_m", (0.0, 0.002, 0.02)),
+        Axis("ks_ratio", tuple(np.geomspace(0.01, 100, 6))),
+        Axis("r", tuple(np.linspace(0.0, 1.0, n_r))),
+    )
     scene = dataclasses.replace(scene, sweep=sweep, excitation=dataclasses.replace(scene.excitation, duration_s=2.0))
     out = []
     with tempfile.TemporaryDirectory() as d:
@@ -111,10 +114,14 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="shorter runs (a smoke test of the benchmark)")
     args = ap.parse_args()
     imp, cold, warm = compile_times()
-    print(f"import + scene preparation: {imp:.2f} s; kernel compile (empty cache): {cold:.2f} s; "
-          f"load from cache: {warm:.3f} s\n")
+    print(
+        f"import + scene preparation: {imp:.2f} s; kernel compile (empty cache): {cold:.2f} s; "
+        f"load from cache: {warm:.3f} s\n"
+    )
     duration = 0.5 if args.quick else 2.0
-    print(f"One run: 6 Hz scene, k_s/k = 1, r = 0.4, dt = 1e-4 s, {duration} s ({int(duration / 1e-4)} steps), one thread")
+    print(
+        f"One run: 6 Hz scene, k_s/k = 1, r = 0.4, dt = 1e-4 s, {duration} s ({int(duration / 1e-4)} steps), one thread"
+    )
     print(f"{'method':<30} {'time [s]':>10} {'per step [us]':>14} {'x engine':>10} {'top-floor rel RMS vs engine':>28}")
     for name, t, per, ratio, err in per_run_table(duration):
         print(f"{name:<30} {t:>10.4f} {per * 1e6:>14.3f} {ratio:>10.1f} {err:>28.2e}")

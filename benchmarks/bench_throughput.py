@@ -56,8 +56,8 @@ sys.path.insert(0, str(REPO / "benchmarks" / "peers"))
 from pounding_sweep.engine import driver
 from pounding_sweep.engine import lanes as kernel_lanes
 from pounding_sweep.engine import layout as L
-from pounding_sweep.scene import Axis, load_scene  # noqa: E402
 from pounding_sweep.engine.driver import HistorySpec, RunArrays  # noqa: E402
+from pounding_sweep.scene import Axis, load_scene  # noqa: E402
 from pounding_sweep.sweep import prepare, run_scene  # noqa: E402
 
 SCENE_6HZ = REPO / "sweeps" / "paper_6hz.toml"
@@ -101,8 +101,11 @@ def scene(base=SCENE_6HZ, duration=None, sweep=None, scheme="event", **contact):
     implicit one) and the classic law, another duration, contact values and sweep (none: the one run
     the contact values describe)."""
     s = load_scene(base)
-    s = dataclasses.replace(s, integration=dataclasses.replace(s.integration, scheme=scheme, dt_s=DT),
-                            contact=dataclasses.replace(s.contact, law="classic", **contact))
+    s = dataclasses.replace(
+        s,
+        integration=dataclasses.replace(s.integration, scheme=scheme, dt_s=DT),
+        contact=dataclasses.replace(s.contact, law="classic", **contact),
+    )
     if duration is not None:
         s = dataclasses.replace(s, excitation=dataclasses.replace(s.excitation, duration_s=duration))
     return dataclasses.replace(s, sweep=tuple(Axis(n, tuple(float(x) for x in v)) for n, v in (sweep or ())))
@@ -143,16 +146,19 @@ def machine() -> float:
             if line.startswith("flags"):
                 flags = set(line.split(":", 1)[1].split())
     import numba
-
     from llvmlite import binding as llvm_binding
 
     simd = [x for x in ("avx2", "fma", "avx512f") if x in flags]
-    print(f"CPU {model} (LLVM: {llvm_binding.get_host_cpu_name()}), {cpu_threads()} cores, SIMD {' '.join(simd)}"
-          f"{'' if 'avx512f' in flags else ' (no AVX-512: 4 float64 per instruction)'}; "
-          f"Python {platform.python_version()}, NumPy {np.__version__}, Numba {numba.__version__}")
+    print(
+        f"CPU {model} (LLVM: {llvm_binding.get_host_cpu_name()}), {cpu_threads()} cores, SIMD {' '.join(simd)}"
+        f"{'' if 'avx512f' in flags else ' (no AVX-512: 4 float64 per instruction)'}; "
+        f"Python {platform.python_version()}, NumPy {np.__version__}, Numba {numba.__version__}"
+    )
     peak = fma_peak()
-    print(f"measured peak: {peak / 1e9:.1f} G float64 fused multiply-adds per second and core "
-          f"(independent chains of vector FMAs of the lane kernel's width)")
+    print(
+        f"measured peak: {peak / 1e9:.1f} G float64 fused multiply-adds per second and core "
+        f"(independent chains of vector FMAs of the lane kernel's width)"
+    )
     return peak
 
 
@@ -174,8 +180,12 @@ def fma_peak() -> float:
             x = vsplat(0.9999999)
             y = vsplat(1e-9)
             for _ in range(n):
-                a0 = vfma(a0, x, y); a1 = vfma(a1, x, y); a2 = vfma(a2, x, y)  # noqa: E702
-                a3 = vfma(a3, x, y); a4 = vfma(a4, x, y); a5 = vfma(a5, x, y)  # noqa: E702
+                a0 = vfma(a0, x, y)
+                a1 = vfma(a1, x, y)
+                a2 = vfma(a2, x, y)  # noqa: E702
+                a3 = vfma(a3, x, y)
+                a4 = vfma(a4, x, y)
+                a5 = vfma(a5, x, y)  # noqa: E702
             vstore(out, 0, a0 + a1 + a2 + a3 + a4 + a5)
             return 0
 
@@ -228,8 +238,10 @@ def compile_times() -> None:
 
 
 def peers(duration: float, grid_copies: int, with_opensees: bool) -> float:
-    header(f"2. one run by every method: 6 Hz, k_s = k, r = 0.4, gap 0, dt = 1e-4 s, {duration:g} s "
-           f"({int(round(duration / DT)):,} steps), implicit scheme, classic law")
+    header(
+        f"2. one run by every method: 6 Hz, k_s = k, r = 0.4, gap 0, dt = 1e-4 s, {duration:g} s "
+        f"({int(round(duration / DT)):,} steps), implicit scheme, classic law"
+    )
     from pounding_sweep.reference import ivp_reference, newmark_reference
     from pounding_sweep.sweep.simulate import simulate
 
@@ -245,8 +257,9 @@ def peers(duration: float, grid_copies: int, with_opensees: bool) -> float:
     t_grid_all, (mg, _) = best_of(lambda: driver.run_chunk_lanes(prep.sysarr, runsg, rec, prep.opts, ncores), 3)
     t_grid_one, _ = best_of(lambda: driver.run_chunk_lanes(prep.sysarr, runsg, rec, prep.opts, 1), 3)
     t_lane_alone, (ml, _) = best_of(lambda: driver.run_chunk_lanes(prep.sysarr, runs1, rec, prep.opts), 3)
-    t_scalar, (ms, *_) = best_of(lambda: driver.run_chunk_scalar(prep.sysarr, runs1, rec, HistorySpec.none(),
-                                                                  prep.opts), 3)
+    t_scalar, (ms, *_) = best_of(
+        lambda: driver.run_chunk_scalar(prep.sysarr, runs1, rec, HistorySpec.none(), prep.opts), 3
+    )
     names = L.metric_columns(prep.model.floors, prep.model.n_pairs)
     peak_engine = float(ml[0, names.index("peak_force_f3_N")])
     hist, _ = simulate(s, channels=["disp_b1f3", "disp_b2f3", "force_f3", "ground_acc"])  # histories (scalar kernel)
@@ -259,19 +272,32 @@ def peers(duration: float, grid_copies: int, with_opensees: bool) -> float:
         """Largest relative difference of the peak displacements and forces against the lane kernel's row."""
         cols = [i for i, n in enumerate(names) if n.startswith(("peak_disp_b", "peak_force_f"))]
         d = np.max(np.abs(m[0, cols] - ml[0, cols]) / np.abs(ml[0, cols]))
-        return f"peaks within {d:.0e}" if d > 0 else "identical peaks", \
-            f"{abs(m[0, names.index('peak_force_f3_N')] - peak_engine) / peak_engine:.1e}"
+        return (
+            f"peaks within {d:.0e}" if d > 0 else "identical peaks",
+            f"{abs(m[0, names.index('peak_force_f3_N')] - peak_engine) / peak_engine:.1e}",
+        )
 
     engine = t_grid_all / grid_copies
     rows = []
 
     def row(name, t_run, agreement=("identical rows", "0")):
-        rows.append([name, f"{t_run:.4g}", f"{t_run / nst * 1e9:,.1f}", fmt_rate(nst / t_run), f"{t_run / engine:,.1f}",
-                     *agreement])
+        rows.append(
+            [
+                name,
+                f"{t_run:.4g}",
+                f"{t_run / nst * 1e9:,.1f}",
+                fmt_rate(nst / t_run),
+                f"{t_run / engine:,.1f}",
+                *agreement,
+            ]
+        )
 
     same = bool(np.array_equal(mg, np.repeat(ml, grid_copies, axis=0)))
-    row(f"lane kernel, per run in a {grid_copies}-run grid, {ncores} cores [the engine]", engine,
-        ("rows equal to the run alone" if same else "ROWS DIFFER", "0"))
+    row(
+        f"lane kernel, per run in a {grid_copies}-run grid, {ncores} cores [the engine]",
+        engine,
+        ("rows equal to the run alone" if same else "ROWS DIFFER", "0"),
+    )
     row(f"lane kernel, per run in a {grid_copies}-run grid, 1 core", t_grid_one / grid_copies, ("", ""))
     row(f"lane kernel, the run alone ({driver.LANES - 1} idle lanes)", t_lane_alone, ("reference", "reference"))
     row("scalar kernel (histories, scoring), the run alone", t_scalar, rows_vs(ms))
@@ -280,38 +306,56 @@ def peers(duration: float, grid_copies: int, with_opensees: bool) -> float:
     rev, _ = run_inputs(pev, grid_copies)
     driver.run_chunk_lanes(pev.sysarr, rev, rec, pev.opts, ncores)
     t_ev, (mev, _) = best_of(lambda: driver.run_chunk_lanes(pev.sysarr, rev, rec, pev.opts, ncores), 3)
-    row(f"lane kernel, event scheme (the default: 2nd order across impacts), {ncores} cores", t_ev / grid_copies,
-        ("other scheme", f"{abs(mev[0, names.index('peak_force_f3_N')] - peak_engine) / peak_engine:.1e}"))
+    row(
+        f"lane kernel, event scheme (the default: 2nd order across impacts), {ncores} cores",
+        t_ev / grid_copies,
+        ("other scheme", f"{abs(mev[0, names.index('peak_force_f3_N')] - peak_engine) / peak_engine:.1e}"),
+    )
     t0 = time.perf_counter()
     ref = newmark_reference(s)
     t_np = time.perf_counter() - t0
-    row("NumPy loop, same scheme (tests/reference.py)", t_np,
-        agree(ref["u"][:, 2], ref["u"][:, 5], float(ref["F"][:, 2].max())))
+    row(
+        "NumPy loop, same scheme (tests/reference.py)",
+        t_np,
+        agree(ref["u"][:, 2], ref["u"][:, 5], float(ref["F"][:, 2].max())),
+    )
     t0 = time.perf_counter()
     ivp = ivp_reference(s, dt_out=DT)
     t_ivp = time.perf_counter() - t0
-    row("solve_ivp DOP853 + contact events, rtol 1e-10", t_ivp,
-        agree(ivp["u"][:, 2], ivp["u"][:, 5], float(np.max(ivp["F"][:, 2])) if "F" in ivp else float("nan")))
+    row(
+        "solve_ivp DOP853 + contact events, rtol 1e-10",
+        t_ivp,
+        agree(ivp["u"][:, 2], ivp["u"][:, 5], float(np.max(ivp["F"][:, 2])) if "F" in ivp else float("nan")),
+    )
     if with_opensees:
         try:
             from opensees_pounding import run_opensees
+
             from pounding_sweep.model.contact import dashpot_coefficient
 
             m1, m2 = prep.model.pair_masses()
             ks = RUN["ks_ratio"] * s.contact.k_ref_N_per_m
             c = dashpot_coefficient(ks, RUN["r"], m1, m2)
             ag = hist["ground_acc_m_s2"].to_numpy()
-            res = min((run_opensees(prep.model, ks, c, RUN["gap_m"], ag, DT) for _ in range(2)),
-                      key=lambda r: r["wall_s"])
-            row("OpenSeesPy 3.7 (ViscoelasticGap, Newton 1e-12, analysis only)", res["wall_s"],
-                agree(res["u"][:, 2], res["u"][:, 5], float(res["F"][:, 2].max())))
+            res = min(
+                (run_opensees(prep.model, ks, c, RUN["gap_m"], ag, DT) for _ in range(2)), key=lambda r: r["wall_s"]
+            )
+            row(
+                "OpenSeesPy 3.7 (ViscoelasticGap, Newton 1e-12, analysis only)",
+                res["wall_s"],
+                agree(res["u"][:, 2], res["u"][:, 5], float(res["F"][:, 2].max())),
+            )
         except ImportError as e:
             rows.append([f"OpenSeesPy: not installed ({e})", "", "", "", "", "", ""])
-    table(rows, ["method", "s per run", "ns per step", "steps/s", "x engine", "top floor rel RMS b1 / b2",
-                 "peak F13 rel diff"])
-    print(f"(engine: lane kernel, {ncores} threads, the run repeated {grid_copies} times; agreement against the "
-          f"scalar kernel's history of the run (the lane kernel keeps no histories) and the engine's peak "
-          f"F13 = {peak_engine:.6f} N)")
+    table(
+        rows,
+        ["method", "s per run", "ns per step", "steps/s", "x engine", "top floor rel RMS b1 / b2", "peak F13 rel diff"],
+    )
+    print(
+        f"(engine: lane kernel, {ncores} threads, the run repeated {grid_copies} times; agreement against the "
+        f"scalar kernel's history of the run (the lane kernel keeps no histories) and the engine's peak "
+        f"F13 = {peak_engine:.6f} N)"
+    )
     return engine
 
 
@@ -321,9 +365,15 @@ def peers(duration: float, grid_copies: int, with_opensees: bool) -> float:
 def uneven_scene(n_r: int, duration: float, scheme: str = "event"):
     # k_s/k from 0.01 (soft, long contacts) to 100 (stiff, many short ones) and gaps from 0 to
     # 20 mm (no contact at all): runs of very different cost in one grid
-    return scene(duration=duration, scheme=scheme, sweep=[("gap_m", (0.0, 0.002, 0.02)),
-                                                          ("ks_ratio", np.geomspace(0.01, 100, 6)),
-                                                          ("r", np.linspace(0.0, 1.0, n_r))])
+    return scene(
+        duration=duration,
+        scheme=scheme,
+        sweep=[
+            ("gap_m", (0.0, 0.002, 0.02)),
+            ("ks_ratio", np.geomspace(0.01, 100, 6)),
+            ("r", np.linspace(0.0, 1.0, n_r)),
+        ],
+    )
 
 
 def _pinned(fn, cpus: set[int]) -> float:
@@ -368,19 +418,45 @@ def threads_table(n_r: int, duration: float, rounds: int) -> None:
                 if max(ts) <= 1.05 * min(ts):
                     even.append(effs[-1])
             med = statistics.median
-            rows.append([scheme, f"{kern} kernel", f"{min(solo):.3f}", f"{min(alls):.3f}",
-                         fmt_rate(steps / min(alls)), f"{med(effs):.0%} ({min(effs):.0%}..{max(effs):.0%})",
-                         f"{med(even):.0%} ({len(even)} of {len(effs)})" if even else f"none of {len(effs)}",
-                         f"{med(busy):.0%}", f"{med(infl):.2f}", f"{int(imp.min())}..{int(imp.max())}"])
-    header(f"3. grid throughput and parallel efficiency: gaps 0/2/20 mm x k_s/k 0.01..100 (6, log) x r 0..1 ({n_r}); "
-           f"{prep.grid.size} runs of {duration:g} s; each round: 1 thread pinned to each core, then {nc} threads")
-    table(rows, ["scheme", "kernel", "1 core, best [s]", f"{nc} cores, best [s]", f"steps/s on {nc}",
-                 "efficiency per round: median (range)", "rounds with equally fast cores: median", "threads busy",
-                 "CPU time x 1 core", "impacts f3 per run"])
-    print(f"(efficiency of a round = t(fastest core alone) / ({nc} x t({nc} threads)); cores equally fast: their solo "
-          f"times within 5 %. Threads busy = CPU time of the {nc}-thread run / ({nc} x its wall time): the load balance. "
-          "CPU time x 1 core = that CPU time / the mean solo time: above 1, the same work cost more with every core "
-          "busy (caches and load/store units shared with each other and the host's other tenants); medians)")
+            rows.append(
+                [
+                    scheme,
+                    f"{kern} kernel",
+                    f"{min(solo):.3f}",
+                    f"{min(alls):.3f}",
+                    fmt_rate(steps / min(alls)),
+                    f"{med(effs):.0%} ({min(effs):.0%}..{max(effs):.0%})",
+                    f"{med(even):.0%} ({len(even)} of {len(effs)})" if even else f"none of {len(effs)}",
+                    f"{med(busy):.0%}",
+                    f"{med(infl):.2f}",
+                    f"{int(imp.min())}..{int(imp.max())}",
+                ]
+            )
+    header(
+        f"3. grid throughput and parallel efficiency: gaps 0/2/20 mm x k_s/k 0.01..100 (6, log) x r 0..1 ({n_r}); "
+        f"{prep.grid.size} runs of {duration:g} s; each round: 1 thread pinned to each core, then {nc} threads"
+    )
+    table(
+        rows,
+        [
+            "scheme",
+            "kernel",
+            "1 core, best [s]",
+            f"{nc} cores, best [s]",
+            f"steps/s on {nc}",
+            "efficiency per round: median (range)",
+            "rounds with equally fast cores: median",
+            "threads busy",
+            "CPU time x 1 core",
+            "impacts f3 per run",
+        ],
+    )
+    print(
+        f"(efficiency of a round = t(fastest core alone) / ({nc} x t({nc} threads)); cores equally fast: their solo "
+        f"times within 5 %. Threads busy = CPU time of the {nc}-thread run / ({nc} x its wall time): the load balance. "
+        "CPU time x 1 core = that CPU time / the mean solo time: above 1, the same work cost more with every core "
+        "busy (caches and load/store units shared with each other and the host's other tenants); medians)"
+    )
 
 
 # ----------------------------------------------------------------------------------------- 4. scaling
@@ -399,9 +475,11 @@ def _factor(n: int) -> tuple[int, int, int]:
 
 def grid_of(n: int, duration: float):
     a, b, c = _factor(n)
-    sweep = [("ks_ratio", np.geomspace(0.1, 10.0, a) if a > 1 else [1.0]),
-             ("r", np.linspace(0.0, 1.0, b) if b > 1 else [0.4]),
-             ("gap_m", np.linspace(0.0, 0.005, c) if c > 1 else [0.0])]
+    sweep = [
+        ("ks_ratio", np.geomspace(0.1, 10.0, a) if a > 1 else [1.0]),
+        ("r", np.linspace(0.0, 1.0, b) if b > 1 else [0.4]),
+        ("gap_m", np.linspace(0.0, 0.005, c) if c > 1 else [0.0]),
+    ]
     return scene(duration=duration, sweep=sweep)
 
 
@@ -412,16 +490,32 @@ def scaling(sizes: list[int], run_s: float, lengths: list[float], n_len: int) ->
         for n in sizes:
             s = grid_of(n, run_s)
             summ = run_scene(s, out_path=Path(d) / f"n{n}.parquet")
-            rows.append([f"{summ.runs:,} runs x {run_s:g} s", f"{summ.compile_s:.2f}", f"{summ.run_s:.3f}",
-                         fmt_rate(summ.steps / summ.run_s), f"{summ.run_s / summ.runs * 1e3:.3f}"])
+            rows.append(
+                [
+                    f"{summ.runs:,} runs x {run_s:g} s",
+                    f"{summ.compile_s:.2f}",
+                    f"{summ.run_s:.3f}",
+                    fmt_rate(summ.steps / summ.run_s),
+                    f"{summ.run_s / summ.runs * 1e3:.3f}",
+                ]
+            )
         for dur in lengths:
             s = grid_of(n_len, dur)
             summ = run_scene(s, out_path=Path(d) / f"l{dur}.parquet")
-            rows.append([f"{summ.runs:,} runs x {dur:g} s", f"{summ.compile_s:.2f}", f"{summ.run_s:.3f}",
-                         fmt_rate(summ.steps / summ.run_s), f"{summ.run_s / summ.runs * 1e3:.3f}"])
+            rows.append(
+                [
+                    f"{summ.runs:,} runs x {dur:g} s",
+                    f"{summ.compile_s:.2f}",
+                    f"{summ.run_s:.3f}",
+                    fmt_rate(summ.steps / summ.run_s),
+                    f"{summ.run_s / summ.runs * 1e3:.3f}",
+                ]
+            )
     table(rows, ["grid", "cache load [s]", "sweep wall [s]", "steps/s", "ms per run"])
-    print("(grids over k_s/k 0.1..10 x r 0..1 x gap 0..5 mm, 6 Hz table motion at 2 mm; sweep wall excludes the "
-          "cache load, includes writing the Parquet)")
+    print(
+        "(grids over k_s/k 0.1..10 x r 0..1 x gap 0..5 mm, 6 Hz table motion at 2 mm; sweep wall excludes the "
+        "cache load, includes writing the Parquet)"
+    )
 
 
 # ----------------------------------------------------------------------------------------- 5. memory
@@ -454,8 +548,9 @@ def memory(sizes: list[int], dur: float) -> None:
         for n in sizes:
             out = Path(d) / f"m{n}"
             seen = []
-            p = subprocess.Popen([sys.executable, "-c", code, str(n), str(dur), str(out)], stdout=subprocess.PIPE,
-                                 text=True)
+            p = subprocess.Popen(
+                [sys.executable, "-c", code, str(n), str(dur), str(out)], stdout=subprocess.PIPE, text=True
+            )
 
             def watch():
                 while p.poll() is None:
@@ -471,19 +566,33 @@ def memory(sizes: list[int], dur: float) -> None:
             nrows = sum(pq.read_metadata(f).num_rows for f in parts)
             size = sum(f.stat().st_size for f in parts)
             grew = sorted(set(seen))
-            rows.append([f"{n:,}", f"{r['maxrss_kb'] / 1024:.0f}", f"{r['run_s']:.1f}", fmt_rate(r["steps"] / r["run_s"]),
-                         f"{size / 2**20:.0f}", f"{len(parts)}", f"{nrows:,}",
-                         f"yes: {len(grew)} part counts seen, {grew[0]}..{grew[-1]}" if len(grew) > 2
-                         else ("too short to watch" if r["wall"] < 2.0 else "no")])
-    table(rows, ["runs", "peak RSS [MiB]", "sweep wall [s]", "steps/s", "Parquet [MiB]", "parts", "rows",
-                 "written as it went"])
+            rows.append(
+                [
+                    f"{n:,}",
+                    f"{r['maxrss_kb'] / 1024:.0f}",
+                    f"{r['run_s']:.1f}",
+                    fmt_rate(r["steps"] / r["run_s"]),
+                    f"{size / 2**20:.0f}",
+                    f"{len(parts)}",
+                    f"{nrows:,}",
+                    f"yes: {len(grew)} part counts seen, {grew[0]}..{grew[-1]}"
+                    if len(grew) > 2
+                    else ("too short to watch" if r["wall"] < 2.0 else "no"),
+                ]
+            )
+    table(
+        rows,
+        ["runs", "peak RSS [MiB]", "sweep wall [s]", "steps/s", "Parquet [MiB]", "parts", "rows", "written as it went"],
+    )
 
 
 # ----------------------------------------------------------------------------------------- 6. CLI
 
 
-NUMBA_FLOOR = ("import numba\nfrom numba.core.registry import cpu_target\n"
-               "cpu_target.target_context.refresh(); cpu_target.typing_context.refresh()")
+NUMBA_FLOOR = (
+    "import numba\nfrom numba.core.registry import cpu_target\n"
+    "cpu_target.target_context.refresh(); cpu_target.typing_context.refresh()"
+)
 
 
 def cli_duzce(repeats: int) -> None:
@@ -498,17 +607,36 @@ def cli_duzce(repeats: int) -> None:
             t0 = time.perf_counter()
             subprocess.run([sys.executable, "-c", "import pounding_sweep.cli.run"], check=True)
             imp.append(time.perf_counter() - t0)
-        rows.append(["python -c 'import pounding_sweep.cli.run'", f"{min(imp):.2f}", f"{statistics.median(imp):.2f}",
-                     "", "", ""])
+        rows.append(
+            [
+                "python -c 'import pounding_sweep.cli.run'",
+                f"{min(imp):.2f}",
+                f"{statistics.median(imp):.2f}",
+                "",
+                "",
+                "",
+            ]
+        )
         floor = []
         for _ in range(repeats):
             t0 = time.perf_counter()
             subprocess.run([sys.executable, "-c", NUMBA_FLOOR], check=True)
             floor.append(time.perf_counter() - t0)
-        rows.append(["Numba's own start-up: import numba, first-call registry refresh", f"{min(floor):.2f}",
-                     f"{statistics.median(floor):.2f}", "", "", ""])
-        for label, path in (("shipped scene (its scheme: " + load_scene(SCENE_DUZCE).integration.scheme
-                             + ")", SCENE_DUZCE), ("same scene, scheme = implicit (lane kernel)", implicit)):
+        rows.append(
+            [
+                "Numba's own start-up: import numba, first-call registry refresh",
+                f"{min(floor):.2f}",
+                f"{statistics.median(floor):.2f}",
+                "",
+                "",
+                "",
+            ]
+        )
+        for label, path in (
+            ("shipped scene (its scheme: " + load_scene(SCENE_DUZCE).integration.scheme + ")", SCENE_DUZCE),
+            ("same scene, scheme = implicit (lane kernel)", implicit),
+        ):
+
             def cmd(k):  # a new output folder each time: a finished one would be resumed (nothing to run)
                 return [sys.executable, "-m", "pounding_sweep", str(path), "--out", str(Path(d) / f"{path.stem}{k}")]
 
@@ -520,9 +648,16 @@ def cli_duzce(repeats: int) -> None:
                 walls.append(time.perf_counter() - t0)
                 last = p.stdout
             info = {k.strip(): v.strip() for k, v in (ln.split("  ", 1) for ln in last.splitlines() if "  " in ln)}
-            rows.append([label, f"{min(walls):.2f}", f"{statistics.median(walls):.2f}",
-                         info.get("compile (or cache load)", "?"), info.get("run", "?").split(" wall")[0],
-                         info.get("runs", "?")])
+            rows.append(
+                [
+                    label,
+                    f"{min(walls):.2f}",
+                    f"{statistics.median(walls):.2f}",
+                    info.get("compile (or cache load)", "?"),
+                    info.get("run", "?").split(" wall")[0],
+                    info.get("runs", "?"),
+                ]
+            )
     table(rows, ["command", "best [s]", "median [s]", "cache load", "sweep", "runs"])
 
 
@@ -542,11 +677,18 @@ def fma_ops_quiet(n1: int, n2: int) -> int:
 def profile(peak: float) -> None:
     header("7. profile: where the lane kernel's time goes (1 thread, CPU time; work counters of the kernel)")
     rows = []
-    for label, base, gaps in (("no contact (gap 50 mm)", SCENE_6HZ, (0.05,)), ("6 Hz at gap 0: every pair pounds", SCENE_6HZ, (0.0,)),
-                              ("Duzce record at gap 0", SCENE_DUZCE, (0.0,))):
+    for label, base, gaps in (
+        ("no contact (gap 50 mm)", SCENE_6HZ, (0.05,)),
+        ("6 Hz at gap 0: every pair pounds", SCENE_6HZ, (0.0,)),
+        ("Duzce record at gap 0", SCENE_DUZCE, (0.0,)),
+    ):
         for scheme in ("event", "implicit"):
-            s = scene(base=base, duration=2.0 if base == SCENE_6HZ else None, scheme=scheme,
-                      sweep=[("gap_m", gaps), ("ks_ratio", np.geomspace(0.1, 10, 4)), ("r", np.linspace(0.2, 1, 4))])
+            s = scene(
+                base=base,
+                duration=2.0 if base == SCENE_6HZ else None,
+                scheme=scheme,
+                sweep=[("gap_m", gaps), ("ks_ratio", np.geomspace(0.1, 10, 4)), ("r", np.linspace(0.2, 1, 4))],
+            )
             prep = prepare(s)
             runs, rec = run_inputs(prep, points=prep.grid.size)
             driver.run_chunk_lanes(prep.sysarr, runs, rec, prep.opts, 1)
@@ -559,22 +701,46 @@ def profile(peak: float) -> None:
                 if t < best:
                     best, stats = t, counters
             steps = float(m[:, L.metric_columns(prep.model.floors, prep.model.n_pairs).index("steps")].sum())
-            fix_n, fix_ns, calls, vsteps = (int(stats[k]) for k in (kernel_lanes.ST_FIXUPS, kernel_lanes.ST_FIX_NS,
-                                                                     kernel_lanes.ST_CALLS, kernel_lanes.ST_VSTEPS))
+            fix_n, fix_ns, calls, vsteps = (
+                int(stats[k])
+                for k in (kernel_lanes.ST_FIXUPS, kernel_lanes.ST_FIX_NS, kernel_lanes.ST_CALLS, kernel_lanes.ST_VSTEPS)
+            )
             vec = best - fix_ns * 1e-9
-            rows.append([label, scheme, f"{best / steps * 1e9:.1f}", f"{vec / steps * 1e9:.1f}",
-                         f"{fix_n / runs.n:,.0f}", f"{fix_ns / max(fix_n, 1) / 1e3:.2f}",
-                         f"{fix_ns * 1e-9 / best:.0%}", f"{vsteps / max(calls, 1):,.0f}"])
-    table(rows, ["grid (16 runs)", "scheme", "ns/step", "of which vector ns/step", "scalar steps per run",
-                 "us per scalar step", "share scalar", "steps per vector call"])
+            rows.append(
+                [
+                    label,
+                    scheme,
+                    f"{best / steps * 1e9:.1f}",
+                    f"{vec / steps * 1e9:.1f}",
+                    f"{fix_n / runs.n:,.0f}",
+                    f"{fix_ns / max(fix_n, 1) / 1e3:.2f}",
+                    f"{fix_ns * 1e-9 / best:.0%}",
+                    f"{vsteps / max(calls, 1):,.0f}",
+                ]
+            )
+    table(
+        rows,
+        [
+            "grid (16 runs)",
+            "scheme",
+            "ns/step",
+            "of which vector ns/step",
+            "scalar steps per run",
+            "us per scalar step",
+            "share scalar",
+            "steps per vector call",
+        ],
+    )
     n1, n2 = prepare(load_scene(SCENE_6HZ)).model.floors
     ops = fma_ops_quiet(n1, n2)
     roof = ops / peak * 1e9
-    print(f"roofline of the step without contact: {ops} multiply-class operations per lane and step at the measured "
-          f"{peak / 1e9:.1f} G per second and core = {roof:.1f} ns per step and core, {1e3 / roof:.0f} M steps/s "
-          f"per core. The rest of the vector step is loads, stores, compares and blends: on AMD Zen 1 every AVX2 "
-          f"instruction is two 128-bit operations and loads and stores share two address units, which bound it "
-          f"before the FMA pipes do.")
+    print(
+        f"roofline of the step without contact: {ops} multiply-class operations per lane and step at the measured "
+        f"{peak / 1e9:.1f} G per second and core = {roof:.1f} ns per step and core, {1e3 / roof:.0f} M steps/s "
+        f"per core. The rest of the vector step is loads, stores, compares and blends: on AMD Zen 1 every AVX2 "
+        f"instruction is two 128-bit operations and loads and stores share two address units, which bound it "
+        f"before the FMA pipes do."
+    )
 
 
 # ----------------------------------------------------------------------------------------- main
@@ -597,8 +763,12 @@ def main() -> None:
     if "3" in secs:
         threads_table(n_r=4 if q else 20, duration=0.5 if q else 2.0, rounds=2 if q else 8)
     if "4" in secs:
-        scaling(sizes=[1, 10, 100, 1000] if q else [1, 10, 100, 1000, 10_000, 100_000], run_s=0.2 if q else 1.0,
-                lengths=[0.5, 2.0] if q else [0.5, 2.0, 8.0, 32.0], n_len=100 if q else 1000)
+        scaling(
+            sizes=[1, 10, 100, 1000] if q else [1, 10, 100, 1000, 10_000, 100_000],
+            run_s=0.2 if q else 1.0,
+            lengths=[0.5, 2.0] if q else [0.5, 2.0, 8.0, 32.0],
+            n_len=100 if q else 1000,
+        )
     if "5" in secs:
         memory(sizes=[10_000, 100_000] if q else [100_000, 1_000_000], dur=0.01 if q else 0.05)
     if "6" in secs:

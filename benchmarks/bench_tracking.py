@@ -28,6 +28,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 
 from pounding_sweep.scene import load_scene  # noqa: E402
+from pounding_sweep.scene.video import VideoSpec  # noqa: E402
 from pounding_sweep.sweep.simulate import simulate  # noqa: E402
 from pounding_sweep.video.io import VideoError, VideoReader  # noqa: E402
 from pounding_sweep.video.render import (  # noqa: E402
@@ -38,7 +39,6 @@ from pounding_sweep.video.render import (  # noqa: E402
     render_video,
     shake_table_layout,
 )
-from pounding_sweep.scene.video import VideoSpec  # noqa: E402
 from pounding_sweep.video.tracker import QUALITY, track_frames, track_video  # noqa: E402
 
 
@@ -58,8 +58,13 @@ def sway(layout, top_mm=6.0):
 
 def spec_for(rv, **kw):
     lay = rv.layout
-    args = dict(path=str(rv.path), markers=lay.names, references=lay.references,
-                positions_px=tuple(map(tuple, rv.truth_px[0])), mm_per_px=lay.mm_per_px)
+    args = dict(
+        path=str(rv.path),
+        markers=lay.names,
+        references=lay.references,
+        positions_px=tuple(map(tuple, rv.truth_px[0])),
+        mm_per_px=lay.mm_per_px,
+    )
     return VideoSpec(**{**args, **kw})
 
 
@@ -70,40 +75,87 @@ def score(res, rv):
     ex = res.x_px - rv.truth_px[:, :, 0]
     ey = res.y_px - rv.truth_px[:, :, 1]
     e2 = ex**2 + ey**2
-    d = np.array([res.displacement_mm[:, j] - rv.truth_rel_mm[n] for j, n in enumerate(res.floor_markers)
-                  if n in rv.truth_rel_mm])
+    d = np.array(
+        [
+            res.displacement_mm[:, j] - rv.truth_rel_mm[n]
+            for j, n in enumerate(res.floor_markers)
+            if n in rv.truth_rel_mm
+        ]
+    )
     flagged = int((res.quality > 0).any(axis=1).sum())
     interp = int(((res.quality & QUALITY["interpolated"]) > 0).any(axis=1).sum())
-    return (float(np.sqrt(np.mean(e2))), float(np.sqrt(np.mean(ex**2))), float(np.sqrt(np.mean(e2[res.measured]))),
-            float(np.sqrt(np.mean(d**2))), flagged, interp)
+    return (
+        float(np.sqrt(np.mean(e2))),
+        float(np.sqrt(np.mean(ex**2))),
+        float(np.sqrt(np.mean(e2[res.measured]))),
+        float(np.sqrt(np.mean(d**2))),
+        flagged,
+        interp,
+    )
 
 
 def cases(n):
     lay = shake_table_layout()
     big = shake_table_layout(size=(640, 480), mm_per_px=2.5)
     on = np.zeros(n, bool)
-    on[n // 4: n // 2] = True
+    on[n // 4 : n // 2] = True
     yield "clean", lay, sway(lay), RenderOptions(), {}
     yield "noise 3 grey", lay, sway(lay), RenderOptions(noise=3.0, seed=1), {}
-    yield "blur (exposure 1 frame, streaks to 3.3 px)", lay, sway(lay, 60.0), RenderOptions(exposure=1.0, noise=1.0, seed=2), {}
+    yield (
+        "blur (exposure 1 frame, streaks to 3.3 px)",
+        lay,
+        sway(lay, 60.0),
+        RenderOptions(exposure=1.0, noise=1.0, seed=2),
+        {},
+    )
     yield "MJPG", lay, sway(lay), RenderOptions(codec="MJPG", noise=1.0, seed=3), {}
     yield "mp4v", lay, sway(lay), RenderOptions(codec="mp4v", noise=1.0, seed=4), {}
     yield "unsaturated (peak 150)", lay, sway(lay), RenderOptions(peak=150.0, noise=1.0, seed=5), {}
-    yield "roll 0.3 deg + shake (640x480, 2.5 mm/px)", big, sway(big), RenderOptions(roll_deg=0.3, shake_px=0.5, sigma_px=2.0, seed=6), {}
-    yield "  same, one reference (no roll removal)", big, sway(big), RenderOptions(roll_deg=0.3, shake_px=0.5, sigma_px=2.0, seed=6), \
-        {"references": ("table_left",)}
-    yield "reflections (2 markers, 1/4 of frames)", lay, sway(lay), RenderOptions(noise=2.0, seed=7, reflections=(
-        Reflection("b1f3", (0.0, 8.0), 0.4, on), Reflection("b2f2", (5.0, 5.0), 0.5, on))), {}
+    yield (
+        "roll 0.3 deg + shake (640x480, 2.5 mm/px)",
+        big,
+        sway(big),
+        RenderOptions(roll_deg=0.3, shake_px=0.5, sigma_px=2.0, seed=6),
+        {},
+    )
+    yield (
+        "  same, one reference (no roll removal)",
+        big,
+        sway(big),
+        RenderOptions(roll_deg=0.3, shake_px=0.5, sigma_px=2.0, seed=6),
+        {"references": ("table_left",)},
+    )
+    yield (
+        "reflections (2 markers, 1/4 of frames)",
+        lay,
+        sway(lay),
+        RenderOptions(
+            noise=2.0,
+            seed=7,
+            reflections=(Reflection("b1f3", (0.0, 8.0), 0.4, on), Reflection("b2f2", (5.0, 5.0), 0.5, on)),
+        ),
+        {},
+    )
     scene = load_scene(REPO / "sweeps" / "paper_6hz.toml")
-    hist, _ = simulate(scene, channels=[f"disp_b{b}f{f}" for b in (1, 2) for f in (1, 2, 3)], ks_ratio=5.0, r=0.4, gap_m=0.01)
+    hist, _ = simulate(
+        scene, channels=[f"disp_b{b}f{f}" for b in (1, 2) for f in (1, 2, 3)], ks_ratio=5.0, r=0.4, gap_m=0.01
+    )
     tl = shake_table_layout(gap_mm=10.0, marker_inset_mm=12.0)
-    yield "touching (model, 10 mm gap)", tl, motion_from_history(hist, harmonic_table(2.0, 6.0)), RenderOptions(noise=1.0, seed=8), {}
+    yield (
+        "touching (model, 10 mm gap)",
+        tl,
+        motion_from_history(hist, harmonic_table(2.0, 6.0)),
+        RenderOptions(noise=1.0, seed=8),
+        {},
+    )
 
 
 def accuracy(tmp: Path, n: int) -> None:
     print(f"accuracy on rendered videos ({n} frames at 100 fps, 8 markers; truth: exposure-averaged position)")
-    head = (f"{'case':44s} {'method':9s} {'RMS px':>8s} {'RMS x px':>9s} {'measured':>9s} {'RMS mm':>8s} "
-            f"{'flagged':>8s} {'interp':>7s}")
+    head = (
+        f"{'case':44s} {'method':9s} {'RMS px':>8s} {'RMS x px':>9s} {'measured':>9s} {'RMS mm':>8s} "
+        f"{'flagged':>8s} {'interp':>7s}"
+    )
     print(head)
     print("-" * len(head))
     for k, (name, lay, motion, opts, extra) in enumerate(cases(n)):
@@ -118,9 +170,11 @@ def accuracy(tmp: Path, n: int) -> None:
                 px2, pxx, pxm, mm, fl, it = score(res, rv)
                 print(f"{name:44s} {method:9s} {px2:8.4f} {pxx:9.4f} {pxm:9.4f} {mm:8.4f} {fl:8d} {it:7d}")
             name = ""
-    print("RMS px: image position of every marker in every frame (interpolated ones too); measured: only the\n"
-          "positions measured in their frame; RMS mm: floors' displacement relative to the table; flagged /\n"
-          "interp: frames with any quality flag / any interpolated marker.")
+    print(
+        "RMS px: image position of every marker in every frame (interpolated ones too); measured: only the\n"
+        "positions measured in their frame; RMS mm: floors' displacement relative to the table; flagged /\n"
+        "interp: frames with any quality flag / any interpolated marker."
+    )
 
 
 def speed(tmp: Path, n: int) -> None:

@@ -35,9 +35,11 @@ def _uneven(scheme: str, law: str) -> str:
     text = (SWEEPS / "paper_6hz.toml").read_text()
     text = text.replace("duration_s = 5.0", "duration_s = 1.0")
     head, _, _ = text.partition("[sweep]")
-    return (head.replace('law = "classic"', f'law = "{law}"').replace('scheme = "event"', f'scheme = "{scheme}"')
-            + f"\n[sweep]\ngap_m = {_grid((0.0, 0.002, 0.02))}\nks_ratio = {_grid(np.geomspace(0.01, 100, 6))}\n"
-            f"r = {_grid(np.linspace(0.0, 1.0, 5))}\n")
+    return (
+        head.replace('law = "classic"', f'law = "{law}"').replace('scheme = "event"', f'scheme = "{scheme}"')
+        + f"\n[sweep]\ngap_m = {_grid((0.0, 0.002, 0.02))}\nks_ratio = {_grid(np.geomspace(0.01, 100, 6))}\n"
+        f"r = {_grid(np.linspace(0.0, 1.0, 5))}\n"
+    )
 
 
 def scenes(out: Path) -> dict[str, Path]:
@@ -53,12 +55,15 @@ def scenes(out: Path) -> dict[str, Path]:
         for law in ("classic", "no_tension"):
             files[f"uneven_{scheme}_{law}"] = _uneven(scheme, law)
     six = (SWEEPS / "paper_6hz.toml").read_text().replace("duration_s = 5.0", "duration_s = 1.0")
-    files["histories_6hz"] = six.replace("[output]", '[output]\nhistories = ["disp_b1f3", "vel_b2f2", "abs_acc_b2f3", '
-                                                       '"force_f3", "ground_acc"]\nhistory_decimate = 7')
+    files["histories_6hz"] = six.replace(
+        "[output]",
+        '[output]\nhistories = ["disp_b1f3", "vel_b2f2", "abs_acc_b2f3", '
+        '"force_f3", "ground_acc"]\nhistory_decimate = 7',
+    )
     duzce = (SWEEPS / "paper_duzce.toml").read_text().replace('"records/', f'"{SWEEPS}/records/')
     head, _, _ = duzce.partition("[sweep]")
     files["record_scale"] = head + "\n[sweep]\nscale = [0.5, 1.0]\nks_ratio = [1.0, 10.0]\nr = [0.2, 0.8]\n"
-    auto = six.replace('dt_s = 1e-4', 'dt_s = "auto"')
+    auto = six.replace("dt_s = 1e-4", 'dt_s = "auto"')
     assert auto != six, "paper_6hz.toml no longer sets dt_s = 1e-4"
     files["auto_dt"] = auto
     paths = {}
@@ -117,7 +122,10 @@ def compare(a: Path, b: Path) -> int:
                 same = (u == v) | (pd.isna(u) & pd.isna(v))
             if not np.all(same):
                 diff.append(f"{c} ({int((~same).sum())} rows)")
-        print(f"{name}: {len(x)} rows x {len(x.columns)} columns " + ("identical" if not diff else "DIFFER: " + ", ".join(diff)))
+        print(
+            f"{name}: {len(x)} rows x {len(x.columns)} columns "
+            + ("identical" if not diff else "DIFFER: " + ", ".join(diff))
+        )
         bad += bool(diff)
     print(f"{len(set(ta) | set(tb))} tables, {bad} differing")
     return 1 if bad else 0

@@ -39,13 +39,13 @@ def short(name: str) -> str:
     at = name.find("14pounding_sweep")
     if at < 0:
         return name[:60]
-    rest = name[at + len("14pounding_sweep"):]
+    rest = name[at + len("14pounding_sweep") :]
     parts = []
     while rest and rest[0].isdigit() and len(parts) < 2:
         n = int(re.match(r"\d+", rest).group(0))
         k = len(str(n))
-        parts.append(rest[k:k + n])
-        rest = rest[k + n:]
+        parts.append(rest[k : k + n])
+        rest = rest[k + n :]
     return ".".join(parts)
 
 
@@ -68,7 +68,7 @@ def compiled_functions(dispatcher) -> list[tuple[int, str]]:
 
 def instruction_class(text: str) -> str:
     op = text.split()[0]
-    ops = text[len(op):].strip()
+    ops = text[len(op) :].strip()
     mem = "(" in ops
     if op.startswith(("vmov", "vbroadcast", "mov")):
         return "store" if "(" in ops.split(",")[-1] else ("load" if mem else "register move")
@@ -76,8 +76,9 @@ def instruction_class(text: str) -> str:
         return "multiply / FMA" + (" with a load" if mem else "")
     if op.startswith(("vadd", "vsub")):
         return "add / subtract" + (" with a load" if mem else "")
-    if op.startswith(("vcmp", "vblend", "vand", "vor", "vxor", "vpack", "vptest", "vmovmsk", "vperm", "vextract",
-                      "vinsert")):
+    if op.startswith(
+        ("vcmp", "vblend", "vand", "vor", "vxor", "vpack", "vptest", "vmovmsk", "vperm", "vextract", "vinsert")
+    ):
         return "compare / blend / mask" + (" with a load" if mem else "")
     return "scalar, branch, other"
 
@@ -109,14 +110,18 @@ def _profile(a, perf: str, tmp: Path, pmap: Path) -> None:
     """Compile, map, sample and print (main's work; main cleans up)."""
     sys.path.insert(0, str(REPO / "benchmarks"))
     sys.argv = sys.argv[:1]
+    import bench_throughput as B
     import numpy as np
 
-    import bench_throughput as B
     from pounding_sweep.engine import driver
     from pounding_sweep.engine import lanes as kernel_lanes
 
-    s = B.scene(base=B.SCENE_6HZ, duration=2.0, scheme=a.scheme,
-                sweep=[("gap_m", (a.gap,)), ("ks_ratio", np.geomspace(0.1, 10, 4)), ("r", np.linspace(0.2, 1, 4))])
+    s = B.scene(
+        base=B.SCENE_6HZ,
+        duration=2.0,
+        scheme=a.scheme,
+        sweep=[("gap_m", (a.gap,)), ("ks_ratio", np.geomspace(0.1, 10, 4)), ("r", np.linspace(0.2, 1, 4))],
+    )
     prep = B.prepare(s)
     runs, rec = B.run_inputs(prep, points=prep.grid.size)
     t0 = time.perf_counter()
@@ -129,8 +134,11 @@ def _profile(a, perf: str, tmp: Path, pmap: Path) -> None:
             fh.write(f"{addr:x} {end - addr:x} {short(name)}\n")
 
     data = tmp / "perf.data"
-    rec_p = subprocess.Popen([perf, "record", "-q", "-p", str(os.getpid()), "-o", str(data)],
-                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    rec_p = subprocess.Popen(
+        [perf, "record", "-q", "-p", str(os.getpid()), "-o", str(data)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+    )
     time.sleep(0.5)
     t0 = time.perf_counter()
     calls = 0
@@ -141,11 +149,16 @@ def _profile(a, perf: str, tmp: Path, pmap: Path) -> None:
     rec_p.send_signal(signal.SIGINT)
     rec_p.wait(timeout=60)
     steps = calls * runs.n * int(runs.nsteps.max())
-    print(f"{calls} calls of the 16-run grid (gap {a.gap} m, {a.scheme} scheme), {wall:.1f} s: "
-          f"{wall / steps * 1e9:.1f} ns per step and run on one thread, perf attached")
+    print(
+        f"{calls} calls of the 16-run grid (gap {a.gap} m, {a.scheme} scheme), {wall:.1f} s: "
+        f"{wall / steps * 1e9:.1f} ns per step and run on one thread, perf attached"
+    )
 
-    rep = subprocess.run([perf, "report", "-i", str(data), "--stdio", "--sort", "symbol", "--percent-limit", "0.5"],
-                         capture_output=True, text=True).stdout
+    rep = subprocess.run(
+        [perf, "report", "-i", str(data), "--stdio", "--sort", "symbol", "--percent-limit", "0.5"],
+        capture_output=True,
+        text=True,
+    ).stdout
     shares = {m.group(2): float(m.group(1)) for m in re.finditer(r"([\d.]+)%\s+\[.\]\s+(\S+)", rep)}
     print("\nshare of samples   function")
     for fn, share in shares.items():
@@ -163,8 +176,11 @@ def _profile(a, perf: str, tmp: Path, pmap: Path) -> None:
     end = syms[k + 1][0] if k + 1 < len(syms) else addr + 65536
     binf = tmp / "hot.bin"
     binf.write_bytes(ctypes.string_at(addr, end - addr))
-    asm = subprocess.run([objdump, "-D", "-b", "binary", "-mi386:x86-64", f"--adjust-vma={addr:#x}", str(binf)],
-                         capture_output=True, text=True).stdout
+    asm = subprocess.run(
+        [objdump, "-D", "-b", "binary", "-mi386:x86-64", f"--adjust-vma={addr:#x}", str(binf)],
+        capture_output=True,
+        text=True,
+    ).stdout
     ips = collections.Counter()
     script = subprocess.run([perf, "script", "-i", str(data), "-F", "ip,sym"], capture_output=True, text=True).stdout
     for line in script.splitlines():
@@ -180,13 +196,13 @@ def _profile(a, perf: str, tmp: Path, pmap: Path) -> None:
             by_class[c] += ips.get(int(m.group(1), 16), 0)
             static[c] += 1
     frame = re.search(r"sub\s+\$0x([0-9a-f]+),%rsp", asm)
-    print(f"\ninstruction mix of {hot_name} ({total} samples; stack frame "
-          f"{int(frame.group(1), 16) if frame else 0:,} bytes)")
+    print(
+        f"\ninstruction mix of {hot_name} ({total} samples; stack frame "
+        f"{int(frame.group(1), 16) if frame else 0:,} bytes)"
+    )
     print("share of samples   class   (instructions of that class in the code)")
     for c, n in by_class.most_common():
         print(f"{n / max(total, 1):>16.1%}   {c}   ({static[c]})")
-
-
 
 
 if __name__ == "__main__":

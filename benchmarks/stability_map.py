@@ -49,9 +49,14 @@ import pandas as pd
 
 REPO = Path(__file__).resolve().parents[1]
 
+from pounding_sweep.accuracy import (
+    MADE_TOL,
+    classify,
+    divergence_by_steps,
+    paper_boundary,  # noqa: E402,F401
+    threshold_in_steps,
+)
 from pounding_sweep.scene import Axis, load_scene  # noqa: E402
-from pounding_sweep.accuracy import (ENERGY_TERMS, MADE_TOL, classify, divergence_by_steps, paper_boundary,  # noqa: E402,F401
-                                     threshold_in_steps)
 from pounding_sweep.sweep.run import run_scene  # noqa: E402
 
 SCENES = {
@@ -64,26 +69,53 @@ R = (0.0, 1e-3, 0.2, 0.6, 1.0)
 DTS = (1e-5, 1e-4, 1e-3, 5e-3)
 LAWS = ("classic", "no_tension")
 SCHEMES = ("event", "implicit", "paper")
-QUICK = dict(scenes=("paper_6hz",), ks=(1e-2, 1.0, 1e4), r=(0.0, 1.0), amps={"paper_6hz": (0.01,)},
-             dts=(1e-4, 5e-3), duration={"paper_6hz": 0.2})
+QUICK = dict(
+    scenes=("paper_6hz",),
+    ks=(1e-2, 1.0, 1e4),
+    r=(0.0, 1.0),
+    amps={"paper_6hz": (0.01,)},
+    dts=(1e-4, 5e-3),
+    duration={"paper_6hz": 0.2},
+)
 
 
-def grid_scene(name: str, ks=KS, r=R, amps=None, duration: float | None = None, dt: float = 1e-4,
-               scheme: str = "event", law: str = "classic"):
+def grid_scene(
+    name: str,
+    ks=KS,
+    r=R,
+    amps=None,
+    duration: float | None = None,
+    dt: float = 1e-4,
+    scheme: str = "event",
+    law: str = "classic",
+):
     """The shipped scene with the map's sweep axes, one dt, scheme and law (threads from run_scene)."""
     path, amp_axis, amp_values, dur = SCENES[name]
     s = load_scene(path)
     s = dataclasses.replace(
-        s, experiment=None,
+        s,
+        experiment=None,
         sweep=(Axis("ks_ratio", tuple(ks)), Axis("r", tuple(r)), Axis(amp_axis, tuple(amps or amp_values))),
         excitation=dataclasses.replace(s.excitation, duration_s=float(duration or dur)),
         contact=dataclasses.replace(s.contact, law=law),
-        integration=dataclasses.replace(s.integration, dt_s=float(dt), scheme=scheme))
+        integration=dataclasses.replace(s.integration, dt_s=float(dt), scheme=scheme),
+    )
     return s
 
 
-def run_map(scenes=tuple(SCENES), ks=KS, r=R, dts=DTS, laws=LAWS, schemes=SCHEMES, amps=None, duration=None,
-            threads: int = 2, kernel: str = "scalar", log=print) -> pd.DataFrame:
+def run_map(
+    scenes=tuple(SCENES),
+    ks=KS,
+    r=R,
+    dts=DTS,
+    laws=LAWS,
+    schemes=SCHEMES,
+    amps=None,
+    duration=None,
+    threads: int = 2,
+    kernel: str = "scalar",
+    log=print,
+) -> pd.DataFrame:
     """Every (scene, law, scheme, dt) grid through run_scene; one row per run, with the map's columns."""
     frames = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -91,8 +123,7 @@ def run_map(scenes=tuple(SCENES), ks=KS, r=R, dts=DTS, laws=LAWS, schemes=SCHEME
             for law in laws:
                 for scheme in schemes:
                     for dt in dts:
-                        s = grid_scene(name, ks, r, (amps or {}).get(name), (duration or {}).get(name), dt, scheme,
-                                       law)
+                        s = grid_scene(name, ks, r, (amps or {}).get(name), (duration or {}).get(name), dt, scheme, law)
                         t0 = time.perf_counter()
                         out = Path(tmp) / f"{name}_{law}_{scheme}_{dt:g}.parquet"
                         summary = run_scene(s, out_path=out, threads=threads, overwrite=True, kernel=kernel)
@@ -105,26 +136,32 @@ def run_map(scenes=tuple(SCENES), ks=KS, r=R, dts=DTS, laws=LAWS, schemes=SCHEME
                         df["amplitude"] = df[SCENES[name][1]]
                         frames.append(df)
                         d = classify(df)
-                        log(f"  {name:11s} {law:10s} {scheme:8s} dt {dt:6.0e} s: {len(df):3d} runs, diverged "
+                        log(
+                            f"  {name:11s} {law:10s} {scheme:8s} dt {dt:6.0e} s: {len(df):3d} runs, diverged "
                             f"{int(d.diverged.sum()):3d}, energy made {int(d.energy_made.sum()):3d}, flagged "
                             f"{int(d.energy_flag.sum()):3d}, max |gap| {np.nanmax(np.abs(d.balance_gap)):.1e} "
-                            f"({time.perf_counter() - t0:.1f} s)")
+                            f"({time.perf_counter() - t0:.1f} s)"
+                        )
     cols = None
     for f in frames:  # the amplitude axis differs between scenes: keep the union of columns
         cols = list(f.columns) if cols is None else cols + [c for c in f.columns if c not in cols]
     return classify(pd.concat(frames, ignore_index=True)[cols])
 
 
-
-
 def summary(df: pd.DataFrame, by=("scheme", "law", "dt_s")) -> pd.DataFrame:
     """Counts per group: runs, diverged, nonfinite, energy made / flagged, unsettled, under-resolved, and the
     largest |balance gap| over the runs that did not diverge."""
     g = df.groupby(list(by), sort=False)
-    out = g.agg(runs=("status", "size"), diverged=("diverged", "sum"), blown_up=("blown_up", "sum"),
-                nonfinite=("nonfinite", "sum"),
-                energy_made=("energy_made", "sum"), energy_flag=("energy_flag", "sum"),
-                unsettled=("unsettled", "sum"), underresolved=("underresolved", "sum"))
+    out = g.agg(
+        runs=("status", "size"),
+        diverged=("diverged", "sum"),
+        blown_up=("blown_up", "sum"),
+        nonfinite=("nonfinite", "sum"),
+        energy_made=("energy_made", "sum"),
+        energy_flag=("energy_flag", "sum"),
+        unsettled=("unsettled", "sum"),
+        underresolved=("underresolved", "sum"),
+    )
     fin = df[~df.diverged].assign(abs_gap=lambda d: d.balance_gap.abs())
     out["max_abs_gap"] = fin.groupby(list(by), sort=False).abs_gap.max()
     out["min_gap"] = fin.groupby(list(by), sort=False).balance_gap.min()
@@ -137,15 +174,11 @@ def ks_dt_table(df: pd.DataFrame, scheme: str, what: str = "diverged") -> pd.Dat
     return d.pivot_table(index="ks_ratio", columns="dt_s", values=what, aggfunc="sum").astype(int)
 
 
-
-
-
-
-
-
 def format_counts(t: pd.DataFrame) -> str:
     head = "k_s/k \\ dt " + " ".join(f"{c:>8g}" for c in t.columns)
-    return "\n".join([head] + [f"{i:>11g} " + " ".join(f"{v:>8d}" for v in row) for i, row in zip(t.index, t.to_numpy())])
+    return "\n".join(
+        [head] + [f"{i:>11g} " + " ".join(f"{v:>8d}" for v in row) for i, row in zip(t.index, t.to_numpy())]
+    )
 
 
 def map_figure(df: pd.DataFrame, title: str = ""):
@@ -158,8 +191,12 @@ def map_figure(df: pd.DataFrame, title: str = ""):
     schemes = [s for s in SCHEMES if s in set(df.scheme)]
     fig = Figure(figsize=(4.6 * len(schemes), 5.0), layout="constrained")
     axes = fig.subplots(1, len(schemes), squeeze=False)[0]
-    colours = {"diverged": "#d62728", "energy flagged (> 1 %)": "#ff7f0e",
-               f"energy made (> {MADE_TOL:g})": "#ffd966", "ok": "#8fd18f"}
+    colours = {
+        "diverged": "#d62728",
+        "energy flagged (> 1 %)": "#ff7f0e",
+        f"energy made (> {MADE_TOL:g})": "#ffd966",
+        "ok": "#8fd18f",
+    }
     names = list(colours)
     dts = np.array(sorted(df.dt_s.unique()))
     kss = np.array(sorted(df.ks_ratio.unique()))
@@ -173,7 +210,9 @@ def map_figure(df: pd.DataFrame, title: str = ""):
     # contact period (the shortest pair's) at one k_s/k, from the rows (spp * dt); it scales as k_s^-1/2
     row = df.iloc[0]
     t_ref, ks_ref = row.steps_per_contact_period * row.dt_s, row.ks_ratio
-    per_cell = len(df[df.scheme == schemes[0]]) // max(1, df[df.scheme == schemes[0]].groupby(["ks_ratio", "dt_s"]).ngroups)
+    per_cell = len(df[df.scheme == schemes[0]]) // max(
+        1, df[df.scheme == schemes[0]].groupby(["ks_ratio", "dt_s"]).ngroups
+    )
     for ax, scheme in zip(axes, schemes):
         d = df[df.scheme == scheme]
         for i, dt in enumerate(dts):
@@ -185,15 +224,29 @@ def map_figure(df: pd.DataFrame, title: str = ""):
                 flag = c.energy_flag & ~div
                 made = c.energy_made & ~div & ~c.energy_flag
                 k = 0 if div.any() else 1 if flag.any() else 2 if made.any() else 3
-                ax.add_patch(Rectangle((ex[i], ey[j]), ex[i + 1] - ex[i], ey[j + 1] - ey[j],
-                                       facecolor=colours[names[k]], edgecolor="white"))
-                ax.text(math.sqrt(ex[i] * ex[i + 1]), math.sqrt(ey[j] * ey[j + 1]),
-                        f"{int(div.sum())}/{int(flag.sum())}/{int(made.sum())}", ha="center", va="center", fontsize=7)
+                ax.add_patch(
+                    Rectangle(
+                        (ex[i], ey[j]),
+                        ex[i + 1] - ex[i],
+                        ey[j + 1] - ey[j],
+                        facecolor=colours[names[k]],
+                        edgecolor="white",
+                    )
+                )
+                ax.text(
+                    math.sqrt(ex[i] * ex[i + 1]),
+                    math.sqrt(ey[j] * ey[j + 1]),
+                    f"{int(div.sum())}/{int(flag.sum())}/{int(made.sum())}",
+                    ha="center",
+                    va="center",
+                    fontsize=7,
+                )
         k_line = np.geomspace(ey[0], ey[-1], 50)
         period = t_ref * np.sqrt(ks_ref / k_line)
         for spp, ls in ((20, "--"), (1, ":")):
-            ax.plot(period / spp, k_line, "k", ls=ls, lw=1,
-                    label=f"{spp} step{'s' if spp > 1 else ''} per contact period")
+            ax.plot(
+                period / spp, k_line, "k", ls=ls, lw=1, label=f"{spp} step{'s' if spp > 1 else ''} per contact period"
+            )
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlim(ex[0], ex[-1])
@@ -206,8 +259,11 @@ def map_figure(df: pd.DataFrame, title: str = ""):
         ax.set_title(f"scheme '{scheme}'", fontsize=10)
     handles = [Patch(color=colours[k], label=k) for k in names] + axes[0].get_legend_handles_labels()[0]
     fig.legend(handles=handles, loc="outside lower center", ncol=6, fontsize=8)
-    fig.suptitle((title or "stability map") + f"\ncell: runs diverged / energy-flagged / energy made, of {per_cell} "
-                 "(the worst run colours the cell)", fontsize=10)
+    fig.suptitle(
+        (title or "stability map") + f"\ncell: runs diverged / energy-flagged / energy made, of {per_cell} "
+        "(the worst run colours the cell)",
+        fontsize=10,
+    )
     return fig
 
 
@@ -224,10 +280,16 @@ def report(df: pd.DataFrame, out_dir: Path, stem: str, log=print) -> dict:
         for scheme in SCHEMES:
             if scheme in set(df.scheme):
                 d = df[df.scheme == scheme]
-                log(f"\n'{scheme}': diverged runs, k_s/k x dt (of {len(d) // max(1, d.groupby(['ks_ratio', 'dt_s']).ngroups)} per cell)")
+                log(
+                    f"\n'{scheme}': diverged runs, k_s/k x dt (of {len(d) // max(1, d.groupby(['ks_ratio', 'dt_s']).ngroups)} per cell)"
+                )
                 log(format_counts(ks_dt_table(df, scheme, "diverged")))
                 log(f"'{scheme}': energy made (gap < -{MADE_TOL:g}) or flagged, not diverged")
-                log(format_counts(ks_dt_table(df.assign(e=(df.energy_made | df.energy_flag) & ~df.diverged), scheme, "e")))
+                log(
+                    format_counts(
+                        ks_dt_table(df.assign(e=(df.energy_made | df.energy_flag) & ~df.diverged), scheme, "e")
+                    )
+                )
         if "paper" in set(df.scheme):
             log("\npaper scheme's failure boundary per k_s/k:")
             log(paper_boundary(df).to_string(index=False, float_format=lambda v: f"{v:.3g}"))
@@ -242,8 +304,11 @@ def report(df: pd.DataFrame, out_dir: Path, stem: str, log=print) -> dict:
     png = out_dir / f"{stem}.png"
     try:
         scenes = ", ".join(sorted(df.scene.unique()))
-        map_figure(df, f"stability map: {scenes}; laws {', '.join(sorted(df.law.unique()))}; r "
-                       f"{', '.join(f'{v:g}' for v in sorted(df.r.unique()))}; two amplitudes each").savefig(png, dpi=120)
+        map_figure(
+            df,
+            f"stability map: {scenes}; laws {', '.join(sorted(df.law.unique()))}; r "
+            f"{', '.join(f'{v:g}' for v in sorted(df.r.unique()))}; two amplitudes each",
+        ).savefig(png, dpi=120)
     except ImportError as exc:
         log(f"no PNG: {exc}")
         png = None
@@ -253,11 +318,17 @@ def report(df: pd.DataFrame, out_dir: Path, stem: str, log=print) -> dict:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--quick", action="store_true", help="smoke run: 6 Hz, 0.2 s, 3 k_s/k x 2 r x 10 mm, dt 1e-4 and 5e-3")
+    ap.add_argument(
+        "--quick", action="store_true", help="smoke run: 6 Hz, 0.2 s, 3 k_s/k x 2 r x 10 mm, dt 1e-4 and 5e-3"
+    )
     ap.add_argument("--scene", action="append", choices=sorted(SCENES), help="scene(s) (default: both)")
     ap.add_argument("--threads", type=int, default=2)
-    ap.add_argument("--kernel", choices=("scalar", "default"), default="scalar",
-                    help="scalar: kernel.py for every scheme; default: whatever the driver picks")
+    ap.add_argument(
+        "--kernel",
+        choices=("scalar", "default"),
+        default="scalar",
+        help="scalar: kernel.py for every scheme; default: whatever the driver picks",
+    )
     ap.add_argument("--out-dir", type=Path, default=REPO / "results")
     ap.add_argument("--report-only", action="store_true", help="re-read results/stability_map.parquet")
     a = ap.parse_args(argv)
@@ -270,12 +341,22 @@ def main(argv=None) -> int:
         print(f"[load average before: {' '.join(Path('/proc/loadavg').read_text().split()[:3])}]")
         if a.quick:
             q = QUICK
-            df = run_map(q["scenes"], q["ks"], q["r"], q["dts"], amps=q["amps"], duration=q["duration"],
-                         threads=a.threads, kernel=a.kernel)
+            df = run_map(
+                q["scenes"],
+                q["ks"],
+                q["r"],
+                q["dts"],
+                amps=q["amps"],
+                duration=q["duration"],
+                threads=a.threads,
+                kernel=a.kernel,
+            )
         else:
             df = run_map(tuple(a.scene or SCENES), threads=a.threads, kernel=a.kernel)
-        print(f"[{len(df)} runs in {time.perf_counter() - t0:.0f} s; load average after: "
-              f"{' '.join(Path('/proc/loadavg').read_text().split()[:3])}]")
+        print(
+            f"[{len(df)} runs in {time.perf_counter() - t0:.0f} s; load average after: "
+            f"{' '.join(Path('/proc/loadavg').read_text().split()[:3])}]"
+        )
         a.out_dir.mkdir(parents=True, exist_ok=True)
         df.to_parquet(path, index=False)
         print(f"wrote {path}")

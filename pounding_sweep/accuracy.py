@@ -21,8 +21,13 @@ from pounding_sweep.sweep.simulate import simulate
 
 SCHEMES = ("event", "implicit", "paper")
 DTS = (5e-3, 2.5e-3, 1e-3, 5e-4, 2.5e-4, 1e-4, 5e-5, 2.5e-5, 1e-5, 5e-6, 2.5e-6, 1e-6)
-ENERGY_TERMS = ["kinetic_energy_end_J", "strain_energy_end_J", "structural_damping_energy_J",
-                "contact_damping_energy_J", "contact_spring_energy_end_J"]
+ENERGY_TERMS = [
+    "kinetic_energy_end_J",
+    "strain_energy_end_J",
+    "structural_damping_energy_J",
+    "contact_damping_energy_J",
+    "contact_spring_energy_end_J",
+]
 MADE_TOL = 1e-6  # balance_gap below -MADE_TOL: energy made by the numerics
 
 
@@ -32,12 +37,16 @@ def reference_self_check(scene, ref: Reference, **overrides) -> dict:
     same_events = [ev[1:] for ev in ref.events] == [ev[1:] for ev in tight.events]
     dt_ev = max((abs(a[0] - b[0]) for a, b in zip(ref.events, tight.events)), default=0.0)
     return {
-        "rtol": ref.rtol, "rtol_check": tight.rtol,
+        "rtol": ref.rtol,
+        "rtol_check": tight.rtol,
         "rel_rms_pct": max(float(relative_rms_error_pct(ref.top[:, c], tight.top[:, c])) for c in (0, 1)),
         "peak_disp_pct": float(np.max(np.abs(ref.peak_disp / tight.peak_disp - 1))) * 100,
         "peak_force_pct": float(np.max(np.abs(ref.peak_force / tight.peak_force - 1))) * 100,
-        "same_events": same_events, "event_time_s": dt_ev, "events": len(ref.events),
-        "wall_s": ref.wall_s, "wall_check_s": tight.wall_s,
+        "same_events": same_events,
+        "event_time_s": dt_ev,
+        "events": len(ref.events),
+        "wall_s": ref.wall_s,
+        "wall_check_s": tight.wall_s,
     }
 
 
@@ -49,8 +58,10 @@ def check_against_ivp_reference(scene, ref: Reference, **overrides) -> dict:
     n = other["u"].shape[1]
     top = other["u"][:, [TOP - 1, n // 2 + TOP - 1]]
     m = min(top.shape[0], ref.top.shape[0])
-    return {"rel_rms_pct": max(float(relative_rms_error_pct(ref.top[:m, c], top[:m, c])) for c in (0, 1)),
-            "same_impacts": other["impacts"].tolist() == ref.impacts.tolist()}
+    return {
+        "rel_rms_pct": max(float(relative_rms_error_pct(ref.top[:m, c], top[:m, c])) for c in (0, 1)),
+        "same_impacts": other["impacts"].tolist() == ref.impacts.tolist(),
+    }
 
 
 def kernel_run(scene, dt: float, scheme: str, repeats: int = 3, **overrides) -> dict:
@@ -72,8 +83,10 @@ def error_row(run: dict, ref: Reference, scheme: str, dt: float) -> dict:
     m = run["metrics"]
     x = run["top"]
     k = min(x.shape[0], ref.top.shape[0])
-    rr = [float(relative_rms_error_pct(x[:k, c], ref.top[:k, c])) if np.all(np.isfinite(x[:k, c])) else np.nan
-          for c in (0, 1)]
+    rr = [
+        float(relative_rms_error_pct(x[:k, c], ref.top[:k, c])) if np.all(np.isfinite(x[:k, c])) else np.nan
+        for c in (0, 1)
+    ]
     diverged = "diverged" in m["status"]
     if diverged:
         rr = [np.nan, np.nan]
@@ -83,13 +96,19 @@ def error_row(run: dict, ref: Reference, scheme: str, dt: float) -> dict:
     pf, pf_ref = m[f"peak_force_f{TOP}_N"], ref.peak_force[TOP - 1]
     nan = np.nan
     return {
-        "scheme": scheme, "dt_s": dt, "steps": int(m["steps"]), "run_time_s": m["run_time_s"],
+        "scheme": scheme,
+        "dt_s": dt,
+        "steps": int(m["steps"]),
+        "run_time_s": m["run_time_s"],
         "rel_rms_pct": max(rr) if not diverged else nan,
-        "rel_rms_b1f3_pct": rr[0], "rel_rms_b2f3_pct": rr[1],
+        "rel_rms_b1f3_pct": rr[0],
+        "rel_rms_b2f3_pct": rr[1],
         "peak_disp_err_pct": nan if diverged else float(np.max(np.abs(pk / pk_ref - 1))) * 100,
         "peak_force_err_pct": nan if diverged else abs(pf / pf_ref - 1) * 100,
-        "impacts_f3": int(m[f"impacts_f{TOP}"]), "ref_impacts_f3": int(ref.impacts[TOP - 1]),
-        "steps_per_contact_period": nan, "status": m["status"],
+        "impacts_f3": int(m[f"impacts_f{TOP}"]),
+        "ref_impacts_f3": int(ref.impacts[TOP - 1]),
+        "steps_per_contact_period": nan,
+        "status": m["status"],
     }
 
 
@@ -101,8 +120,10 @@ def ladder(scene, ref: Reference, dts=DTS, schemes=SCHEMES, repeats: int = 3, lo
         for dt in dts:
             row = error_row(kernel_run(scene, dt, scheme, repeats, **overrides), ref, scheme, dt)
             rows.append(row)
-            log(f"  {scheme:8s} dt {dt:8.1e} s  {row['run_time_s'] * 1e3:9.2f} ms  rel RMS {row['rel_rms_pct']:.3e} %"
-                f"  {row['status']}")
+            log(
+                f"  {scheme:8s} dt {dt:8.1e} s  {row['run_time_s'] * 1e3:9.2f} ms  rel RMS {row['rel_rms_pct']:.3e} %"
+                f"  {row['status']}"
+            )
     return pd.DataFrame(rows)
 
 
@@ -116,8 +137,9 @@ def local_orders(g: pd.DataFrame, col: str = "rel_rms_pct") -> np.ndarray:
     return out
 
 
-def observed_order(df: pd.DataFrame, scheme: str, col: str = "rel_rms_pct",
-                   dt_max: float = 2.5e-4) -> tuple[float, float, float, int]:
+def observed_order(
+    df: pd.DataFrame, scheme: str, col: str = "rel_rms_pct", dt_max: float = 2.5e-4
+) -> tuple[float, float, float, int]:
     """(order, dt_lo, dt_hi, points): least-squares slope of log error against log dt over the
     asymptotic range: from dt_max (the contact resolved by 50+ steps at k_s/k = 10) down to the dt
     of the scheme's smallest error. Past that minimum the error rises again: the kernel's rounding
@@ -133,7 +155,9 @@ def observed_order(df: pd.DataFrame, scheme: str, col: str = "rel_rms_pct",
     return float(slope), float(g.dt_s.min()), float(g.dt_s.max()), len(g)
 
 
-def equal_time_ratios(df: pd.DataFrame, fast: str = "event", slow: str = "paper", col: str = "rel_rms_pct") -> pd.DataFrame:
+def equal_time_ratios(
+    df: pd.DataFrame, fast: str = "event", slow: str = "paper", col: str = "rel_rms_pct"
+) -> pd.DataFrame:
     """For each `fast` run: the `slow` scheme's error interpolated (log-log, in run time) at its run
     time, and the ratio slow / fast. Only where the run time lies inside the slow scheme's range of
     finite-error runs (no extrapolation); diverged slow runs are left out of the curve."""
@@ -146,8 +170,15 @@ def equal_time_ratios(df: pd.DataFrame, fast: str = "event", slow: str = "paper"
             e_slow = np.nan
         else:
             e_slow = float(np.exp(np.interp(np.log(t), np.log(b.run_time_s), np.log(b[col]))))
-        rows.append({"dt_s": r.dt_s, "run_time_s": t, f"{fast}_pct": r[col], f"{slow}_at_same_time_pct": e_slow,
-                     "ratio": e_slow / r[col] if np.isfinite(e_slow) else np.nan})
+        rows.append(
+            {
+                "dt_s": r.dt_s,
+                "run_time_s": t,
+                f"{fast}_pct": r[col],
+                f"{slow}_at_same_time_pct": e_slow,
+                "ratio": e_slow / r[col] if np.isfinite(e_slow) else np.nan,
+            }
+        )
     return pd.DataFrame(rows)
 
 
@@ -158,7 +189,9 @@ def cost_per_step(df: pd.DataFrame, scheme: str, dt_max: float = 2.5e-4) -> floa
     return float(np.median(g.run_time_s / g.steps))
 
 
-def equal_cost_ratios(df: pd.DataFrame, fast: str = "event", slow: str = "paper", col: str = "rel_rms_pct") -> pd.DataFrame:
+def equal_cost_ratios(
+    df: pd.DataFrame, fast: str = "event", slow: str = "paper", col: str = "rel_rms_pct"
+) -> pd.DataFrame:
     """The equal-run-time comparison with run time modelled as (cost per step) x steps: the slow scheme at
     equal time runs dt_slow = dt_fast * c_slow / c_fast; its error there is interpolated (log-log) on its
     error-against-dt curve, which carries no timing noise. Only the cost ratio is measured."""
@@ -169,8 +202,16 @@ def equal_cost_ratios(df: pd.DataFrame, fast: str = "event", slow: str = "paper"
         dt_s = r.dt_s * c_slow / c_fast
         inside = len(b) >= 2 and b.dt_s.min() <= dt_s <= b.dt_s.max()
         e = float(np.exp(np.interp(np.log(dt_s), np.log(b.dt_s), np.log(b[col])))) if inside else np.nan
-        rows.append({"dt_s": r.dt_s, f"{slow}_dt_s": dt_s, f"{fast}_pct": r[col], f"{slow}_at_same_cost_pct": e,
-                     "ratio": e / r[col] if np.isfinite(e) else np.nan, "cost_ratio": c_slow / c_fast})
+        rows.append(
+            {
+                "dt_s": r.dt_s,
+                f"{slow}_dt_s": dt_s,
+                f"{fast}_pct": r[col],
+                f"{slow}_at_same_cost_pct": e,
+                "ratio": e / r[col] if np.isfinite(e) else np.nan,
+                "cost_ratio": c_slow / c_fast,
+            }
+        )
     return pd.DataFrame(rows)
 
 
@@ -191,8 +232,9 @@ def richardson_check(scene, ref: Reference, dt: float, **overrides) -> dict:
 def classify(df: pd.DataFrame) -> pd.DataFrame:
     """The map's per-run columns (see the module docstring)."""
     df = df.copy()
-    num = df.select_dtypes("number").drop(columns=[c for c in ("amplitude_m", "scale", "frequency_Hz")
-                                                   if c in df.columns and df[c].isna().any()])
+    num = df.select_dtypes("number").drop(
+        columns=[c for c in ("amplitude_m", "scale", "frequency_Hz") if c in df.columns and df[c].isna().any()]
+    )
     df["diverged"] = df.status.str.contains("diverged")
     df["nonfinite"] = ~np.isfinite(num.to_numpy(float)).all(axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -202,8 +244,9 @@ def classify(df: pd.DataFrame) -> pd.DataFrame:
     df["blown_up"] = df.diverged | ~(df.balance_gap.abs() <= 1.0)
     df["unsettled"] = df.status.str.contains("contact_unsettled")
     df["underresolved"] = df.status.str.contains("contact_underresolved")
-    df["category"] = np.where(df.diverged | df.nonfinite, "diverged",
-                              np.where(df.energy_flag | df.energy_made, "energy", "ok"))
+    df["category"] = np.where(
+        df.diverged | df.nonfinite, "diverged", np.where(df.energy_flag | df.energy_made, "energy", "ok")
+    )
     return df
 
 
@@ -217,15 +260,20 @@ def paper_boundary(df: pd.DataFrame, scheme: str = "paper") -> pd.DataFrame:
         div = g[g.diverged].dt_s
         bad = g[g.diverged | g.energy_flag].dt_s
         ok_dts = sorted(set(g.dt_s) - set(div))
-        rows.append({
-            "ks_ratio": ks,
-            "smallest_dt_diverged_s": div.min() if len(div) else np.nan,
-            "steps_per_period_there": spp.get(div.min(), np.nan) if len(div) else np.nan,
-            "largest_dt_stable_s": max([t for t in ok_dts if t < (div.min() if len(div) else np.inf)], default=np.nan),
-            "smallest_dt_diverged_or_energy_s": bad.min() if len(bad) else np.nan,
-            "diverged_per_dt": " ".join(f"{int(g[g.dt_s == t].diverged.sum())}/{int((g.dt_s == t).sum())}"
-                                        for t in sorted(g.dt_s.unique())),
-        })
+        rows.append(
+            {
+                "ks_ratio": ks,
+                "smallest_dt_diverged_s": div.min() if len(div) else np.nan,
+                "steps_per_period_there": spp.get(div.min(), np.nan) if len(div) else np.nan,
+                "largest_dt_stable_s": max(
+                    [t for t in ok_dts if t < (div.min() if len(div) else np.inf)], default=np.nan
+                ),
+                "smallest_dt_diverged_or_energy_s": bad.min() if len(bad) else np.nan,
+                "diverged_per_dt": " ".join(
+                    f"{int(g[g.dt_s == t].diverged.sum())}/{int((g.dt_s == t).sum())}" for t in sorted(g.dt_s.unique())
+                ),
+            }
+        )
     return pd.DataFrame(rows)
 
 
@@ -239,10 +287,17 @@ def threshold_in_steps(df: pd.DataFrame, scheme: str = "paper") -> pd.DataFrame:
         div = g[g.diverged]
         spp_div = div.steps_per_contact_period.max() if len(div) else np.nan
         stable_below = g[~g.diverged & (g.steps_per_contact_period <= spp_div)] if len(div) else g.iloc[:0]
-        rows.append({"r": r, "diverged": len(div), "runs": len(g), "max_spp_diverged": spp_div,
-                     "stable_runs_with_fewer_steps": len(stable_below),
-                     "min_spp_stable": g[~g.diverged].steps_per_contact_period.min(),
-                     "ks_dt2_over_meff_at_max_spp_diverged": (2 * math.pi / spp_div) ** 2 if len(div) else np.nan})
+        rows.append(
+            {
+                "r": r,
+                "diverged": len(div),
+                "runs": len(g),
+                "max_spp_diverged": spp_div,
+                "stable_runs_with_fewer_steps": len(stable_below),
+                "min_spp_stable": g[~g.diverged].steps_per_contact_period.min(),
+                "ks_dt2_over_meff_at_max_spp_diverged": (2 * math.pi / spp_div) ** 2 if len(div) else np.nan,
+            }
+        )
     return pd.DataFrame(rows)
 
 
@@ -255,6 +310,7 @@ def divergence_by_steps(df: pd.DataFrame, scheme: str = "paper", what: str = "di
     n = d.groupby("spp").size()
     t["all"] = t.sum(axis=1).astype(str) + "/" + n.astype(str)
     t["cells (k_s/k, dt)"] = d.groupby("spp").apply(
-        lambda g: " ".join(f"({k:g},{t_:g})" for k, t_ in sorted(set(zip(g.ks_ratio, g.dt_s)))), include_groups=False)
+        lambda g: " ".join(f"({k:g},{t_:g})" for k, t_ in sorted(set(zip(g.ks_ratio, g.dt_s)))), include_groups=False
+    )
     t["ks_dt2/m_eff"] = [(2 * math.pi / v) ** 2 for v in t.index]
     return t.sort_index(ascending=False)

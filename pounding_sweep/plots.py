@@ -73,8 +73,11 @@ def channel_label(code: str, md: dict) -> str:
 
 def score_codes(df: pd.DataFrame) -> list[str]:
     """The scored channels of a result table ('b1f3', ...), in column order."""
-    return [c.removeprefix("rel_rms_").removesuffix("_pct") for c in df.columns
-            if c.startswith("rel_rms_b") and c.endswith("_pct")]
+    return [
+        c.removeprefix("rel_rms_").removesuffix("_pct")
+        for c in df.columns
+        if c.startswith("rel_rms_b") and c.endswith("_pct")
+    ]
 
 
 # ----------------------------------------------------------------------------- grid maps and tables
@@ -96,8 +99,18 @@ def error_table(df: pd.DataFrame, code: str) -> pd.DataFrame:
     return t
 
 
-def heatmap(ax, df: pd.DataFrame, value: str, title: str, fmt: str = "{:.1f}", *, norm=None, cmap="viridis_r",
-            mark_best: bool = False, flag_cells: bool = True):
+def heatmap(
+    ax,
+    df: pd.DataFrame,
+    value: str,
+    title: str,
+    fmt: str = "{:.1f}",
+    *,
+    norm=None,
+    cmap="viridis_r",
+    mark_best: bool = False,
+    flag_cells: bool = True,
+):
     """Value over the (k_s/k, r) grid, annotated like the paper's tables (up to 150 cells).
 
     The annotation's colour follows the cell's brightness; `mark_best` outlines the lowest cell;
@@ -168,8 +181,10 @@ def heatmap_figure(df: pd.DataFrame, md: dict, best: pd.DataFrame | None = None)
         top = [c for c in df.columns if c.startswith("peak_force_f")][-1]
         j = top.removeprefix("peak_force_f").removesuffix("_N")
         df = df.assign(**{f"peak_disp_b1f{nf1}_mm": df[f"peak_disp_b1f{nf1}_m"] * 1e3})
-        maps = [(f"peak_disp_b1f{nf1}_mm", f"{channel_label(f'b1f{nf1}', md)}: peak displacement [mm]", None, False),
-                (top, f"floor {j}: peak pounding force [N]", None, False)]
+        maps = [
+            (f"peak_disp_b1f{nf1}_mm", f"{channel_label(f'b1f{nf1}', md)}: peak displacement [mm]", None, False),
+            (top, f"floor {j}: peak pounding force [N]", None, False),
+        ]
         unit = None
         what = f"peak response over the grid{over}"
     fig = _figure(figsize=(5.6 * len(maps), 4.6))
@@ -186,8 +201,10 @@ def heatmap_figure(df: pd.DataFrame, md: dict, best: pd.DataFrame | None = None)
         ref = best[best.criterion == "refined_combined"] if best is not None and "criterion" in best else ()
         if len(ref):
             r0 = ref.iloc[0]
-            notes.append(f"refined optimum k_s/k = {r0.ks_ratio:.3g}, r = {r0.r:.3g}: "
-                         f"{md.get('experiment', {}).get('combine', 'combined')} error {r0.error_pct:.2f} %")
+            notes.append(
+                f"refined optimum k_s/k = {r0.ks_ratio:.3g}, r = {r0.r:.3g}: "
+                f"{md.get('experiment', {}).get('combine', 'combined')} error {r0.error_pct:.2f} %"
+            )
     fig.suptitle("\n".join(lines))
     fig.supxlabel("; ".join(notes), fontsize=9)
     return fig
@@ -209,8 +226,9 @@ def experiment_peaks(scene, md: dict) -> dict[str, tuple[float, float]]:
     return out
 
 
-def peak_difference_table(df: pd.DataFrame, md: dict, peaks: dict | None = None, r_values=None,
-                          ks_values=None, layout: str = "long") -> pd.DataFrame:
+def peak_difference_table(
+    df: pd.DataFrame, md: dict, peaks: dict | None = None, r_values=None, ks_values=None, layout: str = "long"
+) -> pd.DataFrame:
     """The paper's Table 4: numerical peak displacement [mm] and its difference from the experimental
     peak, (experimental - numerical) / experimental [%] (negative: the model overshoots), per channel.
 
@@ -238,7 +256,7 @@ def peak_difference_table(df: pd.DataFrame, md: dict, peaks: dict | None = None,
             pe, te = peaks[code]
             head = f"{channel_label(code, md)} (experiment {pe * 1e3:.2f} mm at {te:.2f} s)"
         else:
-            est = (df[f"peak_num_{code}_m"] * 1e3 / (1 - df[f"peak_diff_{code}_pct"] / 100))
+            est = df[f"peak_num_{code}_m"] * 1e3 / (1 - df[f"peak_diff_{code}_pct"] / 100)
             head = f"{channel_label(code, md)} (experiment {est.replace([np.inf, -np.inf], np.nan).median():.2f} mm)"
         cols[(head, "Disp. [mm]")] = pn.to_numpy()
         cols[(head, "Diff. [%]")] = diff.to_numpy()
@@ -279,8 +297,11 @@ def best_run(results: str | Path, df: pd.DataFrame) -> tuple[dict, str, pd.Serie
         top = [c for c in df.columns if c.startswith("peak_force_f")][-1]
         row = df.iloc[int(np.nanargmax(df[top].to_numpy()))]
         label = "run with the largest pounding force"
-    pick = {k: float(row[k]) for k in ("ks_ratio", "r", "gap_m", "amplitude_m", "frequency_Hz", "scale")
-            if k in row and np.isfinite(row[k])}
+    pick = {
+        k: float(row[k])
+        for k in ("ks_ratio", "r", "gap_m", "amplitude_m", "frequency_Hz", "scale")
+        if k in row and np.isfinite(row[k])
+    }
     if "ks_ratio" not in pick and "ks_N_per_m" in row:
         pick["ks_N_per_m"] = float(row["ks_N_per_m"])
     records = read_metadata(results).get("grid_axes", {}).get("record", [])
@@ -321,7 +342,9 @@ def history_figures(scene, pick: dict, label: str, md: dict | None = None) -> di
     top = min(floors)
     exp = load_experiment(scene.experiment, floors) if scene.experiment is not None else None
     codes = list(exp.channels) if exp is not None else []
-    shown = [f"b1f{floors[0]}", f"b2f{floors[1]}"] + [c for c in codes if c not in (f"b1f{floors[0]}", f"b2f{floors[1]}")]
+    shown = [f"b1f{floors[0]}", f"b2f{floors[1]}"] + [
+        c for c in codes if c not in (f"b1f{floors[0]}", f"b2f{floors[1]}")
+    ]
     hist, m = simulate(scene, channels=[f"disp_{c}" for c in shown] + [f"force_f{top}"], **pick)
     t = hist.t_s.to_numpy()
     te = exp.time_s - scene.experiment.time_offset_s if exp is not None else None
@@ -336,8 +359,14 @@ def history_figures(scene, pick: dict, label: str, md: dict | None = None) -> di
         for ax, lim in ((axes[i, 0], None), (axes[i, 1], zoom)):
             ax.plot(t, x, lw=0.9, color="C0", label="numerical")
             if code in codes:
-                ax.plot(te, exp.channels[code] * 1e3, "o", ms=2.2, color="C1",
-                        label=f"experiment (tracked, {1 / exp.dt_sample:.4g} samples/s)")
+                ax.plot(
+                    te,
+                    exp.channels[code] * 1e3,
+                    "o",
+                    ms=2.2,
+                    color="C1",
+                    label=f"experiment (tracked, {1 / exp.dt_sample:.4g} samples/s)",
+                )
             ax.set_xlim(*(lim or (t[0], t[-1])))
             ax.set_xlabel("time [s]")
             ax.set_ylabel("displacement [mm]")
@@ -346,8 +375,10 @@ def history_figures(scene, pick: dict, label: str, md: dict | None = None) -> di
         title = channel_label(code, md)
         if code in codes:
             pn, diff = m[f"peak_num_{code}_m"] * 1e3, m[f"peak_diff_{code}_pct"]
-            title += (f": eq. 20 error {m[f'rel_rms_{code}_pct']:.1f} %; peak {pn:.2f} mm, experiment "
-                      f"{pn / (1 - diff / 100):.2f} mm (Table 4 difference {diff:+.1f} %)")
+            title += (
+                f": eq. 20 error {m[f'rel_rms_{code}_pct']:.1f} %; peak {pn:.2f} mm, experiment "
+                f"{pn / (1 - diff / 100):.2f} mm (Table 4 difference {diff:+.1f} %)"
+            )
         axes[i, 0].set_title(title, loc="left", fontsize=10)
         axes[i, 1].set_title(f"zoom {zoom[0]:g}-{zoom[1]:g} s", fontsize=10)
     handles, labels = axes[0, 0].get_legend_handles_labels()
@@ -368,9 +399,11 @@ def history_figures(scene, pick: dict, label: str, md: dict | None = None) -> di
         ax.grid(alpha=0.3)
     axes[0].axvspan(*zoom, color="0.85", zorder=0)
     axes[1].set_title(f"zoom {zoom[0]:g}-{zoom[1]:g} s", fontsize=10)
-    facts = (f"floor {top}: peak {m[f'peak_force_f{top}_N']:.1f} N at {m[f'peak_force_time_f{top}_s']:.2f} s, "
-             f"{int(m[f'compression_phases_f{top}'])} compression phases, median "
-             f"{m[f'median_compression_phase_f{top}_s'] * 1e3:.1f} ms")
+    facts = (
+        f"floor {top}: peak {m[f'peak_force_f{top}_N']:.1f} N at {m[f'peak_force_time_f{top}_s']:.2f} s, "
+        f"{int(m[f'compression_phases_f{top}'])} compression phases, median "
+        f"{m[f'median_compression_phase_f{top}_s'] * 1e3:.1f} ms"
+    )
     if m[f"min_force_f{top}_N"] < 0:
         facts += f"; least {m[f'min_force_f{top}_N']:.1f} N (the classic law's pull before separation)"
     axes[0].set_title(facts, loc="left", fontsize=9)
@@ -392,8 +425,11 @@ def history_figures(scene, pick: dict, label: str, md: dict | None = None) -> di
             ax.set_ylim(-lim, lim)
             ax.set_xlabel("experimental displacement [mm]")
             ax.set_ylabel("numerical displacement [mm]")
-            ax.set_title(f"{channel_label(code, md)}\neq. 20 error {m[f'rel_rms_{code}_pct']:.1f} %, "
-                         f"correlation {m[f'corr_{code}']:.4f}", fontsize=10)
+            ax.set_title(
+                f"{channel_label(code, md)}\neq. 20 error {m[f'rel_rms_{code}_pct']:.1f} %, "
+                f"correlation {m[f'corr_{code}']:.4f}",
+                fontsize=10,
+            )
             ax.set_box_aspect(1)
             ax.legend(fontsize=8, loc="upper left")
             ax.grid(alpha=0.3)
@@ -405,9 +441,17 @@ def history_figures(scene, pick: dict, label: str, md: dict | None = None) -> di
 # ----------------------------------------------------------------------------- error against run time
 
 
-def accuracy_ladder(scene, dts=None, schemes=None, ref_dt: float | None = None, ref_scheme: str | None = None,
-                    duration_s: float | None = 2.0, channel: str | None = None, repeats: int = 3,
-                    **params) -> pd.DataFrame:
+def accuracy_ladder(
+    scene,
+    dts=None,
+    schemes=None,
+    ref_dt: float | None = None,
+    ref_scheme: str | None = None,
+    duration_s: float | None = 2.0,
+    channel: str | None = None,
+    repeats: int = 3,
+    **params,
+) -> pd.DataFrame:
     """Error against run time over a ladder of time steps, per integration scheme.
 
     Each (scheme, dt) run of `scene` (its base point with `params`, e.g. ks_ratio=5, r=0.4; no
@@ -440,8 +484,10 @@ def accuracy_ladder(scene, dts=None, schemes=None, ref_dt: float | None = None, 
     def run(dt: float, scheme: str):
         n = sample / dt
         if abs(n - round(n)) > 1e-6 * n:
-            raise ValueError(f"accuracy_ladder: dt = {dt:g} s does not divide the sampling step {sample:g} s "
-                             "(the largest dt): use dts that are whole fractions of it")
+            raise ValueError(
+                f"accuracy_ladder: dt = {dt:g} s does not divide the sampling step {sample:g} s "
+                "(the largest dt): use dts that are whole fractions of it"
+            )
         hist, m = simulate(base, channels=[channel], decimate=int(round(n)), dt_s=dt, scheme=scheme, **params)
         return hist.iloc[:, 1].to_numpy(), m
 
@@ -457,8 +503,16 @@ def accuracy_ladder(scene, dts=None, schemes=None, ref_dt: float | None = None, 
                 times.append(m["run_time_s"])
             n = min(x.size, ref.size)
             err = float(relative_rms_error_pct(x[:n], ref[:n])) if np.all(np.isfinite(x[:n])) else np.nan
-            rows.append({"scheme": scheme, "dt_s": dt, "steps": int(m["steps"]), "run_time_s": min(times),
-                         "rel_rms_pct": err, "status": m["status"]})
+            rows.append(
+                {
+                    "scheme": scheme,
+                    "dt_s": dt,
+                    "steps": int(m["steps"]),
+                    "run_time_s": min(times),
+                    "rel_rms_pct": err,
+                    "status": m["status"],
+                }
+            )
     out = pd.DataFrame(rows)
     out["ref_scheme"], out["ref_dt_s"], out["channel"] = ref_scheme, ref_dt, channel
     out["duration_s"] = duration_s if duration_s is not None else np.nan
@@ -471,8 +525,10 @@ def read_accuracy_table(path: str | Path) -> pd.DataFrame:
     df = pd.read_parquet(path) if path.suffix.lower() == ".parquet" else pd.read_csv(path)
     missing = [c for c in ACCURACY_COLUMNS if c not in df.columns]
     if missing:
-        raise ValueError(f"{path}: an error-against-run-time table needs the columns {', '.join(ACCURACY_COLUMNS)}; "
-                         f"missing {', '.join(missing)} (has {', '.join(map(str, df.columns))})")
+        raise ValueError(
+            f"{path}: an error-against-run-time table needs the columns {', '.join(ACCURACY_COLUMNS)}; "
+            f"missing {', '.join(missing)} (has {', '.join(map(str, df.columns))})"
+        )
     return df
 
 
@@ -491,8 +547,14 @@ def error_vs_runtime_figure(table: pd.DataFrame, title: str = ""):
         ax_t.loglog(g.run_time_s * 1e3, g.rel_rms_pct, **style)
         every = max(1, math.ceil(len(g) / 6))  # at most about 6 labels per scheme
         for _, row in g.iloc[::-1].iloc[::every].iterrows():
-            ax_t.annotate(f"{row.dt_s:.3g} s", (row.run_time_s * 1e3, row.rel_rms_pct), textcoords="offset points",
-                          xytext=(4, 4 if k % 2 == 0 else -11), fontsize=7, color=f"C{k}")
+            ax_t.annotate(
+                f"{row.dt_s:.3g} s",
+                (row.run_time_s * 1e3, row.rel_rms_pct),
+                textcoords="offset points",
+                xytext=(4, 4 if k % 2 == 0 else -11),
+                fontsize=7,
+                color=f"C{k}",
+            )
     dts = sorted(table.dt_s.unique())
     _plain_log(ax_dt.xaxis, dts if len(dts) <= 6 else None)
     _plain_log(ax_t.xaxis)
@@ -537,12 +599,14 @@ def figures(results: str | Path, accuracy: str | Path | pd.DataFrame | None = No
     what = _params_text(pick)
     dur = table.duration_s.iloc[0] if "duration_s" in table and np.isfinite(table.duration_s.iloc[0]) else None
     out["error_vs_runtime"] = error_vs_runtime_figure(
-        table, f"{scene.name}: error against run time ({what}" + (f", first {dur:g} s)" if dur else ")"))
+        table, f"{scene.name}: error against run time ({what}" + (f", first {dur:g} s)" if dur else ")")
+    )
     return out
 
 
-def plot_results(results: str | Path, out_dir: str | Path | None = None,
-                 accuracy: str | Path | pd.DataFrame | None = None) -> list[Path]:
+def plot_results(
+    results: str | Path, out_dir: str | Path | None = None, accuracy: str | Path | pd.DataFrame | None = None
+) -> list[Path]:
     """Write the figures of one result file as PNGs; return their paths."""
     results = Path(results)
     out_dir = Path(out_dir) if out_dir else results.with_suffix("").with_name(results.stem + "_plots")

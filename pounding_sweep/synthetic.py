@@ -28,13 +28,25 @@ def perturbed(scene: Scene, stiffness_factor: tuple[float, float], damping_facto
         b = getattr(scene, name)
         if b.story_stiffness_N_per_m is None or b.damping_ratio is None:
             raise ValueError(f"[{name}]: perturbation needs story_stiffness_N_per_m and damping_ratio")
-        out[name] = dataclasses.replace(b, story_stiffness_N_per_m=tuple(k * kf for k in b.story_stiffness_N_per_m),
-                                        damping_ratio=b.damping_ratio * zf)
+        out[name] = dataclasses.replace(
+            b,
+            story_stiffness_N_per_m=tuple(k * kf for k in b.story_stiffness_N_per_m),
+            damping_ratio=b.damping_ratio * zf,
+        )
     return dataclasses.replace(scene, **out)
 
 
-def make_experiment(scene: Scene, hidden: dict, *, stiffness_factor=(1.015, 0.985), damping_factor=(1.05, 0.95),
-                    noise_mm: float = 0.05, fps: float = 100.0, dt_s: float = 2e-5, seed: int = 0):
+def make_experiment(
+    scene: Scene,
+    hidden: dict,
+    *,
+    stiffness_factor=(1.015, 0.985),
+    damping_factor=(1.05, 0.95),
+    noise_mm: float = 0.05,
+    fps: float = 100.0,
+    dt_s: float = 2e-5,
+    seed: int = 0,
+):
     """Simulate the hidden parameters on the perturbed structure at a fine dt, sample every floor
     at `fps`, add Gaussian noise of `noise_mm` RMS; return (table in mm, provenance dict)."""
     truth = perturbed(scene, stiffness_factor, damping_factor)
@@ -54,7 +66,10 @@ def make_experiment(scene: Scene, hidden: dict, *, stiffness_factor=(1.015, 0.98
         "what": "SYNTHETIC tracked displacement made by pounding_sweep, not a measurement",
         "scene": scene.name,
         "hidden_parameters": hidden,
-        "structure_perturbation": {"story_stiffness_factor": list(stiffness_factor), "damping_ratio_factor": list(damping_factor)},
+        "structure_perturbation": {
+            "story_stiffness_factor": list(stiffness_factor),
+            "damping_ratio_factor": list(damping_factor),
+        },
         "noise_mm_rms": noise_mm,
         "fps": fps,
         "simulation_dt_s": dt_s,

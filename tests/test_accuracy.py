@@ -11,8 +11,8 @@ import sys
 import numpy as np
 import pandas as pd
 import pytest
-
 from conftest import REPO, SWEEPS
+
 from pounding_sweep import accuracy as ba
 from pounding_sweep.reference.ivp import continuous_reference
 from pounding_sweep.scene import load_scene
@@ -21,8 +21,9 @@ from pounding_sweep.scene import load_scene
 def base_scene(name: str, duration_s: float):
     """The shipped scene's base point, no sweep, the given duration."""
     s = load_scene(SWEEPS / f"{name}.toml")
-    return dataclasses.replace(s, sweep=(), experiment=None,
-                               excitation=dataclasses.replace(s.excitation, duration_s=float(duration_s)))
+    return dataclasses.replace(
+        s, sweep=(), experiment=None, excitation=dataclasses.replace(s.excitation, duration_s=float(duration_s))
+    )
 
 
 def _quiet(*_):
@@ -51,8 +52,22 @@ def test_accuracy_quick_ladder_6hz(tmp_path):
     a CSV the plots module reads and its PNG."""
     from pounding_sweep.plots import read_accuracy_table
 
-    r = subprocess.run([sys.executable, str(REPO / "benchmarks" / "bench_accuracy.py"), "--quick", "--scene", "paper_6hz",
-                        "--repeats", "1", "--out-dir", str(tmp_path)], capture_output=True, text=True, cwd=tmp_path)
+    r = subprocess.run(
+        [
+            sys.executable,
+            str(REPO / "benchmarks" / "bench_accuracy.py"),
+            "--quick",
+            "--scene",
+            "paper_6hz",
+            "--repeats",
+            "1",
+            "--out-dir",
+            str(tmp_path),
+        ],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+    )
     assert r.returncode == 0, r.stderr[-2000:]
     df = read_accuracy_table(tmp_path / "bench_accuracy_paper_6hz_quick.csv")
     assert set(df.scheme) == {"event", "implicit", "paper"} and len(df) == 12
@@ -87,8 +102,14 @@ def test_event_scheme_second_order_on_the_record():
 def test_equal_time_ratio_interpolates_in_log_log():
     """The equal-run-time comparison: the slow scheme's curve interpolated at the fast run's time, none
     outside its range, diverged points left out."""
-    df = pd.DataFrame({"scheme": ["event"] * 2 + ["paper"] * 3, "dt_s": [1e-3, 1e-4, 1e-2, 1e-3, 1e-4],
-                       "run_time_s": [2.0, 20.0, 0.5, 1.0, 10.0], "rel_rms_pct": [1e-2, 1e-4, np.nan, 1.0, 0.1]})
+    df = pd.DataFrame(
+        {
+            "scheme": ["event"] * 2 + ["paper"] * 3,
+            "dt_s": [1e-3, 1e-4, 1e-2, 1e-3, 1e-4],
+            "run_time_s": [2.0, 20.0, 0.5, 1.0, 10.0],
+            "rel_rms_pct": [1e-2, 1e-4, np.nan, 1.0, 0.1],
+        }
+    )
     r = ba.equal_time_ratios(df).set_index("dt_s")
     assert r.loc[1e-3, "paper_at_same_time_pct"] == pytest.approx(10 ** (-np.log10(2.0)))  # 1 % at 1 s, 0.1 % at 10 s
     assert r.loc[1e-3, "ratio"] == pytest.approx(50.0)
@@ -100,8 +121,12 @@ def test_stability_quick_map_invariants(tmp_path):
     every scheme): the default (event) scheme never diverges, never turns non-finite and makes no energy;
     the under-resolved flag is set exactly where dt exceeds 1/20 of the contact period; the paper scheme's
     blow-up at k_s/k = 1e4, dt = 5e-3 s is caught and flagged; the map's files are written."""
-    r = subprocess.run([sys.executable, str(REPO / "benchmarks" / "stability_map.py"), "--quick", "--out-dir", str(tmp_path)],
-                       capture_output=True, text=True, cwd=tmp_path)
+    r = subprocess.run(
+        [sys.executable, str(REPO / "benchmarks" / "stability_map.py"), "--quick", "--out-dir", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+    )
     assert r.returncode == 0, r.stderr[-2000:]
     df = ba.classify(pd.read_parquet(tmp_path / "stability_map_quick.parquet"))
     assert len(df) == 72

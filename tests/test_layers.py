@@ -15,13 +15,18 @@ PKG = REPO / "pounding_sweep"
 
 #: layer of each top-level part of the package; a module may import its own part and lower layers only
 LAYERS = {
-    "errors": 0, "codes": 0, "progress": 0, "": 0,  # shared bottom modules (and the package's version)
+    "errors": 0,
+    "codes": 0,
+    "progress": 0,
+    "": 0,  # shared bottom modules (and the package's version)
     "scene": 1,  # TOML -> validated dataclasses
     "model": 2,  # scene -> arrays: structure, contact parameters, records, excitation, grid, experiment tables
     "engine": 3,  # the Numba kernels and their driver: arrays in, metric rows out
-    "video": 4, "identify": 4,  # tracking videos; modal identification and model update (siblings)
+    "video": 4,
+    "identify": 4,  # tracking videos; modal identification and model update (siblings)
     "sweep": 5,  # prepare, run, resume, results, executors, scoring, ranking, autodt, simulate
-    "reference": 6, "synthetic": 6,  # the slow oracles; demo data (synthetic experiments)
+    "reference": 6,
+    "synthetic": 6,  # the slow oracles; demo data (synthetic experiments)
     "accuracy": 7,  # error against run time (against the oracles), stability of runs
     "plots": 8,
     "cli": 9,
@@ -106,8 +111,11 @@ def test_the_import_graph_has_no_cycle():
 
 def test_the_scene_layer_loads_no_heavy_library():
     """Reading and refusing a scene never waits for Numba, SciPy, pandas, pyarrow or OpenCV."""
-    code = ("import sys; import pounding_sweep.scene as s; s.load_scene(sys.argv[1]); "
-            "print([m for m in ('numba', 'scipy', 'pandas', 'pyarrow', 'cv2', 'matplotlib') if m in sys.modules])")
-    r = subprocess.run([sys.executable, "-c", code, str(REPO / "sweeps" / "scored_duzce.toml")], capture_output=True,
-                       text=True)
+    code = (
+        "import sys; import pounding_sweep.scene as s; s.load_scene(sys.argv[1]); "
+        "print([m for m in ('numba', 'scipy', 'pandas', 'pyarrow', 'cv2', 'matplotlib') if m in sys.modules])"
+    )
+    r = subprocess.run(
+        [sys.executable, "-c", code, str(REPO / "sweeps" / "scored_duzce.toml")], capture_output=True, text=True
+    )
     assert r.stdout.strip() == "[]", (r.stdout, r.stderr)

@@ -8,7 +8,6 @@ import sys
 import time
 
 import pytest
-
 from conftest import REPO
 
 nbformat = pytest.importorskip("nbformat", reason="the notebook test needs the 'notebook' or 'test' extra")
@@ -29,9 +28,15 @@ def _kernel_manager(tmp_path):
 
     spec = tmp_path / "kernels" / KERNEL
     spec.mkdir(parents=True)
-    (spec / "kernel.json").write_text(json.dumps({
-        "argv": [sys.executable, "-m", "ipykernel_launcher", "-f", "{connection_file}"],
-        "display_name": "pounding_sweep test", "language": "python"}))
+    (spec / "kernel.json").write_text(
+        json.dumps(
+            {
+                "argv": [sys.executable, "-m", "ipykernel_launcher", "-f", "{connection_file}"],
+                "display_name": "pounding_sweep test",
+                "language": "python",
+            }
+        )
+    )
     ksm = KernelSpecManager(kernel_dirs=[str(tmp_path / "kernels")], ensure_native_kernel=False)
     return AsyncKernelManager(kernel_name=KERNEL, kernel_spec_manager=ksm)
 
@@ -44,33 +49,39 @@ def _with_parameters(nb, **params):
     return nb
 
 
-CHECKS = '''
+CHECKS = """
 import json, sys
 print("CHECKS " + json.dumps({
     "executable": sys.executable, "results": str(results), "runs": len(df),
     "error_tables": {c: [list(plots.error_table(df, c).index), list(plots.error_table(df, c).columns)] for c in codes},
     "table4_rows": [list(i) for i in table4.index], "table4_columns": len(table4.columns),
     "schemes": sorted(set(accuracy.scheme)), "accuracy_rows": len(accuracy)}))
-'''
+"""
 
 
 def test_notebook_runs_top_to_bottom(tmp_path):
     nb = nbformat.read(NOTEBOOK, as_version=4)
     missing = tmp_path / "not_there.parquet"  # a missing result file: the notebook runs the shipped scene
-    nb = _with_parameters(nb, RESULTS=str(missing), WORK_DIR=str(tmp_path / "work"),
-                          SCENE=str(REPO / "sweeps" / "scored_6hz.toml"))  # found also from a non-editable install
+    nb = _with_parameters(
+        nb, RESULTS=str(missing), WORK_DIR=str(tmp_path / "work"), SCENE=str(REPO / "sweeps" / "scored_6hz.toml")
+    )  # found also from a non-editable install
     nb.cells.append(nbformat.v4.new_code_cell(CHECKS))
     t0 = time.perf_counter()
-    nbclient.NotebookClient(nb, km=_kernel_manager(tmp_path), timeout=180,
-                            resources={"metadata": {"path": str(tmp_path)}}).execute()
+    nbclient.NotebookClient(
+        nb, km=_kernel_manager(tmp_path), timeout=180, resources={"metadata": {"path": str(tmp_path)}}
+    ).execute()
     elapsed = time.perf_counter() - t0
     outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])]
     assert not [o for o in outputs if o.output_type == "error"]
-    images = [o for o in outputs if o.output_type in ("display_data", "execute_result") and "image/png" in o.get("data", {})]
+    images = [
+        o for o in outputs if o.output_type in ("display_data", "execute_result") and "image/png" in o.get("data", {})
+    ]
     assert len(images) == FIGURES, [c.source[:60] for c in nb.cells]
     tables = [o for o in outputs if "text/html" in o.get("data", {}) and "<table" in o.data["text/html"]]
     assert len(tables) >= 6  # facts, statuses, 2 error tables, best runs, Table 4, accuracy
-    (line,) = [ln for o in outputs if o.output_type == "stream" for ln in o.text.splitlines() if ln.startswith("CHECKS ")]
+    (line,) = [
+        ln for o in outputs if o.output_type == "stream" for ln in o.text.splitlines() if ln.startswith("CHECKS ")
+    ]
     checks = json.loads(line.removeprefix("CHECKS "))
     assert checks["executable"] == sys.executable
     assert checks["results"] == str(tmp_path / "work" / "scored_6hz.parquet") and checks["runs"] == 20
@@ -87,5 +98,7 @@ def test_committed_notebook_is_clean():
     nb = nbformat.read(NOTEBOOK, as_version=4)
     nbformat.validate(nb)
     code = [c for c in nb.cells if c.cell_type == "code"]
-    assert code and all(not c.outputs and c.execution_count is None for c in code), "clear the outputs before committing"
+    assert code and all(not c.outputs and c.execution_count is None for c in code), (
+        "clear the outputs before committing"
+    )
     assert sum("parameters" in c.metadata.get("tags", []) for c in code) == 1

@@ -8,7 +8,6 @@ import sys
 import numpy as np
 import pandas as pd
 import pytest
-
 from conftest import REPO, SWEEPS
 
 pytest.importorskip("matplotlib", reason="plots need the 'plot' extra (matplotlib)")
@@ -32,11 +31,19 @@ def scored(tmp_path_factory):
 
 def test_plot_command_writes_pngs(tmp_path):
     out = tmp_path / "scored.parquet"
-    run = subprocess.run([sys.executable, "-m", "pounding_sweep", str(SWEEPS / "scored_6hz.toml"), "--out", str(out), "--quiet"],
-                         capture_output=True, text=True, cwd=REPO)
+    run = subprocess.run(
+        [sys.executable, "-m", "pounding_sweep", str(SWEEPS / "scored_6hz.toml"), "--out", str(out), "--quiet"],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+    )
     assert run.returncode == 0, run.stderr
-    p = subprocess.run([sys.executable, "-m", "pounding_sweep", "plot", str(out), "--out", str(tmp_path / "png")],
-                       capture_output=True, text=True, cwd=REPO)
+    p = subprocess.run(
+        [sys.executable, "-m", "pounding_sweep", "plot", str(out), "--out", str(tmp_path / "png")],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+    )
     assert p.returncode == 0, p.stderr
     names = {line.rsplit("/", 1)[-1] for line in p.stdout.split()}
     assert names == {f"{n}.png" for n in FIGURES}
@@ -46,8 +53,12 @@ def test_plot_command_writes_pngs(tmp_path):
 
 
 def test_plot_of_a_missing_file_is_a_clear_error(tmp_path):
-    p = subprocess.run([sys.executable, "-m", "pounding_sweep", "plot", str(tmp_path / "nope.parquet")],
-                       capture_output=True, text=True, cwd=REPO)
+    p = subprocess.run(
+        [sys.executable, "-m", "pounding_sweep", "plot", str(tmp_path / "nope.parquet")],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+    )
     assert p.returncode == 2 and "nope.parquet" in p.stderr and "Traceback" not in p.stderr
 
 
@@ -79,8 +90,11 @@ def test_peak_difference_table_is_table_4(scored):
     # the paper's layout and subset: rows k_s/k in {1, 5, 10}, per channel r in {0.2, 0.4, 0.6} x (Disp., Diff.)
     paper = plots.peak_difference_table(df, md, peaks, r_values=[0.2, 0.4, 0.6], ks_values=[1, 5, 10], layout="paper")
     assert list(paper.index) == [1.0, 5.0, 10.0] and paper.shape == (3, 2 * 3 * 2)
-    assert list(paper.columns[:3]) == [(head1, "r = 0.2", "Disp. [mm]"), (head1, "r = 0.2", "Diff. [%]"),
-                                       (head1, "r = 0.4", "Disp. [mm]")]
+    assert list(paper.columns[:3]) == [
+        (head1, "r = 0.2", "Disp. [mm]"),
+        (head1, "r = 0.2", "Diff. [%]"),
+        (head1, "r = 0.4", "Disp. [mm]"),
+    ]
     assert paper.loc[5.0, (head1, "r = 0.4", "Disp. [mm]")] == t4.loc[(5.0, 0.4), (head1, "Disp. [mm]")]
 
 
@@ -104,8 +118,16 @@ def test_heatmap_marks_the_best_cell_and_flagged_runs(scored):
 
 def test_accuracy_ladder_converges_and_checks_its_steps():
     scene = load_scene(SWEEPS / "scored_6hz.toml")
-    t = plots.accuracy_ladder(scene, dts=[4e-4, 2e-4, 1e-4], schemes=("implicit",), ref_dt=2.5e-5, duration_s=1.0,
-                              repeats=1, ks_ratio=1.0, r=0.4)
+    t = plots.accuracy_ladder(
+        scene,
+        dts=[4e-4, 2e-4, 1e-4],
+        schemes=("implicit",),
+        ref_dt=2.5e-5,
+        duration_s=1.0,
+        repeats=1,
+        ks_ratio=1.0,
+        r=0.4,
+    )
     assert list(t.columns[:6]) == ["scheme", "dt_s", "steps", "run_time_s", "rel_rms_pct", "status"]
     assert list(t.dt_s) == [4e-4, 2e-4, 1e-4] and list(t.steps) == [2500, 5000, 10000]
     assert np.all(np.diff(t.rel_rms_pct) < 0) and t.rel_rms_pct.iloc[-1] < 1.0
@@ -118,9 +140,15 @@ def test_accuracy_ladder_converges_and_checks_its_steps():
 
 def test_error_vs_runtime_from_a_csv(tmp_path):
     csv = tmp_path / "accuracy.csv"
-    pd.DataFrame({"scheme": ["implicit"] * 3 + ["paper"] * 3, "dt_s": [4e-4, 2e-4, 1e-4] * 2,
-                  "run_time_s": [1e-3, 2e-3, 4e-3, 0.8e-3, 1.6e-3, 3.2e-3],
-                  "rel_rms_pct": [1.0, 0.3, 0.08, 2.0, 0.7, np.nan], "extra": 0}).to_csv(csv, index=False)
+    pd.DataFrame(
+        {
+            "scheme": ["implicit"] * 3 + ["paper"] * 3,
+            "dt_s": [4e-4, 2e-4, 1e-4] * 2,
+            "run_time_s": [1e-3, 2e-3, 4e-3, 0.8e-3, 1.6e-3, 3.2e-3],
+            "rel_rms_pct": [1.0, 0.3, 0.08, 2.0, 0.7, np.nan],
+            "extra": 0,
+        }
+    ).to_csv(csv, index=False)
     t = plots.read_accuracy_table(csv)
     fig = plots.error_vs_runtime_figure(t, "test")
     ax_dt, ax_t = fig.axes
@@ -134,8 +162,17 @@ def test_error_vs_runtime_from_a_csv(tmp_path):
 
 
 def test_figures_carry_units_and_legends(scored):
-    figs = plots.figures(scored, accuracy=pd.DataFrame({"scheme": ["implicit", "implicit"], "dt_s": [2e-4, 1e-4],
-                                                         "run_time_s": [1e-3, 2e-3], "rel_rms_pct": [0.3, 0.1]}))
+    figs = plots.figures(
+        scored,
+        accuracy=pd.DataFrame(
+            {
+                "scheme": ["implicit", "implicit"],
+                "dt_s": [2e-4, 1e-4],
+                "run_time_s": [1e-3, 2e-3],
+                "rel_rms_pct": [0.3, 0.1],
+            }
+        ),
+    )
     assert set(figs) == FIGURES
     for name, fig in figs.items():
         for ax in fig.axes:
@@ -144,5 +181,8 @@ def test_figures_carry_units_and_legends(scored):
                 continue
             assert "[" in ax.get_xlabel() and "[" in ax.get_ylabel(), (name, ax.get_xlabel(), ax.get_ylabel())
     disp = figs["displacement_history"]
-    assert [t.get_text() for t in disp.legends[0].get_texts()][:2] == ["numerical", "experiment (tracked, 100 samples/s)"]
+    assert [t.get_text() for t in disp.legends[0].get_texts()][:2] == [
+        "numerical",
+        "experiment (tracked, 100 samples/s)",
+    ]
     assert "eq. 20 error" in disp.axes[0].get_title(loc="left")

@@ -79,8 +79,9 @@ def history_tolerance(ref: dict, twins: list[dict], key: str, n_steps: int, n_do
     return SAFETY * max(spread, floor_steps(n_steps, n_dof))
 
 
-def value_tolerance(base: np.ndarray, twins: list[np.ndarray], scale: np.ndarray, n_steps: int,
-                    n_dof: int) -> np.ndarray:
+def value_tolerance(
+    base: np.ndarray, twins: list[np.ndarray], scale: np.ndarray, n_steps: int, n_dof: int
+) -> np.ndarray:
     """Per-element tolerance on |other - base| for a per-run value: SAFETY times the larger twin
     difference, at least the linear accumulation floor of the value's `scale` (the column's largest
     magnitude: a peak is computed from states whose rounding is relative to the run's peaks, not to
@@ -118,8 +119,14 @@ def energy_balance_tolerance(m: dict, n_dof: int) -> float:
     n u of their absolute terms) and are summed recursively (error (N - 1) u sum |increments|: Higham
     eq. 4.4): N (n + 1) u times the energies' absolute scale. (The identity itself, trapezoidal work
     against Newmark average acceleration, is exact in exact arithmetic.)"""
-    scale = (m["input_work_abs_J"] + abs(m["structural_damping_energy_J"]) + abs(m["contact_damping_energy_J"])
-             + abs(m["kinetic_energy_end_J"]) + abs(m["strain_energy_end_J"]) + abs(m["contact_spring_energy_end_J"]))
+    scale = (
+        m["input_work_abs_J"]
+        + abs(m["structural_damping_energy_J"])
+        + abs(m["contact_damping_energy_J"])
+        + abs(m["kinetic_energy_end_J"])
+        + abs(m["strain_energy_end_J"])
+        + abs(m["contact_spring_energy_end_J"])
+    )
     return summation_tolerance(int(m["steps"]) * (n_dof + 1), scale)
 
 
@@ -139,5 +146,11 @@ def backward_error_twin(sysarr, seed: int):
     def rounded(A):
         return np.ascontiguousarray(A * (1.0 + n * U * rng.choice([-1.0, 1.0], A.shape)))
 
-    return dataclasses.replace(sysarr, C=rounded(sysarr.C), K=rounded(sysarr.K), Kinv=rounded(sysarr.Kinv),
-                               H=rounded(sysarr.H), S=rounded(sysarr.S))
+    return dataclasses.replace(
+        sysarr,
+        C=rounded(sysarr.C),
+        K=rounded(sysarr.K),
+        Kinv=rounded(sysarr.Kinv),
+        H=rounded(sysarr.H),
+        S=rounded(sysarr.S),
+    )

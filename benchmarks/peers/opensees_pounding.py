@@ -57,8 +57,17 @@ def _quiet_stderr(quiet: bool):
         os.close(devnull)
 
 
-def run_opensees(model, ks: float, c: np.ndarray, gap: float, ag: np.ndarray, dt: float,
-                 tol: float = 1e-12, max_iter: int = 50, quiet: bool = True) -> dict:
+def run_opensees(
+    model,
+    ks: float,
+    c: np.ndarray,
+    gap: float,
+    ag: np.ndarray,
+    dt: float,
+    tol: float = 1e-12,
+    max_iter: int = 50,
+    quiet: bool = True,
+) -> dict:
     """Integrate len(ag) - 1 steps. model: pounding_sweep.model.CoupledModel; c: dashpot per pair.
 
     Returns t, u (steps + 1, n_dof; building 1 floors then building 2 floors), F (steps + 1, pairs;

@@ -31,9 +31,13 @@ def _identify_parser() -> argparse.ArgumentParser:
     p.add_argument("--fmin", type=float, default=0.0, help="lowest frequency considered [Hz]")
     p.add_argument("--fmax", type=float, help="highest frequency considered [Hz]")
     p.add_argument("--start", type=float, default=0.0, help="analyse from this time on [s] (e.g. after the release)")
-    p.add_argument("--free-vibration", action="store_true", help="the record is free vibration: also logarithmic decrement")
+    p.add_argument(
+        "--free-vibration", action="store_true", help="the record is free vibration: also logarithmic decrement"
+    )
     p.add_argument("--scene", help="scene whose buildings are updated to the identified first frequencies")
-    p.add_argument("--update-damping", action="store_true", help="with --scene, also set damping_ratio to the identified one")
+    p.add_argument(
+        "--update-damping", action="store_true", help="with --scene, also set damping_ratio to the identified one"
+    )
     p.add_argument("--out", help="with --scene: write the updated [buildingN] sections to this TOML file")
     return p
 
@@ -50,12 +54,25 @@ def identify_main(argv: list[str]) -> int:
     src = args.table
     try:
         if Path(src).suffix.lower() in VIDEO_SUFFIXES:
-            raise Bad(src, "identify reads a displacement table: track the video first", "python -m pounding_sweep track VIDEO")
+            raise Bad(
+                src,
+                "identify reads a displacement table: track the video first",
+                "python -m pounding_sweep track VIDEO",
+            )
         if args.out and not args.scene:
             raise Bad(args.out, "--out writes updated buildings: it needs --scene", "--out without --scene")
         df, _ = read_table(src)
-        ident = identify_table(df, src, args.time_column, split_list(args.columns) if args.columns else None,
-                               args.modes, args.fmin, args.fmax, args.start, args.free_vibration)
+        ident = identify_table(
+            df,
+            src,
+            args.time_column,
+            split_list(args.columns) if args.columns else None,
+            args.modes,
+            args.fmin,
+            args.fmax,
+            args.start,
+            args.free_vibration,
+        )
         scene = load_scene(args.scene) if args.scene else None
         updates = model_updates(ident, scene, args.update_damping) if scene is not None else []
         text = "".join(u.toml() + "\n" for u in updates)
@@ -73,8 +90,10 @@ def identify_main(argv: list[str]) -> int:
         return EXIT_BAD_INPUT
     for b, r in sorted(ident.results.items()):
         head = f"building {b}" if b else "other columns"
-        print(f"{head} ({', '.join(r.channels)}; shapes relative to {r.reference}; {ident.fs:g} samples/s, "
-              f"resolution {r.spectrum.resolution_Hz:.3g} Hz)")
+        print(
+            f"{head} ({', '.join(r.channels)}; shapes relative to {r.reference}; {ident.fs:g} samples/s, "
+            f"resolution {r.spectrum.resolution_Hz:.3g} Hz)"
+        )
         for k, m in enumerate(r.modes, 1):
             ld = "" if m.damping_log_decrement is None else f", log decrement {100 * m.damping_log_decrement:.2f} %"
             hp = "n/a" if not np.isfinite(m.damping_half_power) else f"{100 * m.damping_half_power:.2f} %"

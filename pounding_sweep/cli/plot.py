@@ -11,10 +11,12 @@ from pounding_sweep.errors import ConfigError, ExperimentError, RecordError
 
 def plot_main(argv: list[str]) -> int:
     """`python -m pounding_sweep plot RESULTS [--out DIR]`: the figures of a result file as PNGs."""
-    p = argparse.ArgumentParser(prog="python -m pounding_sweep plot",
-                                description="Write PNG figures of a sweep's result file: error or force heatmaps over "
-                                "(k_s/k, r), the best run's displacement and force histories over the experiment's, "
-                                "and numerical-against-experimental plots. Needs the 'plot' extra (matplotlib).")
+    p = argparse.ArgumentParser(
+        prog="python -m pounding_sweep plot",
+        description="Write PNG figures of a sweep's result file: error or force heatmaps over "
+        "(k_s/k, r), the best run's displacement and force histories over the experiment's, "
+        "and numerical-against-experimental plots. Needs the 'plot' extra (matplotlib).",
+    )
     p.add_argument("results", help="a result file written by a sweep (.parquet)")
     p.add_argument("--out", help="folder for the PNGs (default: <results>_plots next to the file)")
     args = p.parse_args(argv)

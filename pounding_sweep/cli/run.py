@@ -36,12 +36,17 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("scene", nargs="?", help="scene file (TOML), e.g. sweeps/paper_6hz.toml")
     p.add_argument("--out", help="result file (default: the scene's [output] path)")
     p.add_argument("--threads", type=int, default=None, help="worker threads (default: the scene's, 0 = all cores)")
-    p.add_argument("--executor", choices=["local", "dask"], help="who runs the chunks (default: the scene's [execution])")
+    p.add_argument(
+        "--executor", choices=["local", "dask"], help="who runs the chunks (default: the scene's [execution])"
+    )
     p.add_argument("--dask-address", help="Dask scheduler address, e.g. tcp://host:8786 (default: a LocalCluster here)")
     p.add_argument("--workers", type=int, help="LocalCluster worker processes (default: the scene's, 0 = all cores)")
-    p.add_argument("--overwrite", action="store_true",
-                   help="replace results of another sweep at --out (by default a rerun of the same scene resumes: "
-                   "finished parts are kept, the rest is run)")
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace results of another sweep at --out (by default a rerun of the same scene resumes: "
+        "finished parts are kept, the rest is run)",
+    )
     p.add_argument("--yes", action="store_true", help="run a grid larger than [execution] max_runs (2,000,000)")
     p.add_argument("--quiet", action="store_true", help="no progress and no summary")
     p.add_argument("--describe", action="store_true", help="list every scene section and key, then exit")
@@ -56,10 +61,16 @@ def _print_summary(s) -> None:
         ("status", ", ".join(f"{k}: {v}" for k, v in sorted(s.statuses.items()))),
         ("largest pounding force", f"{s.extremes['peak_force_N']:.3f} N"),
         ("compile (or cache load)", f"{s.compile_s:.2f} s"),
-        ("run", f"{s.run_s:.2f} s wall on {s.threads} {'thread' if s.executor == 'local' else 'Dask worker'}(s); "
-                f"{s.steps:,} steps, {rate / 1e6:.1f} M steps/s per core"),
-        ("results", f"{s.path} (Parquet dataset, {s.parts} part(s)"
-                    + (f"; {s.resumed_parts} kept from an earlier run)" if s.resumed_parts else ")")),
+        (
+            "run",
+            f"{s.run_s:.2f} s wall on {s.threads} {'thread' if s.executor == 'local' else 'Dask worker'}(s); "
+            f"{s.steps:,} steps, {rate / 1e6:.1f} M steps/s per core",
+        ),
+        (
+            "results",
+            f"{s.path} (Parquet dataset, {s.parts} part(s)"
+            + (f"; {s.resumed_parts} kept from an earlier run)" if s.resumed_parts else ")"),
+        ),
     ]
     if s.histories_path:
         rows.append(("histories", str(s.histories_path)))
@@ -69,21 +80,28 @@ def _print_summary(s) -> None:
         print("\nno run could be scored against the experiment (all diverged or ended before its window)")
     elif s.best is not None:
         print(f"\nbest runs against the experiment (lowest relative RMS error, eq. 20; {s.best_path}):")
-        show = [c for c in ("criterion", "error_pct", "run_id", "ks_ratio", "r", "gap_m", "record", "status") if c in s.best]
+        show = [
+            c for c in ("criterion", "error_pct", "run_id", "ks_ratio", "r", "gap_m", "record", "status") if c in s.best
+        ]
         print(s.best[show].to_string(index=False, float_format=lambda x: f"{x:.4g}"))
         if s.refinement is not None:
             rf = s.refinement
             opt = ", ".join(f"{k} = {v:.4g}" for k, v in rf.optimum.items())
-            print(f"refined from the best cell ({rf.evaluations} runs): {opt}, combined error {rf.error_pct:.3f} % "
-                  f"(grid best {rf.start_error_pct:.3f} %)")
+            print(
+                f"refined from the best cell ({rf.evaluations} runs): {opt}, combined error {rf.error_pct:.3f} % "
+                f"(grid best {rf.start_error_pct:.3f} %)"
+            )
 
 
 def _with_execution(scene, args):
     """The scene with the command line's executor choices in place of its [execution] ones."""
     import dataclasses
 
-    changes = {k: v for k, v in (("executor", args.executor), ("dask_address", args.dask_address),
-                                 ("dask_workers", args.workers)) if v is not None}
+    changes = {
+        k: v
+        for k, v in (("executor", args.executor), ("dask_address", args.dask_address), ("dask_workers", args.workers))
+        if v is not None
+    }
     if args.dask_address and "executor" not in changes:
         changes["executor"] = "dask"
     return dataclasses.replace(scene, execution=dataclasses.replace(scene.execution, **changes)) if changes else scene
@@ -105,15 +123,23 @@ def main(argv: list[str] | None = None) -> int:
     scene = None
     try:
         scene = load_scene(args.scene)
-        from pounding_sweep.sweep.run import run_scene  # Numba and pyarrow: after the scene is read, so bad input fails fast
+        from pounding_sweep.sweep.run import (
+            run_scene,
+        )  # Numba and pyarrow: after the scene is read, so bad input fails fast
 
         if args.threads is not None and args.threads < 0:
             raise ConfigError(f"--threads {args.threads}: must be >= 0")
         if args.workers is not None and args.workers < 0:
             raise ConfigError(f"--workers {args.workers}: must be >= 0")
         scene = _with_execution(scene, args)
-        summary = run_scene(scene, out_path=args.out, threads=args.threads, progress=Progress(not args.quiet),
-                            overwrite=args.overwrite, confirmed=args.yes)
+        summary = run_scene(
+            scene,
+            out_path=args.out,
+            threads=args.threads,
+            progress=Progress(not args.quiet),
+            overwrite=args.overwrite,
+            confirmed=args.yes,
+        )
     except (ConfigError, RecordError, ExperimentError) as e:
         msg = str(e)
         if scene is not None and msg.startswith("["):  # a key of the scene, found after loading: name the file too

@@ -27,25 +27,55 @@ def _track_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("video", help="video file (.mkv, .avi, .mp4, ...)")
     p.add_argument("--out", "-o", help="output table, .csv or .parquet (default: <video>.tracked.csv beside the video)")
-    p.add_argument("--scene", help="take the [experiment.video] section of this scene file; options given here override its keys")
-    p.add_argument("--marker", action="append", default=[], metavar="NAME=X,Y", help="a marker and its first-frame position in pixels (repeat)")
+    p.add_argument(
+        "--scene", help="take the [experiment.video] section of this scene file; options given here override its keys"
+    )
+    p.add_argument(
+        "--marker",
+        action="append",
+        default=[],
+        metavar="NAME=X,Y",
+        help="a marker and its first-frame position in pixels (repeat)",
+    )
     p.add_argument("--markers", help="marker names, comma-separated, for the automatic layout")
-    p.add_argument("--references", help="markers fixed to the table, comma-separated (two or more also remove camera roll)")
+    p.add_argument(
+        "--references", help="markers fixed to the table, comma-separated (two or more also remove camera roll)"
+    )
     p.add_argument("--mm-per-px", type=float, help="image scale [mm per pixel]")
     p.add_argument("--scale", metavar="A,B,MM", help="image scale from two markers a known distance apart [mm]")
     p.add_argument("--fps", type=float, help="frame rate (default: the container's)")
     p.add_argument("--roi", metavar="X0,Y0,X1,Y1", help="region of interest in pixels")
-    p.add_argument("--channel", choices=["blue", "green", "red", "grey"], help="colour channel (default blue, as the paper)")
-    p.add_argument("--method", choices=["weighted", "paper"], help="sub-pixel weighted centroids (default) or the paper's 0.99 binary recipe")
-    p.add_argument("--threshold", type=float, help="weighted: fraction of each marker's peak (default 0.2); paper: of full scale (0.99)")
-    p.add_argument("--detect-level", type=float, help="grey levels above the background that detect a marker (default: from the noise)")
+    p.add_argument(
+        "--channel", choices=["blue", "green", "red", "grey"], help="colour channel (default blue, as the paper)"
+    )
+    p.add_argument(
+        "--method",
+        choices=["weighted", "paper"],
+        help="sub-pixel weighted centroids (default) or the paper's 0.99 binary recipe",
+    )
+    p.add_argument(
+        "--threshold",
+        type=float,
+        help="weighted: fraction of each marker's peak (default 0.2); paper: of full scale (0.99)",
+    )
+    p.add_argument(
+        "--detect-level",
+        type=float,
+        help="grey levels above the background that detect a marker (default: from the noise)",
+    )
     p.add_argument("--start-frame", type=int, help="first frame to track (the markers must be apart in it)")
     p.add_argument("--max-frames", type=int, help="frames to track at most")
     p.add_argument("--max-gap", type=int, help="longest gap (frames) that may be interpolated (default 10)")
     p.add_argument("--max-step", type=float, help="largest move between frames in pixels (default 10)")
-    p.add_argument("--positive-direction", choices=["right", "left"], help="image direction of the model's +x (default right)")
-    p.add_argument("--transform", choices=["similarity", "rigid", "translation"], help="camera motion removed with the references")
-    p.add_argument("--pixels", action="store_true", help="also write every marker's image position (<name>_x_px, <name>_y_px)")
+    p.add_argument(
+        "--positive-direction", choices=["right", "left"], help="image direction of the model's +x (default right)"
+    )
+    p.add_argument(
+        "--transform", choices=["similarity", "rigid", "translation"], help="camera motion removed with the references"
+    )
+    p.add_argument(
+        "--pixels", action="store_true", help="also write every marker's image position (<name>_x_px, <name>_y_px)"
+    )
     p.add_argument("--quiet", action="store_true", help="no progress and no summary")
     return p
 
@@ -94,15 +124,26 @@ def _spec_from_args(args):
         try:
             table["scale_distance_mm"] = float(mm)
         except ValueError:
-            raise ValueError(f"--scale {args.scale!r}: expected A,B,MM (two marker names and their distance in mm)") from None
+            raise ValueError(
+                f"--scale {args.scale!r}: expected A,B,MM (two marker names and their distance in mm)"
+            ) from None
         table["scale_markers"] = [a, b]
         table.pop("mm_per_px", None)
     if args.roi:
         table["roi_px"] = numbers(args.roi, 4, "--roi", int)
-    for opt, key in (("fps", "fps"), ("channel", "channel"), ("method", "method"), ("threshold", "threshold"),
-                     ("detect_level", "detect_level"), ("start_frame", "start_frame"), ("max_frames", "max_frames"),
-                     ("max_gap", "max_gap_frames"), ("max_step", "max_step_px"), ("positive_direction", "positive_direction"),
-                     ("transform", "transform")):
+    for opt, key in (
+        ("fps", "fps"),
+        ("channel", "channel"),
+        ("method", "method"),
+        ("threshold", "threshold"),
+        ("detect_level", "detect_level"),
+        ("start_frame", "start_frame"),
+        ("max_frames", "max_frames"),
+        ("max_gap", "max_gap_frames"),
+        ("max_step", "max_step_px"),
+        ("positive_direction", "positive_direction"),
+        ("transform", "transform"),
+    ):
         v = getattr(args, opt)
         if v is not None:
             table[key] = v
@@ -111,8 +152,8 @@ def _spec_from_args(args):
 
 def track_main(argv: list[str]) -> int:
     args = _track_parser().parse_args(argv)
-    from pounding_sweep.scene import ConfigError
     from pounding_sweep.progress import Progress
+    from pounding_sweep.scene import ConfigError
     from pounding_sweep.video.io import VideoError
 
     video = args.video
@@ -140,10 +181,17 @@ def track_main(argv: list[str]) -> int:
         return 130
     if not args.quiet:
         p = res.provenance
-        rows = [("video", p["video"]), ("frames", f"{p['frames']} at {res.fps:g} fps ({p['frames'] / res.fps:.2f} s)"),
-                ("method", f"{p['method']}, threshold {p['threshold']:g}"), ("scale", f"{res.mm_per_px:.5g} mm/px"),
-                ("camera motion", f"{p['transform']} from {', '.join(spec.references)}; largest roll removed "
-                                  f"{p['max_abs_roll_removed_deg']:.3f} deg")]
+        rows = [
+            ("video", p["video"]),
+            ("frames", f"{p['frames']} at {res.fps:g} fps ({p['frames'] / res.fps:.2f} s)"),
+            ("method", f"{p['method']}, threshold {p['threshold']:g}"),
+            ("scale", f"{res.mm_per_px:.5g} mm/px"),
+            (
+                "camera motion",
+                f"{p['transform']} from {', '.join(spec.references)}; largest roll removed "
+                f"{p['max_abs_roll_removed_deg']:.3f} deg",
+            ),
+        ]
         for i, name in enumerate(res.names):
             flags = {}
             for code in res.quality[:, i]:
@@ -155,5 +203,3 @@ def track_main(argv: list[str]) -> int:
         w = max(len(k) for k, _ in rows)
         print("\n".join(f"{k:<{w}}  {v}" for k, v in rows))
     return 0
-
-

@@ -24,7 +24,9 @@ def _monotonic_ns(typingctx):
     def codegen(context, builder, signature, args):
         i32, i64 = ir.IntType(32), ir.IntType(64)
         ts_type = ir.LiteralStructType([i64, i64])
-        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(i32, [i32, ts_type.as_pointer()]), "clock_gettime")
+        fn = cgutils.get_or_insert_function(
+            builder.module, ir.FunctionType(i32, [i32, ts_type.as_pointer()]), "clock_gettime"
+        )
         ts = cgutils.alloca_once(builder, ts_type)
         builder.call(fn, [ir.Constant(i32, 1), ts])
         sec = builder.load(cgutils.gep_inbounds(builder, ts, 0, 0))

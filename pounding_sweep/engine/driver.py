@@ -21,22 +21,43 @@ import os
 import time
 from concurrent.futures import ThreadPoolExecutor
 
-
 import numpy as np
 
 from pounding_sweep.engine import layout as L
-from pounding_sweep.engine.inputs import (HistorySpec, KernelOptions, LaneExcitation, LaneModel, LaneOutputs,  # noqa: F401
-                                          Outputs, Records, RunArrays, ScoreSpec, Structure)
+from pounding_sweep.engine.inputs import (
+    HistorySpec,
+    KernelOptions,
+    LaneExcitation,
+    LaneModel,
+    LaneOutputs,  # noqa: F401
+    Outputs,
+    Records,
+    RunArrays,
+    ScoreSpec,
+    Structure,
+)
+from pounding_sweep.engine.lanes import (
+    LANES,
+    ST_N,
+    coefficient_table,
+    excitation_profiles,
+    integrate_lanes,
+    lane_modes,
+    lanes_ineligible_reason,
+    size_tuples,
+)
 from pounding_sweep.engine.scalar import integrate_batch
-from pounding_sweep.engine.lanes import (LANES, ST_N, coefficient_table, excitation_profiles, integrate_lanes, lane_modes,
-                           lanes_ineligible_reason, size_tuples)
-from pounding_sweep.model.modal import ModalArrays, modal_arrays
-from pounding_sweep.model.coupled import SystemArrays
 from pounding_sweep.engine.score import N_SCORES
+from pounding_sweep.model.coupled import SystemArrays
+from pounding_sweep.model.modal import ModalArrays, modal_arrays
 
 
 def resolve_threads(threads: int) -> int:
-    return threads if threads > 0 else (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
+    return (
+        threads
+        if threads > 0
+        else (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
+    )
 
 
 #: the kernels a chunk may be run on: "auto" (the lane kernel where it computes the chunk, else the scalar
@@ -44,8 +65,9 @@ def resolve_threads(threads: int) -> int:
 KERNELS = ("auto", "scalar", "lanes")
 
 
-def kernel_for(sys: SystemArrays, hist: HistorySpec, opts: KernelOptions, score: ScoreSpec | None = None,
-               kernel: str = "auto") -> str:
+def kernel_for(
+    sys: SystemArrays, hist: HistorySpec, opts: KernelOptions, score: ScoreSpec | None = None, kernel: str = "auto"
+) -> str:
     """'lanes' or 'scalar': the kernel run_chunk uses for such a chunk (ValueError: `kernel` names none,
     or asks for the lane kernel where it cannot compute the chunk)."""
     if kernel not in KERNELS:
@@ -58,8 +80,17 @@ def kernel_for(sys: SystemArrays, hist: HistorySpec, opts: KernelOptions, score:
     return "lanes" if why is None else "scalar"
 
 
-def run_chunk(sys: SystemArrays, runs: RunArrays, rec, hist: HistorySpec, opts: KernelOptions,
-              threads: int = 1, batch_runs: int = 0, score: ScoreSpec | None = None, kernel: str = "auto"):
+def run_chunk(
+    sys: SystemArrays,
+    runs: RunArrays,
+    rec,
+    hist: HistorySpec,
+    opts: KernelOptions,
+    threads: int = 1,
+    batch_runs: int = 0,
+    score: ScoreSpec | None = None,
+    kernel: str = "auto",
+):
     """Integrate every run of the chunk on `kernel` (KERNELS); return (metrics, run_time_s, histories or
     None, scores or None)."""
     score = score if score is not None else ScoreSpec.none()
@@ -70,8 +101,16 @@ def run_chunk(sys: SystemArrays, runs: RunArrays, rec, hist: HistorySpec, opts: 
     return run_chunk_scalar(sys, runs, rec, hist, opts, threads, batch_runs, score)
 
 
-def run_chunk_scalar(sys: SystemArrays, runs: RunArrays, rec, hist: HistorySpec, opts: KernelOptions,
-                     threads: int = 1, batch_runs: int = 0, score: ScoreSpec | None = None):
+def run_chunk_scalar(
+    sys: SystemArrays,
+    runs: RunArrays,
+    rec,
+    hist: HistorySpec,
+    opts: KernelOptions,
+    threads: int = 1,
+    batch_runs: int = 0,
+    score: ScoreSpec | None = None,
+):
     """run_chunk on the scalar kernel (every option supported)."""
     score = score if score is not None else ScoreSpec.none()
     n = runs.n
@@ -105,8 +144,15 @@ def run_chunk_scalar(sys: SystemArrays, runs: RunArrays, rec, hist: HistorySpec,
     return metrics, run_time, (hist_arr if hist.active else None), (scores if score.active else None)
 
 
-def run_chunk_lanes(sys: SystemArrays, runs: RunArrays, rec, opts: KernelOptions, threads: int = 1,
-                    ma: ModalArrays | None = None, stats: np.ndarray | None = None):
+def run_chunk_lanes(
+    sys: SystemArrays,
+    runs: RunArrays,
+    rec,
+    opts: KernelOptions,
+    threads: int = 1,
+    ma: ModalArrays | None = None,
+    stats: np.ndarray | None = None,
+):
     """run_chunk on the lane kernel (the caller checked eligibility; `ma`: the system's modal data
     when the caller has them, from lanes.lane_modes): (metrics, run_time_s). `stats` (int64[lanes.ST_N]),
     when given, is added the kernel's work counters (the benchmarks' profile).
@@ -136,7 +182,7 @@ def run_chunk_lanes(sys: SystemArrays, runs: RunArrays, rec, opts: KernelOptions
     def work(g):
         t0 = time.perf_counter()
         integrate_lanes(order, g, g + 1, model, opts, runs, excitation, LaneOutputs(metrics, redo, stats_g[g]))
-        members = order[g * LANES:(g + 1) * LANES]
+        members = order[g * LANES : (g + 1) * LANES]
         run_time[members] = (time.perf_counter() - t0) / members.size
 
     threads = max(1, min(threads, n_groups))
@@ -156,16 +202,30 @@ def run_chunk_lanes(sys: SystemArrays, runs: RunArrays, rec, opts: KernelOptions
     return metrics, run_time
 
 
-def compile_kernel(sys: SystemArrays, opts: KernelOptions, hist: HistorySpec | None = None,
-                   score: ScoreSpec | None = None, kernel: str = "auto") -> float:
+def compile_kernel(
+    sys: SystemArrays,
+    opts: KernelOptions,
+    hist: HistorySpec | None = None,
+    score: ScoreSpec | None = None,
+    kernel: str = "auto",
+) -> float:
     """Compile (or load from cache) the kernel(s) a sweep of this system will use, on one-step runs;
     return the seconds it took. With `hist` and `score` given: the kernel run_chunk picks for them;
     without: the lane kernel where the system and options allow it, and the scalar kernel (which
     chunks with histories or scoring, and diverged runs, use) in any case."""
     t0 = time.perf_counter()
     p = sys.i1.size
-    runs = RunArrays(np.ones(1), np.zeros((1, p)), np.zeros(1), np.zeros(1, np.int64), np.zeros(1),
-                     np.ones(1), np.zeros(1, np.int64), np.ones(1, np.int64), np.zeros(1, np.int64))
+    runs = RunArrays(
+        np.ones(1),
+        np.zeros((1, p)),
+        np.zeros(1),
+        np.zeros(1, np.int64),
+        np.zeros(1),
+        np.ones(1),
+        np.zeros(1, np.int64),
+        np.ones(1, np.int64),
+        np.zeros(1, np.int64),
+    )
     rec = Records(np.zeros(1), np.zeros(1, np.int64), np.zeros(1, np.int64))
     none = HistorySpec.none()
     ma = lane_modes(sys, hist or none, opts, score)

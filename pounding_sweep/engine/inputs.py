@@ -31,9 +31,11 @@ class Structure(NamedTuple):
     i2: np.ndarray  # (P,) DOF of building 2 in pair j
 
     @classmethod
-    def of(cls, sysarr) -> "Structure":
+    def of(cls, sysarr) -> Structure:
         """The record of a model.coupled.SystemArrays (same fields)."""
-        return cls(float(sysarr.dt), sysarr.m, sysarr.C, sysarr.K, sysarr.Kinv, sysarr.H, sysarr.S, sysarr.i1, sysarr.i2)
+        return cls(
+            float(sysarr.dt), sysarr.m, sysarr.C, sysarr.K, sysarr.Kinv, sysarr.H, sysarr.S, sysarr.i1, sysarr.i2
+        )
 
 
 class RunArrays(NamedTuple):
@@ -53,7 +55,7 @@ class RunArrays(NamedTuple):
     def n(self) -> int:
         return self.ks.size
 
-    def take(self, idx) -> "RunArrays":
+    def take(self, idx) -> RunArrays:
         """The runs at `idx`, contiguous."""
         return RunArrays(*(np.ascontiguousarray(a[idx]) for a in self))
 
@@ -82,7 +84,7 @@ class HistorySpec(NamedTuple):
     decimate: int  # keep every decimate-th step
 
     @classmethod
-    def none(cls) -> "HistorySpec":
+    def none(cls) -> HistorySpec:
         return cls(np.zeros(0, np.int64), np.zeros(0, np.int64), 1)
 
     @property
@@ -100,7 +102,7 @@ class ScoreSpec(NamedTuple):
     dt_sample: float  # the experiment's sample interval [s]
 
     @classmethod
-    def none(cls) -> "ScoreSpec":
+    def none(cls) -> ScoreSpec:
         return cls(np.zeros(0), np.zeros((0, 0)), np.zeros(0, np.int64), 0, 1.0)
 
     @property

@@ -62,9 +62,12 @@ def _cache_dir() -> Path | None:
     except OSError:
         return None
     try:  # older engines' folders: ours by their name; the newest few are kept for other checkouts
-        old = sorted((p for p in root.iterdir() if p.is_dir() and _CACHE_NAME.fullmatch(p.name) and p != folder),
-                     key=lambda p: p.stat().st_mtime, reverse=True)
-        for p in old[KEEP_CACHES - 1:]:
+        old = sorted(
+            (p for p in root.iterdir() if p.is_dir() and _CACHE_NAME.fullmatch(p.name) and p != folder),
+            key=lambda p: p.stat().st_mtime,
+            reverse=True,
+        )
+        for p in old[KEEP_CACHES - 1 :]:
             shutil.rmtree(p, ignore_errors=True)
     except OSError:
         pass
@@ -77,6 +80,7 @@ CACHE_DIR = _cache_dir()
 def _cached(decorate):
     """Apply a Numba decorator with config.CACHE_DIR set to CACHE_DIR (Numba reads it when the function
     is decorated), leaving the setting as it was for anyone else."""
+
     def wrap(fn):
         if CACHE_DIR is None:
             return decorate(fn)
@@ -86,6 +90,7 @@ def _cached(decorate):
             return decorate(fn)
         finally:
             numba.config.CACHE_DIR = saved
+
     return wrap
 
 

@@ -34,16 +34,41 @@ from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic
 
-from pounding_sweep.engine import layout as ML
 from pounding_sweep.codes import EXC_HARMONIC, EXC_RECORD, LAW_NO_TENSION, SCHEME_EVENT, SCHEME_IMPLICIT  # noqa: F401
+from pounding_sweep.engine import layout as ML
 from pounding_sweep.engine.clock import _monotonic_ns
-from pounding_sweep.engine.jit import LANES_JIT, inline, njit_lanes, njit_step  # noqa: F401
+from pounding_sweep.engine.events import (
+    EVENT_MIN_FRACTION,
+    MAX_EVENTS,
+    _ag_inside,
+    _force_extremes,
+    _illinois,
+    _secant_point,
+    _switch_tolerance,
+    _want_contact,
+)
 from pounding_sweep.engine.inputs import LaneWork
-from pounding_sweep.engine.events import (EVENT_MIN_FRACTION, MAX_EVENTS, _ag_inside, _force_extremes, _illinois,
-                                          _secant_point, _switch_tolerance, _want_contact)
+from pounding_sweep.engine.jit import LANES_JIT, inline, njit_lanes, njit_step  # noqa: F401
+from pounding_sweep.engine.simd import (
+    SCRATCH,
+    VW,
+    elem_ptr,
+    f64v,
+    fence,
+    many,
+    mconst,
+    mcount,
+    mfloat,
+    scratch,
+    select_bits,
+    sget,
+    splat,
+    sset,
+    vfma,
+    vsel,
+    vsplat,
+)
 from pounding_sweep.model.modal import ModalArrays, modal_arrays
-from pounding_sweep.engine.simd import (SCRATCH, VW, elem_ptr, f64v, fence, many, mcount, mconst, mfloat, scratch, select_bits, sget,
-                   splat, sset, vfma, vsel, vsplat)
 
 #: runs per group, fixed at compile time (a multiple of simd.VW)
 LANES = 8
@@ -59,8 +84,7 @@ ST_FIXUPS, ST_FIX_NS, ST_CALLS, ST_VSTEPS = range(4)
 ST_N = 4
 
 # per-lane scalar rows, after r_s
-(S_KS, S_GAP, S_COEF, S_AGS, S_AGE, S_EIN, S_EABS, S_DST, S_WSP, S_WDA, S_WREL, S_UNS, S_MIT, S_EVT,
- S_BAD) = range(15)
+(S_KS, S_GAP, S_COEF, S_AGS, S_AGE, S_EIN, S_EABS, S_DST, S_WSP, S_WDA, S_WREL, S_UNS, S_MIT, S_EVT, S_BAD) = range(15)
 N_SCALARS = 15
 
 
@@ -96,8 +120,32 @@ def _layout(N, P):
 # or tuple member that Numba unpacks costs an atomic reference count, which dominated this code):
 # Z (float64, ZR rows of max(N, P, 6) columns), B (bool, BR rows of P), I (int64: pair indices and
 # the active-set iteration's history), A (P x 2P: small solves).
-(Z_Q, Z_QD, Z_QE, Z_QDE, Z_F, Z_FE, Z_FS, Z_CF, Z_CQ, Z_CR, Z_DQF, Z_DF, Z_DDF, Z_B, Z_TH, Z_CAC, Z_SP, Z_DP, Z_PP,
- Z_EN, Z_C, Z_OM2, Z_DMP, Z_GAM) = range(24)
+(
+    Z_Q,
+    Z_QD,
+    Z_QE,
+    Z_QDE,
+    Z_F,
+    Z_FE,
+    Z_FS,
+    Z_CF,
+    Z_CQ,
+    Z_CR,
+    Z_DQF,
+    Z_DF,
+    Z_DDF,
+    Z_B,
+    Z_TH,
+    Z_CAC,
+    Z_SP,
+    Z_DP,
+    Z_PP,
+    Z_EN,
+    Z_C,
+    Z_OM2,
+    Z_DMP,
+    Z_GAM,
+) = range(24)
 ZR = 24
 (B_ACT, B_WAS, B_JUST, B_TRIAL, B_PREV, B_INC) = range(6)
 BR = 6
@@ -351,8 +399,9 @@ def _locate_event(Z, B, I, A, theta, h, hmin, ag_s, ag_e, harmonic, amp, om, t_s
         h_eval = hs
         p_start, _v = _pair(Z, Z_Q, Z_QD, target, psi, gap, N)
         for _it in range(100):
-            _fixed_set_step(Z, B, I, A, hs, ag_s, _ag_inside(hs, h, ag_s, ag_e, harmonic, amp, om, t_s), k_s, gap,
-                            psi, N, P)
+            _fixed_set_step(
+                Z, B, I, A, hs, ag_s, _ag_inside(hs, h, ag_s, ag_e, harmonic, amp, om, t_s), k_s, gap, psi, N, P
+            )
             h_eval = hs
             ph = _indicator(Z, B, Z_QE, Z_QDE, target, law, k_s, gap, psi, N)
             p_end, _v = _pair(Z, Z_QE, Z_QDE, target, psi, gap, N)
@@ -472,8 +521,9 @@ def _accept(Z, B, orow, dur, nph, l, hs, t_e, ag_s, ag_e, k_s, gap, psi, N, P, p
 
 
 @njit_step
-def _event_step(Z, B, I, A, orow, dur, nph, l, step, dt, law, ag_prev, ag, harmonic, amp, om, k_s, gap, phi, psi, N,
-                N1, P, pbase):
+def _event_step(
+    Z, B, I, A, orow, dur, nph, l, step, dt, law, ag_prev, ag, harmonic, amp, om, k_s, gap, phi, psi, N, N1, P, pbase
+):
     """Event scheme, one lane, one step (kernel.integrate_batch's trial with the start set, then
     its pieces between located events). Returns (finite, events located, 1 if the events chattered else 0)."""
     hmin = EVENT_MIN_FRACTION * dt
@@ -508,8 +558,9 @@ def _event_step(Z, B, I, A, orow, dur, nph, l, step, dt, law, ag_prev, ag, harmo
             elif theta <= 1.0:
                 n_ev += 1
                 last = False
-                hs = _locate_event(Z, B, I, A, theta, h, hmin, ag_s, ag, harmonic, amp, om, t_s, law, k_s, gap, phi,
-                                   psi, N, N1, P)
+                hs = _locate_event(
+                    Z, B, I, A, theta, h, hmin, ag_s, ag, harmonic, amp, om, t_s, law, k_s, gap, phi, psi, N, N1, P
+                )
                 if hs <= hmin:
                     hs = 0.0
                 elif h - hs <= hmin:
@@ -542,7 +593,9 @@ def _mask(B, row, P):
 
 
 @njit_step
-def _implicit_step(Z, B, I, A, orow, dur, nph, l, step, dt, law, max_iter, ag_prev, ag, k_s, gap, phi, psi, N, P, pbase):
+def _implicit_step(
+    Z, B, I, A, orow, dur, nph, l, step, dt, law, max_iter, ag_prev, ag, k_s, gap, phi, psi, N, P, pbase
+):
     """Implicit scheme, one lane, one step: kernel.integrate_batch's active-set iteration from the
     start set (cycle detection, the union fallback), then the accepted step. Returns (finite,
     iterations, 1 if the set cycled else 0)."""
@@ -668,11 +721,36 @@ def _lane_step(W, l, src, dst, step, run, model, opts, runs, work):
         orow[z] = W[(r_met + z) * LANES + l]
     pbase = ML.PER_DOF * N
     if scheme == SCHEME_EVENT:
-        finite, count, uns = _event_step(Z, B, I, A, orow, dur, nph, l, step, dt, law, ag_s, ag, harmonic, amp, om, k_s,
-                                         gap, phi, psi, N, N1, P, pbase)
+        finite, count, uns = _event_step(
+            Z,
+            B,
+            I,
+            A,
+            orow,
+            dur,
+            nph,
+            l,
+            step,
+            dt,
+            law,
+            ag_s,
+            ag,
+            harmonic,
+            amp,
+            om,
+            k_s,
+            gap,
+            phi,
+            psi,
+            N,
+            N1,
+            P,
+            pbase,
+        )
     else:
-        finite, count, uns = _implicit_step(Z, B, I, A, orow, dur, nph, l, step, dt, law, max_iter, ag_s, ag, k_s, gap,
-                                            phi, psi, N, P, pbase)
+        finite, count, uns = _implicit_step(
+            Z, B, I, A, orow, dur, nph, l, step, dt, law, max_iter, ag_s, ag, k_s, gap, phi, psi, N, P, pbase
+        )
     if count > W[(r_s + S_MIT) * LANES + l]:
         W[(r_s + S_MIT) * LANES + l] = count
     W[(r_s + S_UNS) * LANES + l] += uns
@@ -732,17 +810,21 @@ def _vec_ptr(context, builder, sig, args):
 @intrinsic
 def _row(typingctx, W, r, c):
     """W[r * LANES + c : ... + VW] as a vector (row r, lanes c..c+VW-1)."""
+
     def codegen(context, builder, sig, args):
         return builder.load(_vec_ptr(context, builder, sig, args), align=8)
+
     return f64v(W, r, c), codegen
 
 
 @intrinsic
 def _put(typingctx, W, r, c, v):
     """Row r, lanes c..c+VW-1 := v."""
+
     def codegen(context, builder, sig, args):
         builder.store(args[3], _vec_ptr(context, builder, sig, args), align=8)
         return context.get_dummy_value()
+
     return types.none(W, r, c, v), codegen
 
 
@@ -750,10 +832,12 @@ def _put(typingctx, W, r, c, v):
 def _cv(typingctx, Cv, r):
     """Coefficient r of the table in every lane (one broadcast load: on AMD Zen 1 a full-width
     coefficient row would cost as many load slots as the data it multiplies)."""
+
     def codegen(context, builder, sig, args):
         a = context.make_array(sig.args[0])(context, builder, args[0])
         idx = context.cast(builder, args[1], sig.args[1], types.intp)
         return splat(builder, builder.load(builder.gep(a.data, [idx], inbounds=True)))
+
     return f64v(Cv, r), codegen
 
 
@@ -761,11 +845,13 @@ def _cv(typingctx, Cv, r):
 def _keep(typingctx, W, r, c, cond, new):
     """Row r := new where cond, else unchanged (the old value through an arithmetic fence, so that
     LLVM does not turn the select and store into a masked store: microcoded and slow on AMD Zen)."""
+
     def codegen(context, builder, sig, args):
         ptr = _vec_ptr(context, builder, sig, args)
         old = fence(builder, builder.load(ptr, align=8))
         builder.store(select_bits(builder, args[3], args[4], old), ptr, align=8)
         return context.get_dummy_value()
+
     return types.none(W, r, c, cond, new), codegen
 
 
@@ -800,8 +886,19 @@ def coefficient_table(ma: ModalArrays) -> np.ndarray:
     """The vector code's coefficients (modal.ModalArrays at its dt), in _ctab's order."""
     n = ma.om2.size
     dt = ma.dt
-    rows = [ma.cq, ma.cr, -ma.cf * ma.gam, -ma.cf, (-2.0 / dt) * ma.dmp, -ma.om2, ma.dmp / dt, ma.gam,
-            ma.phi.ravel(), ma.psi.ravel(), (2.0 / dt) * ma.psi.ravel()]
+    rows = [
+        ma.cq,
+        ma.cr,
+        -ma.cf * ma.gam,
+        -ma.cf,
+        (-2.0 / dt) * ma.dmp,
+        -ma.om2,
+        ma.dmp / dt,
+        ma.gam,
+        ma.phi.ravel(),
+        ma.psi.ravel(),
+        (2.0 / dt) * ma.psi.ravel(),
+    ]
     flat = np.concatenate([np.asarray(r, dtype=np.float64).ravel() for r in rows])
     assert flat.size == 8 * n + n * n + 2 * n * ma.psi.shape[1]
     return np.ascontiguousarray(flat)
@@ -925,8 +1022,9 @@ def _events_energy_peaks(W, c, T, dst, quiet, s, pin, dsum, vt, law, scheme, N, 
     evt = mconst(False)
     nevt = 0
     if many(maybe):
-        evt = _exact_events(W, c, T, N, N1, P, t_u, r_act, r_cd, dst, Cv, c_psv, law, scheme, _row(W, r_s + S_KS, c),
-                            gap)
+        evt = _exact_events(
+            W, c, T, N, N1, P, t_u, r_act, r_cd, dst, Cv, c_psv, law, scheme, _row(W, r_s + S_KS, c), gap
+        )
         if many(evt):
             _put(W, r_s + S_EVT, c, mfloat(evt))
             nevt = mcount(evt)
@@ -1055,9 +1153,15 @@ def _contact_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, pon, lay)
         for k in range(N):
             q = _row(W, src + k, c)
             r = _row(W, src + N + k, c)
-            dq = vfma(_cv(Cv, C_CQ * N + k), q,
-                      vfma(_cv(Cv, C_CR * N + k), r,
-                           vfma(_cv(Cv, C_EK * N + k), s, _cv(Cv, C_NCF * N + k) * _row(W, r_g + k, c))))
+            dq = vfma(
+                _cv(Cv, C_CQ * N + k),
+                q,
+                vfma(
+                    _cv(Cv, C_CR * N + k),
+                    r,
+                    vfma(_cv(Cv, C_EK * N + k), s, _cv(Cv, C_NCF * N + k) * _row(W, r_g + k, c)),
+                ),
+            )
             sset(T, t_qf + k, q + dq)
             sset(T, t_rf + k, dq - r)
             sset(T, t_dq + k, dq)
@@ -1363,16 +1467,43 @@ def integrate_lanes(order, g_start, g_stop, model, opts, runs, excitation, out):
             # the vector code runs until a step that needs the scalar side (or a lane's last step)
             step_before = step
             if n_act == 0:
-                step, nevt, nbad = _quiet(W, step + 1, next_end if next_end <= max_nst else max_nst, dt, scheme, law,
-                                          nt, n1t, Cv, prof, pid_lane, uniform, pid0)
+                step, nevt, nbad = _quiet(
+                    W,
+                    step + 1,
+                    next_end if next_end <= max_nst else max_nst,
+                    dt,
+                    scheme,
+                    law,
+                    nt,
+                    n1t,
+                    Cv,
+                    prof,
+                    pid_lane,
+                    uniform,
+                    pid0,
+                )
                 nend = 0
             else:
                 pon = act_pair[0] * 0  # int64, not a literal (see uniform)
                 for j in range(P):
                     if act_pair[j] > 0:
                         pon |= 1 << j
-                step, nevt, nbad, nend = _contact(W, step + 1, next_end if next_end <= max_nst else max_nst, dt, scheme,
-                                                  law, nt, n1t, Cv, pon, prof, pid_lane, uniform, pid0)
+                step, nevt, nbad, nend = _contact(
+                    W,
+                    step + 1,
+                    next_end if next_end <= max_nst else max_nst,
+                    dt,
+                    scheme,
+                    law,
+                    nt,
+                    n1t,
+                    Cv,
+                    pon,
+                    prof,
+                    pid_lane,
+                    uniform,
+                    pid0,
+                )
             stats[ST_CALLS] += 1
             stats[ST_VSTEPS] += step - step_before
             src = r_q0 if (step - 1) % 2 == 0 else r_q1
@@ -1462,8 +1593,10 @@ def excitation_profiles(runs, rec, dt):
     nmax = int(runs.nsteps.max()) if n else 0
     harmonic = runs.exc_kind == EXC_HARMONIC
     coef = np.where(harmonic, -runs.exc_amp * runs.exc_omega * runs.exc_omega, runs.exc_amp)
-    keys = [(EXC_HARMONIC, float(w)) if h else (EXC_RECORD, int(r))
-            for h, w, r in zip(harmonic.tolist(), runs.exc_omega.tolist(), runs.rec_id.tolist())]
+    keys = [
+        (EXC_HARMONIC, float(w)) if h else (EXC_RECORD, int(r))
+        for h, w, r in zip(harmonic.tolist(), runs.exc_omega.tolist(), runs.rec_id.tolist())
+    ]
     index: dict = {}
     pid = np.array([index.setdefault(k, len(index)) for k in keys], dtype=np.int64)
     prof = np.zeros((max(1, len(index)), nmax + 1))
@@ -1473,7 +1606,7 @@ def excitation_profiles(runs, rec, dt):
         else:
             off, ln = int(rec_off[val]), int(rec_len[val])
             m = min(ln, nmax + 1)
-            prof[k, :m] = rec_flat[off:off + m]
+            prof[k, :m] = rec_flat[off : off + m]
     return coef, pid, prof
 
 
@@ -1519,8 +1652,10 @@ def lane_modes(sys, hist, opts, score) -> ModalArrays | str:
     if not (1 <= n1 < n and p == min(n1, n - n1)):
         return "pair count is not min(floors)"
     if 6 * n + p > SCRATCH or p > 62:
-        return (f"{n} floors and {p} pairs: more than the lane kernel's register scratch ({SCRATCH} vectors for "
-                "6 N + P, see _tab) or contact-set masks (62 pairs) hold")
+        return (
+            f"{n} floors and {p} pairs: more than the lane kernel's register scratch ({SCRATCH} vectors for "
+            "6 N + P, see _tab) or contact-set masks (62 pairs) hold"
+        )
     for name in ("m", "C", "K"):
         if not np.all(np.isfinite(getattr(sys, name))):
             return f"non-finite {name}"

@@ -49,7 +49,6 @@ DIVERGED_M = 1.0e3  # a displacement beyond a kilometre is a numerical blow-up, 
 MEDIAN_BUFFER = 4096  # compressive phases kept per pair for the median duration
 
 
-
 def n_metrics(n_dof: int, n_pairs: int) -> int:
     return PER_DOF * n_dof + PER_PAIR * n_pairs + PER_RUN
 
@@ -85,6 +84,14 @@ def metric_columns(floors: tuple[int, int], n_pairs: int) -> list[str]:
             f"peak_force_time_f{j}_s",
         ]
     cols += ["unsettled_steps", "max_contact_iterations", "steps", "status_code"]
-    cols += ["input_energy_J", "input_work_abs_J", "kinetic_energy_end_J", "strain_energy_end_J",
-             "structural_damping_energy_J", "contact_damping_energy_J", "contact_spring_energy_end_J", "energy_residual_J"]
+    cols += [
+        "input_energy_J",
+        "input_work_abs_J",
+        "kinetic_energy_end_J",
+        "strain_energy_end_J",
+        "structural_damping_energy_J",
+        "contact_damping_energy_J",
+        "contact_spring_energy_end_J",
+        "energy_residual_J",
+    ]
     return cols

@@ -32,16 +32,23 @@ impacts (Wriggers, Computational Contact Mechanics, 2006, sec. 9.5 on event-driv
 
 from __future__ import annotations
 
-
 import numpy as np
 
 from pounding_sweep import codes
 from pounding_sweep.codes import EXC_HARMONIC, EXC_RECORD, SCHEME_EVENT, SCHEME_IMPLICIT, SCHEME_PAPER, SCHEMES  # noqa: F401
 from pounding_sweep.engine import layout as L
 from pounding_sweep.engine.clock import _clock
-from pounding_sweep.engine.events import (EVENT_MIN_FRACTION, MAX_EVENTS, _ag_inside, _force_extremes, _illinois,  # noqa: F401
-                                          _secant_point, _switch_tolerance, _want_contact, ground_acceleration,
-                                          ground_acceleration_at)
+from pounding_sweep.engine.events import (
+    EVENT_MIN_FRACTION,
+    MAX_EVENTS,
+    _ag_inside,
+    _force_extremes,
+    _illinois,  # noqa: F401
+    _secant_point,
+    _switch_tolerance,
+    _want_contact,
+    ground_acceleration,
+)
 from pounding_sweep.engine.jit import njit_kernel
 from pounding_sweep.engine.score import N_SCORES, score_channel
 
@@ -49,7 +56,6 @@ from pounding_sweep.engine.score import N_SCORES, score_channel
 # compressed (less what it stores again when it re-engages overlapped)
 EN_W_RELEASE = 0
 EN_N = 1
-
 
 
 @njit_kernel
@@ -329,16 +335,47 @@ def integrate_batch(start, stop, model, opts, runs, records, histories, experime
                         if (pe < -tol) if active[j] else (pe > tol):
                             contradicts = True
                     if contradicts:
-                        theta = _first_event(h, u, v, un, vn, active, just, law, k_s, cdash[run], d, i1, i2,
-                                             npair, thetas, trial)
+                        theta = _first_event(
+                            h, u, v, un, vn, active, just, law, k_s, cdash[run], d, i1, i2, npair, thetas, trial
+                        )
                         if theta <= 1.0 and n_ev >= MAX_EVENTS:
                             unsettled += 1  # events chatter: keep the last trial, say so
                         elif theta <= 1.0:
                             n_ev += 1
                             last = False
-                            hs = _locate_event(theta, h, EVENT_MIN_FRACTION * dt, ag_s, ag, kind == EXC_HARMONIC,
-                                               amp, om, t_s, u, v, a, m, C, K, i1, i2, active, just, law, k_s,
-                                               cdash[run], d, Amat, rvec, un, vn, an, F, thetas, trial)
+                            hs = _locate_event(
+                                theta,
+                                h,
+                                EVENT_MIN_FRACTION * dt,
+                                ag_s,
+                                ag,
+                                kind == EXC_HARMONIC,
+                                amp,
+                                om,
+                                t_s,
+                                u,
+                                v,
+                                a,
+                                m,
+                                C,
+                                K,
+                                i1,
+                                i2,
+                                active,
+                                just,
+                                law,
+                                k_s,
+                                cdash[run],
+                                d,
+                                Amat,
+                                rvec,
+                                un,
+                                vn,
+                                an,
+                                F,
+                                thetas,
+                                trial,
+                            )
                             if hs <= EVENT_MIN_FRACTION * dt:
                                 hs = 0.0  # switch at the start of what is left
                             elif h - hs <= EVENT_MIN_FRACTION * dt:
@@ -413,12 +450,36 @@ def integrate_batch(start, stop, model, opts, runs, records, histories, experime
                 t_s += hs
                 h -= hs
                 ag_s = ag_e
-                _switch(trial, t_s, ag_s, n, npair, m, C, K, i1, i2, k_s, cdash[run], d, u, v, a, F, active,
-                        was_active, just, Sprev, Dprev, en, out, pbase)
+                _switch(
+                    trial,
+                    t_s,
+                    ag_s,
+                    n,
+                    npair,
+                    m,
+                    C,
+                    K,
+                    i1,
+                    i2,
+                    k_s,
+                    cdash[run],
+                    d,
+                    u,
+                    v,
+                    a,
+                    F,
+                    active,
+                    was_active,
+                    just,
+                    Sprev,
+                    Dprev,
+                    en,
+                    out,
+                    pbase,
+                )
                 if h <= 0.0:
                     break
-                _fixed_set_step(h, ag, u, v, a, m, C, K, i1, i2, active, k_s, cdash[run], d, Amat, rvec,
-                                un, vn, an, F)
+                _fixed_set_step(h, ag, u, v, a, m, C, K, i1, i2, active, k_s, cdash[run], d, Amat, rvec, un, vn, an, F)
             if n_ev > max_it_seen and scheme == SCHEME_EVENT:
                 max_it_seen = n_ev
             if not finite:
@@ -588,8 +649,39 @@ def _indicator(j, u, v, active, law, k_s, c, d, i1, i2):
 
 
 @njit_kernel
-def _locate_event(theta, h, hmin, ag_s, ag_e, harmonic, amp, om, t_s, u, v, a, m, C, K, i1, i2, active, just, law,
-                  k_s, c, d, A, r, un, vn, an, F, thetas, switch):
+def _locate_event(
+    theta,
+    h,
+    hmin,
+    ag_s,
+    ag_e,
+    harmonic,
+    amp,
+    om,
+    t_s,
+    u,
+    v,
+    a,
+    m,
+    C,
+    K,
+    i1,
+    i2,
+    active,
+    just,
+    law,
+    k_s,
+    c,
+    d,
+    A,
+    r,
+    un,
+    vn,
+    an,
+    F,
+    thetas,
+    switch,
+):
     """Length hs (0 <= hs <= h) of the sub-step that ends where the first pair switches.
 
     The interpolant's estimate (theta) starts a safeguarded false-position search (Illinois) on
@@ -617,8 +709,28 @@ def _locate_event(theta, h, hmin, ag_s, ag_e, harmonic, amp, om, t_s, u, v, a, m
         scale = 0.0
         pp, qq = i1[target], i2[target]
         for _it in range(100):
-            _fixed_set_step(hs, _ag_inside(hs, h, ag_s, ag_e, harmonic, amp, om, t_s), u, v, a, m, C, K, i1, i2,
-                            active, k_s, c, d, A, r, un, vn, an, F)
+            _fixed_set_step(
+                hs,
+                _ag_inside(hs, h, ag_s, ag_e, harmonic, amp, om, t_s),
+                u,
+                v,
+                a,
+                m,
+                C,
+                K,
+                i1,
+                i2,
+                active,
+                k_s,
+                c,
+                d,
+                A,
+                r,
+                un,
+                vn,
+                an,
+                F,
+            )
             h_eval = hs
             phi = _indicator(target, un, vn, active, law, k_s, c, d, i1, i2)
             scale = max(scale, abs(un[pp] - un[qq] - d) + abs(u[pp] - u[qq] - d))
@@ -645,8 +757,33 @@ def _locate_event(theta, h, hmin, ag_s, ag_e, harmonic, amp, om, t_s, u, v, a, m
 
 
 @njit_kernel
-def _switch(switch, t, ag, n, npair, m, C, K, i1, i2, k_s, c, d, u, v, a, F, active, was_active, just,
-            Sprev, Dprev, en, out, pbase):
+def _switch(
+    switch,
+    t,
+    ag,
+    n,
+    npair,
+    m,
+    C,
+    K,
+    i1,
+    i2,
+    k_s,
+    c,
+    d,
+    u,
+    v,
+    a,
+    F,
+    active,
+    was_active,
+    just,
+    Sprev,
+    Dprev,
+    en,
+    out,
+    pbase,
+):
     """Switch the contact state of the pairs in `switch` at an event (time t); restore the
     acceleration from equilibrium, M a = -M 1 ag - C v - K u - G F (eqs. 1-2), since the
     Kelvin-Voigt force jumps there (by c v_rel at an impact)."""

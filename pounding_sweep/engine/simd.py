@@ -81,40 +81,49 @@ def fence(builder, v):
 @intrinsic
 def vload(typingctx, arr, idx):
     """arr[idx:idx + VW] as a vector (no bounds check)."""
+
     def codegen(context, builder, sig, args):
         return builder.load(elem_ptr(context, builder, sig.args[0], args[0], args[1]), align=8)
+
     return f64v(arr, idx), codegen
 
 
 @intrinsic
 def vstore(typingctx, arr, idx, v):
     """arr[idx:idx + VW] = v (no bounds check)."""
+
     def codegen(context, builder, sig, args):
         builder.store(args[2], elem_ptr(context, builder, sig.args[0], args[0], args[1]), align=8)
         return context.get_dummy_value()
+
     return types.none(arr, idx, v), codegen
 
 
 @intrinsic
 def vsplat(typingctx, x):
     """A vector with x in every lane."""
+
     def codegen(context, builder, sig, args):
         return splat(builder, args[0])
+
     return f64v(types.float64), codegen
 
 
 @intrinsic
 def vfma(typingctx, a, b, c):
     """a * b + c with one rounding (llvm.fma)."""
+
     def codegen(context, builder, sig, args):
         fn = _intrinsic_fn(builder, f"llvm.fma.v{VW}f64", _VT, [_VT, _VT, _VT])
         return builder.call(fn, list(args))
+
     return f64v(f64v, f64v, f64v), codegen
 
 
 # Operators on vectors and masks: typed by templates and lowered straight to one LLVM instruction.
 # (An @overload(..., inline="always") per operator made Numba inline IR at every use: most of the
 # kernel's compile time went there.)
+
 
 def _is_vec(t):
     return isinstance(t, F64Vec)
@@ -135,7 +144,12 @@ def _binary(op, build, restype):
     @infer_global(op)
     class _Typer(AbstractTemplate):
         def generic(self, args, kws):
-            if len(args) == 2 and not kws and any(_is_vec(a) for a in args) and all(_is_vec(a) or _is_num(a) for a in args):
+            if (
+                len(args) == 2
+                and not kws
+                and any(_is_vec(a) for a in args)
+                and all(_is_vec(a) or _is_num(a) for a in args)
+            ):
                 return signature(restype, *args)
 
     def lower(context, builder, sig, args):
@@ -166,16 +180,21 @@ def _unary(op, check, restype, build):
             if len(args) == 1 and not kws and check(args[0]):
                 return signature(restype, *args)
 
-    lower_builtin(op, F64Vec if restype is f64v else MaskVec)(lambda context, builder, sig, args: build(builder, args[0]))
+    lower_builtin(op, F64Vec if restype is f64v else MaskVec)(
+        lambda context, builder, sig, args: build(builder, args[0])
+    )
 
 
 _binary(operator.add, lambda b, x, y: b.fadd(x, y), f64v)
 _binary(operator.sub, lambda b, x, y: b.fsub(x, y), f64v)
 _binary(operator.mul, lambda b, x, y: b.fmul(x, y), f64v)
 _binary(operator.truediv, lambda b, x, y: b.fdiv(x, y), f64v)
+
+
 def _compare(op):
     """A lane mask of x op y, compared four lanes at a time: an 8-lane comparison gives an <8 x i1>,
     which AVX2 legalises through 16-bit lanes (a pack per comparison, an unpack per use)."""
+
     def build(b, x, y):
         if VW <= 4:
             return b.sext(b.fcmp_ordered(op, x, y), _MT)
@@ -191,6 +210,7 @@ def _compare(op):
             n = a.type.count + c.type.count
             parts = [b.shuffle_vector(a, c, ir.Constant(ir.VectorType(_I32, n), list(range(n))))] + parts[2:]
         return parts[0]
+
     return build
 
 
@@ -208,8 +228,10 @@ _unary(operator.invert, lambda t: isinstance(t, MaskVec), maskv, lambda b, x: b.
 @intrinsic
 def mconst(typingctx, value):
     """Every lane true (value True) or false."""
+
     def codegen(context, builder, sig, args):
         return builder.select(args[0], ir.Constant(_MT, [-1] * VW), ir.Constant(_MT, [0] * VW))
+
     return maskv(types.boolean), codegen
 
 
@@ -226,8 +248,10 @@ def select_bits(builder, m, a, b):
 @intrinsic
 def vsel(typingctx, m, a, b):
     """a where m, else b (lane by lane)."""
+
     def codegen(context, builder, sig, args):
         return select_bits(builder, args[0], args[1], args[2])
+
     return f64v(m, a, b), codegen
 
 
@@ -235,27 +259,33 @@ def vsel(typingctx, m, a, b):
 def many(typingctx, m):
     """True when any lane of the mask is true: an OR reduction of the lanes (vpor and vptest; a
     bitcast of the lanes' truth to an integer made LLVM pack the two AVX2 halves first)."""
+
     def codegen(context, builder, sig, args):
         fn = _intrinsic_fn(builder, f"llvm.vector.reduce.or.v{VW}i64", ir.IntType(64), [_MT])
         return builder.icmp_unsigned("!=", builder.call(fn, [args[0]]), ir.Constant(ir.IntType(64), 0))
+
     return types.boolean(m), codegen
 
 
 @intrinsic
 def mcount(typingctx, m):
     """Number of true lanes (each true lane is -1: minus the sum of the lanes)."""
+
     def codegen(context, builder, sig, args):
         fn = _intrinsic_fn(builder, f"llvm.vector.reduce.add.v{VW}i64", ir.IntType(64), [_MT])
         return builder.neg(builder.call(fn, [args[0]]))
+
     return types.int64(m), codegen
 
 
 @intrinsic
 def mfloat(typingctx, m):
     """1.0 where m, else 0.0 (the bits of 1.0 kept where the mask is set)."""
+
     def codegen(context, builder, sig, args):
         one = ir.Constant(_MT, [0x3FF0000000000000] * VW)
         return builder.bitcast(builder.and_(args[0], one), _VT)
+
     return f64v(m), codegen
 
 
@@ -270,28 +300,34 @@ def scratch(typingctx):
     entry is written before it is read). The loops over modes do not fully unroll, so it stays on
     the stack, in L1 with store-to-load forwarding; forcing full unrolling (LLVM -unroll-threshold=2000)
     let SROA promote it to registers but measured 4-9 % slower (more spills) on this Zen 1."""
+
     def codegen(context, builder, sig, args):
         # not cgutils.alloca_once: it zero-fills the buffer (a 10 KB memset at every call)
         with builder.goto_entry_block():
             arr = builder.alloca(ir.ArrayType(_VT, SCRATCH))
         return builder.bitcast(arr, _VT.as_pointer())
+
     return vecptr(), codegen
 
 
 @intrinsic
 def sget(typingctx, T, i):
     """Entry i of a scratch buffer."""
+
     def codegen(context, builder, sig, args):
         idx = context.cast(builder, args[1], sig.args[1], types.intp)
         return builder.load(builder.gep(args[0], [idx], inbounds=True))
+
     return f64v(T, i), codegen
 
 
 @intrinsic
 def sset(typingctx, T, i, v):
     """Entry i of a scratch buffer := v."""
+
     def codegen(context, builder, sig, args):
         idx = context.cast(builder, args[1], sig.args[1], types.intp)
         builder.store(args[2], builder.gep(args[0], [idx], inbounds=True))
         return context.get_dummy_value()
+
     return types.none(T, i, v), codegen

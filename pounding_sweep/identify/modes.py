@@ -66,7 +66,7 @@ def _window(name, n: int) -> np.ndarray:
     if name == "decay":
         w = np.ones(n)
         m = n // 2
-        w[n - m:] = 0.5 * (1 + np.cos(np.pi * np.arange(1, m + 1) / m))
+        w[n - m :] = 0.5 * (1 + np.cos(np.pi * np.arange(1, m + 1) / m))
         return w
     return scipy.signal.get_window(name, n, fftbins=False)
 
@@ -119,8 +119,14 @@ class Peak:
     bin: int
 
 
-def find_peaks(s: Spectrum, n: int = 3, fmin: float = 0.0, fmax: float | None = None,
-               min_relative_height: float = 0.002, min_snr: float = 4.0) -> list[Peak]:
+def find_peaks(
+    s: Spectrum,
+    n: int = 3,
+    fmin: float = 0.0,
+    fmax: float | None = None,
+    min_relative_height: float = 0.002,
+    min_snr: float = 4.0,
+) -> list[Peak]:
     """The `n` most prominent spectral peaks in [fmin, fmax], in ascending frequency, each refined
     between bins; peaks lower than `min_relative_height` times the highest are ignored, and so are
     peaks closer than 4 resolutions (the Hann main lobe and its first side lobes) to a higher one; below twice the resolution nothing
@@ -138,8 +144,12 @@ def find_peaks(s: Spectrum, n: int = 3, fmin: float = 0.0, fmax: float | None = 
         return []
     df = f[1] - f[0]
     floor = min_snr * float(np.median(v[band]))
-    idx, props = scipy.signal.find_peaks(np.where(band, v, 0.0), height=min_relative_height * top, prominence=floor,
-                                         distance=max(1, int(round(4 * s.resolution_Hz / df))))
+    idx, props = scipy.signal.find_peaks(
+        np.where(band, v, 0.0),
+        height=min_relative_height * top,
+        prominence=floor,
+        distance=max(1, int(round(4 * s.resolution_Hz / df))),
+    )
     order = idx[np.argsort(-props["prominences"])][:n]
     return sorted((Peak(*refine_peak(f, v, int(i)), int(i)) for i in order), key=lambda p: p.frequency_Hz)
 
@@ -178,8 +188,14 @@ class LogDecrement:
     cycles: int
 
 
-def log_decrement(x, fs: float, band_Hz: tuple[float, float] | None = None, start_s: float = 0.0,
-                  min_relative_peak: float = 0.05, skip_cycles: int = 1) -> LogDecrement:
+def log_decrement(
+    x,
+    fs: float,
+    band_Hz: tuple[float, float] | None = None,
+    start_s: float = 0.0,
+    min_relative_peak: float = 0.05,
+    skip_cycles: int = 1,
+) -> LogDecrement:
     """Damping of a free-vibration record from the decay of its positive peaks (Chopra sec. 2.2.4).
 
     band_Hz: zero-phase Butterworth band-pass first (isolate one mode); start_s: where free vibration
@@ -187,7 +203,7 @@ def log_decrement(x, fs: float, band_Hz: tuple[float, float] | None = None, star
     `skip_cycles` (filter transients) are left out. The equilibrium is the mean of the record's last
     quarter (not of the whole record: the mean of a decaying oscillation is not its centre)."""
     x = _as_record(x, fs)
-    x = x - x[-max(x.size // 4, 1):].mean()
+    x = x - x[-max(x.size // 4, 1) :].mean()
     if band_Hz is not None:
         lo, hi = band_Hz
         if not 0 < lo < hi < fs / 2:
@@ -203,7 +219,7 @@ def log_decrement(x, fs: float, band_Hz: tuple[float, float] | None = None, star
         raise ValueError("fewer than 3 cycles of free vibration in the record")
     period = np.median(np.diff(up)) / fs
     idx, _ = scipy.signal.find_peaks(xs, distance=max(1, int(0.6 * period * fs)), height=0.0)
-    idx = idx[skip_cycles:len(idx) - skip_cycles] if len(idx) > 2 * skip_cycles + 2 else idx
+    idx = idx[skip_cycles : len(idx) - skip_cycles] if len(idx) > 2 * skip_cycles + 2 else idx
     tp, vp = [], []
     for i in idx:
         if 0 < i < xs.size - 1:
@@ -239,7 +255,9 @@ def fourier_coefficients(X, fs: float, f: float, window: str = "hann") -> np.nda
     return (w * e) @ X
 
 
-def mode_shape_ratios(X, fs: float, f: float, reference: int = -1, window: str = "hann") -> tuple[np.ndarray, np.ndarray]:
+def mode_shape_ratios(
+    X, fs: float, f: float, reference: int = -1, window: str = "hann"
+) -> tuple[np.ndarray, np.ndarray]:
     """(signed real ratios, complex ratios) of every channel to `reference` at frequency f: the
     operational deflection shape at a resonance peak, i.e. the mode shape when modes are well
     separated and lightly damped. A ratio's sign is + when in phase with the reference."""
@@ -275,8 +293,17 @@ class ModalResult:
     notes: tuple[str, ...] = field(default_factory=tuple)
 
 
-def identify(X, fs: float, channels, n_modes: int = 3, fmin: float = 0.0, fmax: float | None = None,
-             free_vibration: bool = False, reference: int = -1, start_s: float = 0.0) -> ModalResult:
+def identify(
+    X,
+    fs: float,
+    channels,
+    n_modes: int = 3,
+    fmin: float = 0.0,
+    fmax: float | None = None,
+    free_vibration: bool = False,
+    reference: int = -1,
+    start_s: float = 0.0,
+) -> ModalResult:
     """Frequencies, damping and shape ratios of up to `n_modes` modes of one structure from its
     floors' records (columns of X; the reference channel is usually the top floor).
 
@@ -305,8 +332,10 @@ def identify(X, fs: float, channels, n_modes: int = 3, fmin: float = 0.0, fmax: 
     for p in peaks:
         zhp = half_power_damping(rect, p.frequency_Hz)
         if np.isfinite(zhp) and 2 * zhp * p.frequency_Hz < 2 * rect.resolution_Hz:
-            notes.append(f"{p.frequency_Hz:.3f} Hz: half-power band {2 * zhp * p.frequency_Hz:.3g} Hz is not wider than "
-                         f"twice the resolution {rect.resolution_Hz:.3g} Hz (record too short): damping unreliable")
+            notes.append(
+                f"{p.frequency_Hz:.3f} Hz: half-power band {2 * zhp * p.frequency_Hz:.3g} Hz is not wider than "
+                f"twice the resolution {rect.resolution_Hz:.3g} Hz (record too short): damping unreliable"
+            )
         zld = None
         if free_vibration:
             hi = min(1.25 * p.frequency_Hz, 0.49 * fs)

@@ -41,8 +41,17 @@ def building_groups(columns) -> dict[int, list[str]]:
     return {b: [c for _, c in sorted(v)] for b, v in g.items()}
 
 
-def identify_table(df, src: str, time_column: str = "t_s", columns=None, n_modes: int = 3, fmin: float = 0.0,
-                   fmax: float | None = None, start_s: float = 0.0, free_vibration: bool = False) -> TableIdentification:
+def identify_table(
+    df,
+    src: str,
+    time_column: str = "t_s",
+    columns=None,
+    n_modes: int = 3,
+    fmin: float = 0.0,
+    fmax: float | None = None,
+    start_s: float = 0.0,
+    free_vibration: bool = False,
+) -> TableIdentification:
     """Check the table (a uniformly sampled time column, finite numeric columns) and identify each
     building's modes from its floors' columns (default: every numeric column but the tracker's extras)."""
     if n_modes < 1:
@@ -54,8 +63,11 @@ def identify_table(df, src: str, time_column: str = "t_s", columns=None, n_modes
         raise _bad(src, f"column '{time_column}' must hold at least 16 increasing finite times", f"{t.size} rows")
     dt = np.diff(t)
     if np.max(np.abs(dt / np.median(dt) - 1)) > 0.01:
-        raise _bad(src, f"column '{time_column}' is not uniformly sampled (within 1 %)",
-                   f"steps {dt.min():.6g} .. {dt.max():.6g} s")
+        raise _bad(
+            src,
+            f"column '{time_column}' is not uniformly sampled (within 1 %)",
+            f"steps {dt.min():.6g} .. {dt.max():.6g} s",
+        )
     fs = 1.0 / float(np.median(dt))
     if columns:
         for c in columns:
@@ -63,8 +75,14 @@ def identify_table(df, src: str, time_column: str = "t_s", columns=None, n_modes
                 raise _bad(src, f"no column '{c}'", ", ".join(map(str, df.columns)))
         cols = list(columns)
     else:
-        cols = [c for c in df.columns if c != time_column and c not in NOT_DISPLACEMENT
-                and not str(c).endswith(("_quality", "_px")) and np.issubdtype(df[c].dtype, np.number)]
+        cols = [
+            c
+            for c in df.columns
+            if c != time_column
+            and c not in NOT_DISPLACEMENT
+            and not str(c).endswith(("_quality", "_px"))
+            and np.issubdtype(df[c].dtype, np.number)
+        ]
     if not cols:
         raise _bad(src, "no displacement columns to analyse", ", ".join(map(str, df.columns)))
     for c in cols:
@@ -75,8 +93,9 @@ def identify_table(df, src: str, time_column: str = "t_s", columns=None, n_modes
     for b, cs in sorted(building_groups(cols).items()):
         X = np.column_stack([df[c].to_numpy(dtype=float) for c in cs])
         try:
-            results[b] = identify(X, fs, cs, n_modes=n_modes, fmin=fmin, fmax=fmax, free_vibration=free_vibration,
-                                  start_s=start_s)
+            results[b] = identify(
+                X, fs, cs, n_modes=n_modes, fmin=fmin, fmax=fmax, free_vibration=free_vibration, start_s=start_s
+            )
         except ValueError as e:
             raise _bad(src, f"cannot identify {', '.join(cs)}", e) from None
     return TableIdentification(src, fs, results)
@@ -88,8 +107,11 @@ def model_updates(ident: TableIdentification, scene, update_damping: bool = Fals
     targets = {b: r.modes[0].frequency_Hz for b, r in ident.results.items() if b in (1, 2) and r.modes}
     if not targets:
         cols = [c for r in ident.results.values() for c in r.channels]
-        raise _bad(ident.source, "no building's floors among the columns (name them b1f3 or model1_floor3_mm) to update",
-                   ", ".join(cols))
+        raise _bad(
+            ident.source,
+            "no building's floors among the columns (name them b1f3 or model1_floor3_mm) to update",
+            ", ".join(cols),
+        )
     damp = None
     if update_damping:
         damp = {}

@@ -17,9 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pounding_sweep.scene import BuildingConfig, Scene
 from pounding_sweep.model.coupled import building_from_config
 from pounding_sweep.model.structure import modal_analysis, shear_frame_stiffness
+from pounding_sweep.scene import BuildingConfig, Scene
 
 
 def frequencies_Hz(masses_kg, story_stiffness_N_per_m) -> np.ndarray:
@@ -66,9 +66,11 @@ class StiffnessUpdate:
     def toml(self) -> str:
         """The updated `[buildingN]` section, every key set, with a comment on where it came from."""
         how = "column_EI_Nm2" if self.config.column_EI_Nm2 is not None else "story_stiffness_N_per_m"
-        lines = [f"[{self.section}]",
-                 f"# model update: f1 {self.f1_model_Hz:.4f} Hz -> {self.f1_target_Hz:.4f} Hz identified; "
-                 f"{how} x {self.factor:.4f} (was {_fmt(getattr(self.config, how))})"]
+        lines = [
+            f"[{self.section}]",
+            f"# model update: f1 {self.f1_model_Hz:.4f} Hz -> {self.f1_target_Hz:.4f} Hz identified; "
+            f"{how} x {self.factor:.4f} (was {_fmt(getattr(self.config, how))})",
+        ]
         for f in dataclasses.fields(BuildingConfig):
             v = getattr(self.updated, f.name)
             if v is None or (f.name == "name" and not v) or (f.name == "damping_modes" and v == (1, 2)):
@@ -87,8 +89,9 @@ def _fmt(v) -> str:
     return str(v)
 
 
-def update_building(cfg: BuildingConfig, f1_target_Hz: float, section: str = "building1",
-                    damping_ratio: float | None = None) -> StiffnessUpdate:
+def update_building(
+    cfg: BuildingConfig, f1_target_Hz: float, section: str = "building1", damping_ratio: float | None = None
+) -> StiffnessUpdate:
     """Scale the story stiffness (or, for a building given by columns, their EI) so that f1 equals
     the target; optionally set an identified damping ratio too."""
     frame = building_from_config(cfg, section)
@@ -105,7 +108,9 @@ def update_building(cfg: BuildingConfig, f1_target_Hz: float, section: str = "bu
     return StiffnessUpdate(section, cfg, new, f1, float(f1_target_Hz), c)
 
 
-def update_scene(scene: Scene, f1_targets_Hz: dict[int, float], damping: dict[int, float] | None = None) -> list[StiffnessUpdate]:
+def update_scene(
+    scene: Scene, f1_targets_Hz: dict[int, float], damping: dict[int, float] | None = None
+) -> list[StiffnessUpdate]:
     """Update the buildings named in f1_targets_Hz ({1: 4.28, 2: 7.22}); the sections to paste."""
     out = []
     for b, f in sorted(f1_targets_Hz.items()):

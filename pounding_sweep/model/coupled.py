@@ -7,8 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pounding_sweep.scene import BuildingConfig, Scene
 from pounding_sweep.model.structure import ShearFrame, build_shear_frame, column_story_stiffness
+from pounding_sweep.scene import BuildingConfig, Scene
 
 
 def building_from_config(cfg: BuildingConfig, default_name: str) -> ShearFrame:
@@ -57,8 +57,10 @@ class CoupledModel:
     b2: ShearFrame
 
     @classmethod
-    def from_scene(cls, scene: Scene) -> "CoupledModel":
-        return cls(building_from_config(scene.building1, "building 1"), building_from_config(scene.building2, "building 2"))
+    def from_scene(cls, scene: Scene) -> CoupledModel:
+        return cls(
+            building_from_config(scene.building1, "building 1"), building_from_config(scene.building2, "building 2")
+        )
 
     @property
     def floors(self) -> tuple[int, int]:
@@ -104,6 +106,13 @@ class CoupledModel:
         p = self.n_pairs
         c = np.ascontiguousarray
         return SystemArrays(
-            dt, c(np.diag(M)), c(C), c(K), c(Kinv), c(H), c(S),
-            np.arange(p, dtype=np.int64), np.arange(p, dtype=np.int64) + self.b1.n_floors,
+            dt,
+            c(np.diag(M)),
+            c(C),
+            c(K),
+            c(Kinv),
+            c(H),
+            c(S),
+            np.arange(p, dtype=np.int64),
+            np.arange(p, dtype=np.int64) + self.b1.n_floors,
         )

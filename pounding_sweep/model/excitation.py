@@ -13,9 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pounding_sweep.scene import Scene
 from pounding_sweep.codes import EXC_HARMONIC, EXC_RECORD
 from pounding_sweep.model.records import GroundRecord, read_record, resample, similitude_scale
+from pounding_sweep.scene import Scene
 
 
 @dataclass(frozen=True)
@@ -32,7 +32,7 @@ class Excitation:
     rec_len: np.ndarray
 
     @classmethod
-    def from_scene(cls, scene: Scene, dt: float) -> "Excitation":
+    def from_scene(cls, scene: Scene, dt: float) -> Excitation:
         e = scene.excitation
         if e.type == "harmonic":
             return cls("harmonic", dt, e.duration_s, (), (), np.zeros(1), np.zeros(1, np.int64), np.zeros(1, np.int64))
@@ -55,9 +55,12 @@ class Excitation:
 
             k = int(lens.argmin())
             key = "dt_max_s" if scene.integration.auto else "dt_s"
-            run = (f"[excitation] duration_s = {e.duration_s!r}" if e.duration_s is not None else
-                   f"record {paths[k]}, {recs[k].duration_s:.6g} s long"
-                   + (f" at length_scale = {e.length_scale:g}" if e.length_scale != 1.0 else ""))
+            run = (
+                f"[excitation] duration_s = {e.duration_s!r}"
+                if e.duration_s is not None
+                else f"record {paths[k]}, {recs[k].duration_s:.6g} s long"
+                + (f" at length_scale = {e.length_scale:g}" if e.length_scale != 1.0 else "")
+            )
             raise ConfigError(f"[integration] {key} = {dt!r}: must be shorter than the run ({run})")
         offs = np.concatenate([[0], np.cumsum(lens)[:-1]]).astype(np.int64)
         flat = np.ascontiguousarray(np.concatenate(arrays))

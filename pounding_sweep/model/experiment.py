@@ -9,10 +9,9 @@ Extra columns (quality flags, other floors) are ignored unless the scene maps th
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -20,9 +19,8 @@ if TYPE_CHECKING:  # pandas costs 0.3 s to import: only where a table is built
     import pandas as pd
 
 from pounding_sweep.errors import ExperimentError
-from pounding_sweep.scene.channels import floor_dof
 from pounding_sweep.scene import ExperimentConfig
-
+from pounding_sweep.scene.channels import floor_dof
 
 
 @dataclass(frozen=True)
@@ -51,7 +49,9 @@ def read_table(path: str | Path) -> tuple[pd.DataFrame, dict]:
     if not path.is_file():
         raise ExperimentError(f"{path}: experiment table not found")
     if path.suffix.lower() not in TABLE_SUFFIXES:
-        raise ExperimentError(f"{path}: an experiment table is .csv or .parquet, not {path.suffix or 'a file without suffix'!r}")
+        raise ExperimentError(
+            f"{path}: an experiment table is .csv or .parquet, not {path.suffix or 'a file without suffix'!r}"
+        )
     try:
         if path.suffix.lower() == ".parquet":
             import pyarrow.parquet as pq
@@ -77,12 +77,15 @@ def load_experiment(cfg: ExperimentConfig, floors: tuple[int, int]) -> Experimen
     return experiment_from_table(df, md, cfg.table, cfg, floors)
 
 
-def experiment_from_table(df: pd.DataFrame, md: dict, where: str, cfg: ExperimentConfig,
-                          floors: tuple[int, int]) -> Experiment:
+def experiment_from_table(
+    df: pd.DataFrame, md: dict, where: str, cfg: ExperimentConfig, floors: tuple[int, int]
+) -> Experiment:
     """Read the table and check it: time column present, numeric, finite, strictly increasing;
     every mapped column present, numeric and finite; every channel a model floor."""
     if cfg.time_column not in df.columns:
-        raise ExperimentError(f"{where}: no time column '{cfg.time_column}' (columns: {', '.join(map(str, df.columns))})")
+        raise ExperimentError(
+            f"{where}: no time column '{cfg.time_column}' (columns: {', '.join(map(str, df.columns))})"
+        )
     t = _numeric(df[cfg.time_column], where, cfg.time_column)
     if t.size < 2:
         raise ExperimentError(f"{where}: column '{cfg.time_column}' needs at least 2 samples, has {t.size}")
@@ -105,7 +108,9 @@ def experiment_from_table(df: pd.DataFrame, md: dict, where: str, cfg: Experimen
     chans, cols = {}, {}
     for col, code in cfg.channels.items():
         if col not in df.columns:
-            raise ExperimentError(f"{where}: no column '{col}' (mapped to floor {code}); columns: {', '.join(map(str, df.columns))}")
+            raise ExperimentError(
+                f"{where}: no column '{col}' (mapped to floor {code}); columns: {', '.join(map(str, df.columns))}"
+            )
         floor_dof(code, floors, f"[experiment] channels.{col}")
         chans[code] = _numeric(df[col], where, col) * factor
         cols[code] = col

@@ -22,7 +22,7 @@ class Grid:
     fixed: dict
 
     @classmethod
-    def from_scene(cls, scene: Scene) -> "Grid":
+    def from_scene(cls, scene: Scene) -> Grid:
         fixed = {}
         for name, (section, key) in SWEEPABLE.items():
             fixed[name] = getattr(getattr(scene, section), key)

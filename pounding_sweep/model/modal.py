@@ -79,5 +79,15 @@ def modal_arrays(sys: SystemArrays, n1: int) -> ModalArrays:
     cf = 1.0 / keff
     W = psi.T @ (cf[:, None] * psi)
     c = np.ascontiguousarray
-    return ModalArrays(dt, c(phi), c(psi), c(om2), c(dmp), c(gam), c(cf), c(-2.0 * om2 * cf), c(8.0 / (dt * dt) * cf),
-                       c(0.5 * (W + W.T)))
+    return ModalArrays(
+        dt,
+        c(phi),
+        c(psi),
+        c(om2),
+        c(dmp),
+        c(gam),
+        c(cf),
+        c(-2.0 * om2 * cf),
+        c(8.0 / (dt * dt) * cf),
+        c(0.5 * (W + W.T)),
+    )

@@ -84,10 +84,23 @@ _ACCEPTED_UNITS = ACCEPTED_UNITS
 # How PEER line 3 spells units (spaces removed, upper case) -> our canonical name.
 _HEADER_UNITS = {
     "G": "g",
-    "M/S/S": "m/s2", "M/SEC/SEC": "m/s2", "M/S2": "m/s2", "M/S^2": "m/s2", "M/S**2": "m/s2",
-    "M/SEC2": "m/s2", "M/SEC^2": "m/s2", "M/SEC**2": "m/s2",
-    "CM/S/S": "cm/s2", "CM/SEC/SEC": "cm/s2", "CM/S2": "cm/s2", "CM/S^2": "cm/s2", "CM/S**2": "cm/s2",
-    "CM/SEC2": "cm/s2", "CM/SEC^2": "cm/s2", "CM/SEC**2": "cm/s2", "GAL": "cm/s2",
+    "M/S/S": "m/s2",
+    "M/SEC/SEC": "m/s2",
+    "M/S2": "m/s2",
+    "M/S^2": "m/s2",
+    "M/S**2": "m/s2",
+    "M/SEC2": "m/s2",
+    "M/SEC^2": "m/s2",
+    "M/SEC**2": "m/s2",
+    "CM/S/S": "cm/s2",
+    "CM/SEC/SEC": "cm/s2",
+    "CM/S2": "cm/s2",
+    "CM/S^2": "cm/s2",
+    "CM/S**2": "cm/s2",
+    "CM/SEC2": "cm/s2",
+    "CM/SEC^2": "cm/s2",
+    "CM/SEC**2": "cm/s2",
+    "GAL": "cm/s2",
 }
 
 # Plain decimal / Fortran E (or D) number: "-.6403182E-02", "5", "1.5d-3". No underscores, no hex.
@@ -215,9 +228,7 @@ def read_at2(path, units="g") -> GroundRecord:
             if not math.isfinite(x):
                 raise RecordError(f"{src}, line {lineno}: value overflows to inf: {tok!r}")
             if len(values) == npts:
-                raise RecordError(
-                    f"{src}, line {lineno}: more values than NPTS={npts} (first extra value {tok!r})"
-                )
+                raise RecordError(f"{src}, line {lineno}: more values than NPTS={npts} (first extra value {tok!r})")
             values.append(x)
     if len(values) < npts:
         raise RecordError(f"{src}: found {len(values)} values but NPTS={npts} (file truncated?)")
@@ -262,7 +273,9 @@ def read_csv_record(path, units="m/s2") -> GroundRecord:
             if all(x is None and not _is_nonfinite_spelling(f) for x, f in zip(parsed, fields)):
                 continue  # header row: nothing on it is a number
         if len(fields) != 2:
-            raise RecordError(f"{src}, line {lineno}: expected 2 columns (time, acceleration), got {len(fields)}: {s!r}")
+            raise RecordError(
+                f"{src}, line {lineno}: expected 2 columns (time, acceleration), got {len(fields)}: {s!r}"
+            )
         for f, x in zip(fields, parsed):
             if x is None:
                 kind = "non-finite value" if _is_nonfinite_spelling(f) else "not a number"

@@ -65,7 +65,7 @@ class ShearFrame:
         """C = a0 M + a1 K, eqs. (3)-(4)."""
         return self.rayleigh_a0_per_s * self.M + self.rayleigh_a1_s * self.K
 
-    def modes(self) -> "Modes":
+    def modes(self) -> Modes:
         return modal_analysis(self.M, self.K, self.C)
 
 

@@ -10,9 +10,24 @@ closed_form (no contact: modal superposition).
 
 from pounding_sweep.reference.closed_form import classical_modes, modal_free_vibration, modal_harmonic_response
 from pounding_sweep.reference.ivp import contact_force, contact_set_systems, ivp_reference
-from pounding_sweep.reference.newmark import (Problem, newmark_reference, paper_scheme_reference, resolve,
-                                              restitution_damping_ratio)
+from pounding_sweep.reference.newmark import (
+    Problem,
+    newmark_reference,
+    paper_scheme_reference,
+    resolve,
+    restitution_damping_ratio,
+)
 
-__all__ = ["classical_modes", "modal_free_vibration", "modal_harmonic_response", "contact_force", "contact_set_systems",
-           "ivp_reference", "Problem", "newmark_reference", "paper_scheme_reference", "resolve",
-           "restitution_damping_ratio"]
+__all__ = [
+    "classical_modes",
+    "modal_free_vibration",
+    "modal_harmonic_response",
+    "contact_force",
+    "contact_set_systems",
+    "ivp_reference",
+    "Problem",
+    "newmark_reference",
+    "paper_scheme_reference",
+    "resolve",
+    "restitution_damping_ratio",
+]

@@ -49,7 +49,11 @@ def modal_harmonic_response(M, C, K, amp, omega, t) -> np.ndarray:
         wd = w * math.sqrt(1.0 - z**2)
         a_ = -d1  # q(0) = a_ + d1 = 0
         b_ = (z * w * a_ - c1 * omega) / wd  # q'(0) = -z w a_ + wd b_ + c1 omega = 0
-        q = np.exp(-z * w * t) * (a_ * np.cos(wd * t) + b_ * np.sin(wd * t)) + c1 * np.sin(omega * t) + d1 * np.cos(omega * t)
+        q = (
+            np.exp(-z * w * t) * (a_ * np.cos(wd * t) + b_ * np.sin(wd * t))
+            + c1 * np.sin(omega * t)
+            + d1 * np.cos(omega * t)
+        )
         u += np.outer(q, phi[:, m])
     return u
 

@@ -48,8 +48,9 @@ def contact_force(P: Problem, j: int, y: np.ndarray) -> np.ndarray:
     return P.ks * (g @ y[:n] - P.gap) + P.c[j] * (g @ y[n:])
 
 
-def ivp_reference(scene, t_end=None, rtol=1e-10, atol=1e-13, method="DOP853", max_step=1e-3, dt_out=None,
-                  **overrides) -> dict:
+def ivp_reference(
+    scene, t_end=None, rtol=1e-10, atol=1e-13, method="DOP853", max_step=1e-3, dt_out=None, **overrides
+) -> dict:
     """The continuous-time problem (eqs. 1-2 and 8) by solve_ivp, one smooth piece per contact set.
 
     First-order form y = (u, v). With a fixed set A of pairs in contact, eq. (8) is linear in y:
@@ -121,8 +122,17 @@ def ivp_reference(scene, t_end=None, rtol=1e-10, atol=1e-13, method="DOP853", ma
             h = event_function(j)
             h.direction = -1.0 if active[j] else 1.0
             evs.append(h)
-        sol = solve_ivp(lambda t, yy: Asys @ yy + f0 + drive * math.sin(P.omega * t), (t0, t_end), y,
-                        method=method, rtol=rtol, atol=atol, max_step=max_step, events=evs, dense_output=True)
+        sol = solve_ivp(
+            lambda t, yy: Asys @ yy + f0 + drive * math.sin(P.omega * t),
+            (t0, t_end),
+            y,
+            method=method,
+            rtol=rtol,
+            atol=atol,
+            max_step=max_step,
+            events=evs,
+            dense_output=True,
+        )
         if sol.status < 0:
             raise RuntimeError(f"ivp_reference: solve_ivp failed at t = {sol.t[-1]}: {sol.message}")
         t1 = sol.t[-1]
@@ -156,7 +166,9 @@ def ivp_reference(scene, t_end=None, rtol=1e-10, atol=1e-13, method="DOP853", ma
 
 # ----------------------------------------------------------------------------- records too (the accuracy ladder's reference)
 
-SAMPLE_DT = 5e-3  # the continuous reference's output grid: the coarsest dt of the accuracy ladder, which every dt divides
+SAMPLE_DT = (
+    5e-3  # the continuous reference's output grid: the coarsest dt of the accuracy ladder, which every dt divides
+)
 REF_RTOL, REF_ATOL = 1e-12, 1e-15  # its tolerances (checked against themselves at 10x tighter)
 PEAK_SCAN_S = 2e-5  # dense-output scan spacing for its peaks (then refined by Brent)
 TOP = 3  # floor of the top-floor channels and of the pounding-force pair
@@ -196,8 +208,9 @@ def ground_acceleration_fn(scene, t_end):
     return ag, tk[(tk > 0.0) & (tk < t_end)]
 
 
-def continuous_reference(scene, sample_dt=SAMPLE_DT, rtol=REF_RTOL, atol=REF_ATOL, max_step=1e-3,
-                         peak_scan_s=PEAK_SCAN_S, **overrides) -> Reference:
+def continuous_reference(
+    scene, sample_dt=SAMPLE_DT, rtol=REF_RTOL, atol=REF_ATOL, max_step=1e-3, peak_scan_s=PEAK_SCAN_S, **overrides
+) -> Reference:
     """solve_ivp (DOP853) with contact events on the scene's point (`overrides`: ks_ratio, r, law, ...).
 
     Each piece is a linear ODE y' = A_S y + f_S - [0; 1] ag(t) for the contact set S (y = (u, v)),
@@ -251,8 +264,17 @@ def continuous_reference(scene, sample_dt=SAMPLE_DT, rtol=REF_RTOL, atol=REF_ATO
             a0, a1 = ag(t0), ag(t_stop)
             slope = (a1 - a0) / (t_stop - t0) if t_stop > t0 else 0.0
             rhs = lambda t, yy, a0=a0, slope=slope, t0=t0: A @ yy + f0 - ones * (a0 + slope * (t - t0))  # noqa: E731
-        sol = solve_ivp(rhs, (t0, t_stop), y, method="DOP853", rtol=rtol, atol=atol, max_step=max_step, events=evs,
-                        dense_output=True)
+        sol = solve_ivp(
+            rhs,
+            (t0, t_stop),
+            y,
+            method="DOP853",
+            rtol=rtol,
+            atol=atol,
+            max_step=max_step,
+            events=evs,
+            dense_output=True,
+        )
         if sol.status < 0:
             raise RuntimeError(f"continuous_reference: solve_ivp failed at t = {sol.t[-1]}: {sol.message}")
         t1 = sol.t[-1]
@@ -301,13 +323,18 @@ def continuous_reference(scene, sample_dt=SAMPLE_DT, rtol=REF_RTOL, atol=REF_ATO
             a, b = max(pieces[kk][0], t_b - peak_scan_s), min(pieces[kk][1], t_b + peak_scan_s)
             if b <= a:
                 continue
-            r = minimize_scalar(lambda t: -fun(kk, t), bounds=(a, b), method="bounded",
-                                options={"xatol": 1e-14 + 1e-12 * abs(t_b)})
+            r = minimize_scalar(
+                lambda t: -fun(kk, t), bounds=(a, b), method="bounded", options={"xatol": 1e-14 + 1e-12 * abs(t_b)}
+            )
             out = max(out, -r.fun, fun(kk, a), fun(kk, b))
         return out
 
     peak_u = np.array([refine(lambda kk, t, i=i: abs(pieces[kk][2](t)[i]), best_u[i]) for i in range(n)])
-    peak_F = np.array([refine(lambda kk, t, j=j: force(j, pieces[kk][2](t)) if pieces[kk][3][j] else 0.0, best_F[j])
-                       for j in range(p)])
+    peak_F = np.array(
+        [
+            refine(lambda kk, t, j=j: force(j, pieces[kk][2](t)) if pieces[kk][3][j] else 0.0, best_F[j])
+            for j in range(p)
+        ]
+    )
     impacts = np.array([sum(1 for ev in events if ev[1] == j and ev[2] == "contact") for j in range(p)])
     return Reference(grid, top, peak_u, peak_F, impacts, events, rtol, time.perf_counter() - t_wall)

@@ -44,8 +44,8 @@ import math
 
 import numpy as np
 
-from pounding_sweep.model.excitation import Excitation
 from pounding_sweep.model.coupled import CoupledModel
+from pounding_sweep.model.excitation import Excitation
 from pounding_sweep.sweep.simulate import with_overrides
 
 LAWS = ("classic", "no_tension")
@@ -140,8 +140,24 @@ def resolve(scene, **overrides) -> Problem:
         exc = Excitation.from_scene(s, dt)
         record = e.scale * exc.rec_flat[: exc.rec_len[0]].copy()
         nsteps, amp, omega = record.size - 1, 0.0, 0.0
-    return Problem(M, C, K, G, float(ks), c, float(con.gap_m), con.law, s.integration.scheme,
-                   s.integration.max_contact_iterations, float(dt), int(nsteps), e.type, float(amp), float(omega), record)
+    return Problem(
+        M,
+        C,
+        K,
+        G,
+        float(ks),
+        c,
+        float(con.gap_m),
+        con.law,
+        s.integration.scheme,
+        s.integration.max_contact_iterations,
+        float(dt),
+        int(nsteps),
+        e.type,
+        float(amp),
+        float(omega),
+        record,
+    )
 
 
 # ----------------------------------------------------------------------------- Newmark
@@ -296,8 +312,20 @@ def newmark_reference(scene, cycle_fallback: str = "union", noise: float = 0.0, 
     else:
         impacts, contact_time = entered.sum(axis=0), dt * act_hist[1:].sum(axis=0)
         peak = np.maximum(F_hist.max(axis=0), 0.0)
-    return dict(t=t, u=U, v=V, a=A, F=F_hist, active=act_hist, ag=ag, impacts=impacts, contact_time=contact_time,
-                peak_force=peak, unsettled=unsettled, problem=P)
+    return dict(
+        t=t,
+        u=U,
+        v=V,
+        a=A,
+        F=F_hist,
+        active=act_hist,
+        ag=ag,
+        impacts=impacts,
+        contact_time=contact_time,
+        peak_force=peak,
+        unsettled=unsettled,
+        problem=P,
+    )
 
 
 def _substep(P: Problem, h: float, ag_end: float, u, v, a, active):
@@ -374,11 +402,13 @@ def _event_step(P: Problem, k: int, u, v, a, active, ag, stats, max_events: int 
         times = np.full(P.n_pairs, np.inf)
         start = _contradiction(P, u, v, active)
         for j in np.flatnonzero(bad):
+
             def phi(s, j=j):
                 if s == 0.0:
                     return -1e-300 if just[j] else min(start[j], -1e-300)
                 e = _substep(P, s, ag_at(s0 + s), u, v, a, active)
                 return _contradiction(P, e[0], e[1], active)[j]
+
             if h <= 1e-9 * dt or (not just[j] and start[j] >= 0.0):
                 times[j] = 0.0  # contradicts already at the start
                 continue

@@ -11,12 +11,44 @@ from pounding_sweep.errors import ConfigError
 from pounding_sweep.scene.axes import SWEEPABLE, contact_stiffness, ks_counterpart, setting_ks
 from pounding_sweep.scene.describe import describe
 from pounding_sweep.scene.parse import load_scene, scene_from_dict
-from pounding_sweep.scene.schema import (EXECUTORS, MAX_GRID, MAX_STEPS, SECTIONS, Axis, BuildingConfig, ContactConfig,
-                                         ExcitationConfig, ExecutionConfig, ExperimentConfig, IntegrationConfig,
-                                         OutputConfig, Scene)
+from pounding_sweep.scene.schema import (
+    EXECUTORS,
+    MAX_GRID,
+    MAX_STEPS,
+    SECTIONS,
+    Axis,
+    BuildingConfig,
+    ContactConfig,
+    ExcitationConfig,
+    ExecutionConfig,
+    ExperimentConfig,
+    IntegrationConfig,
+    OutputConfig,
+    Scene,
+)
 from pounding_sweep.scene.validate import validate
 
-__all__ = ["ConfigError", "SWEEPABLE", "contact_stiffness", "ks_counterpart", "setting_ks", "describe", "load_scene",
-           "scene_from_dict", "EXECUTORS", "MAX_GRID", "MAX_STEPS", "SECTIONS", "Axis", "BuildingConfig",
-           "ContactConfig", "ExcitationConfig", "ExecutionConfig", "ExperimentConfig", "IntegrationConfig",
-           "OutputConfig", "Scene", "validate"]
+__all__ = [
+    "ConfigError",
+    "SWEEPABLE",
+    "contact_stiffness",
+    "ks_counterpart",
+    "setting_ks",
+    "describe",
+    "load_scene",
+    "scene_from_dict",
+    "EXECUTORS",
+    "MAX_GRID",
+    "MAX_STEPS",
+    "SECTIONS",
+    "Axis",
+    "BuildingConfig",
+    "ContactConfig",
+    "ExcitationConfig",
+    "ExecutionConfig",
+    "ExperimentConfig",
+    "IntegrationConfig",
+    "OutputConfig",
+    "Scene",
+    "validate",
+]

@@ -52,11 +52,16 @@ def check_ks(contact, axes: dict) -> None:
         raise ConfigError("[contact]: missing key 'ks_ratio' (or 'ks_N_per_m'): the contact stiffness")
     # the resolved contact stiffness enters ke = k_s + 2 c / dt and the contact matrix: it must stay finite
     k_ref = contact.k_ref_N_per_m
-    for key, ratio in [("[contact] ks_ratio", contact.ks_ratio)] + [("[sweep] ks_ratio", v) for v in axes.get("ks_ratio", ())]:
+    for key, ratio in [("[contact] ks_ratio", contact.ks_ratio)] + [
+        ("[sweep] ks_ratio", v) for v in axes.get("ks_ratio", ())
+    ]:
         if ratio is not None and not math.isfinite(4.0 * ratio * k_ref):
-            raise ConfigError(f"{key} = {ratio!r} with [contact] k_ref_N_per_m = {k_ref!r}: k_s = ratio k_ref "
-                              "overflows (is k_ref in N/m?)")
-    for key, ks in [("[contact] ks_N_per_m", contact.ks_N_per_m)] + [("[sweep] ks_N_per_m", v)
-                                                                      for v in axes.get("ks_N_per_m", ())]:
+            raise ConfigError(
+                f"{key} = {ratio!r} with [contact] k_ref_N_per_m = {k_ref!r}: k_s = ratio k_ref "
+                "overflows (is k_ref in N/m?)"
+            )
+    for key, ks in [("[contact] ks_N_per_m", contact.ks_N_per_m)] + [
+        ("[sweep] ks_N_per_m", v) for v in axes.get("ks_N_per_m", ())
+    ]:
         if ks is not None and not math.isfinite(4.0 * ks):
             raise ConfigError(f"{key} = {ks!r}: too large (the contact terms overflow)")

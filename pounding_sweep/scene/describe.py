@@ -16,5 +16,7 @@ def describe() -> str:
         for f in dataclasses.fields(cls):
             default = "" if f.default is dataclasses.MISSING else f" (default {f.default!r})"
             lines.append(f"  {f.name}: {f.metadata['doc']}{default}")
-    lines.append("[sweep]  axes: " + ", ".join(SWEEPABLE) + "; a list of values or {start, stop, num, spacing = 'linear'|'log'}")
+    lines.append(
+        "[sweep]  axes: " + ", ".join(SWEEPABLE) + "; a list of values or {start, stop, num, spacing = 'linear'|'log'}"
+    )
     return "\n".join(lines)

@@ -13,8 +13,8 @@ from pathlib import Path
 
 from pounding_sweep.errors import ConfigError
 from pounding_sweep.scene.axes import SWEEPABLE
-from pounding_sweep.scene.schema import (MAX_AXIS_VALUES, SECTIONS, TOP_KEYS, Axis, ExperimentConfig, Scene)
 from pounding_sweep.scene.keys import check_keys
+from pounding_sweep.scene.schema import MAX_AXIS_VALUES, SECTIONS, TOP_KEYS, Axis, ExperimentConfig, Scene
 from pounding_sweep.scene.validate import validate
 
 
@@ -73,9 +73,11 @@ def scene_from_dict(raw: dict, base_dir: Path, source: str = "<dict>", toml_text
             raise ConfigError(f"'{name}' must be a table [{name}], got {type(table).__name__} {table!r}")
         sections[name] = _build(cls, table, name)
     name = _typed(raw.get("name", Path(source).stem), str, "name")
-    if not name or any(c in name for c in '/\\\x00') or name in (".", ".."):
-        raise ConfigError(f"name = {name!r}: a scene name is also the default output file name; "
-                          "use letters, digits, '-', '_' or '.', no path separators")
+    if not name or any(c in name for c in "/\\\x00") or name in (".", ".."):
+        raise ConfigError(
+            f"name = {name!r}: a scene name is also the default output file name; "
+            "use letters, digits, '-', '_' or '.', no path separators"
+        )
     desc = _typed(raw.get("description", ""), str, "description")
     exc = sections["excitation"]
     if exc.record is not None:
@@ -95,12 +97,14 @@ def scene_from_dict(raw: dict, base_dir: Path, source: str = "<dict>", toml_text
             from pounding_sweep.scene.video import parse_video_section  # no OpenCV import: tracking imports it lazily
 
             spec = parse_video_section(video, base_dir)
-            experiment = dataclasses.replace(experiment, video=spec,
-                                             channels=experiment.channels or spec.default_channels())
+            experiment = dataclasses.replace(
+                experiment, video=spec, channels=experiment.channels or spec.default_channels()
+            )
         if experiment.table is not None:
             experiment = dataclasses.replace(experiment, table=str((base_dir / experiment.table).resolve()))
-    scene = Scene(name=name, description=desc, sweep=sweep, source=source, toml_text=toml_text,
-                  experiment=experiment, **sections)
+    scene = Scene(
+        name=name, description=desc, sweep=sweep, source=source, toml_text=toml_text, experiment=experiment, **sections
+    )
     validate(scene)
     return scene
 

@@ -34,7 +34,9 @@ class BuildingConfig:
     story_stiffness_N_per_m: tuple[float, ...] | None = _f(
         "lateral stiffness of each story [N/m] (one value: the same for every story)", None
     )
-    column_EI_Nm2: tuple[float, ...] | None = _f("column flexural stiffness EI [N m^2] (k = n_columns 12 EI / h^3)", None)
+    column_EI_Nm2: tuple[float, ...] | None = _f(
+        "column flexural stiffness EI [N m^2] (k = n_columns 12 EI / h^3)", None
+    )
     n_columns: int | None = _f("columns per story (with column_EI_Nm2)", None)
     story_height_m: tuple[float, ...] | None = _f("story height h [m] (with column_EI_Nm2)", None)
     damping_ratio: float | None = _f("Rayleigh damping ratio matched at damping_modes (0.0105 = 1.05 %)", None)
@@ -68,22 +70,32 @@ class ExcitationConfig:
     format: str = _f("record format: 'auto' (by suffix), 'at2' or 'csv'", "auto")
     units: str | None = _f("record acceleration units: 'g', 'm/s2' or 'cm/s2' (default: the format's)", None)
     scale: float = _f("factor on the record's acceleration", 1.0)
-    length_scale: float = _f("similitude length scale lambda_L (eqs. 17-19): time / sqrt(lambda_L), acceleration kept", 1.0)
+    length_scale: float = _f(
+        "similitude length scale lambda_L (eqs. 17-19): time / sqrt(lambda_L), acceleration kept", 1.0
+    )
 
 
 @dataclass(frozen=True)
 class IntegrationConfig:
     """Time integration: Newmark average acceleration (gamma = 1/2, beta = 1/4)."""
 
-    dt_s: float | str = _f("time step [s], or 'auto': per run, halved from dt_max_s until the run's result changes "
-                           "by less than dt_tolerance (step doubling with a Richardson estimate)", 1e-4)
-    dt_tolerance: float = _f("dt_s = 'auto': relative error allowed in the scored errors (fractions of the "
-                             "experiment's RMS) and peaks, or without an experiment in the peak displacements and forces",
-                             1e-3)
+    dt_s: float | str = _f(
+        "time step [s], or 'auto': per run, halved from dt_max_s until the run's result changes "
+        "by less than dt_tolerance (step doubling with a Richardson estimate)",
+        1e-4,
+    )
+    dt_tolerance: float = _f(
+        "dt_s = 'auto': relative error allowed in the scored errors (fractions of the "
+        "experiment's RMS) and peaks, or without an experiment in the peak displacements and forces",
+        1e-3,
+    )
     dt_max_s: float = _f("dt_s = 'auto': the coarsest step tried [s]", 2e-3)
     dt_min_s: float = _f("dt_s = 'auto': the finest step tried [s]; runs above the tolerance there are flagged", 1e-6)
-    scheme: str = _f("'implicit' (contact in the step, active set), 'event' (steps split at contact switches: second order) "
-                     "or 'paper' (trial force as load, sec. 2)", "event")
+    scheme: str = _f(
+        "'implicit' (contact in the step, active set), 'event' (steps split at contact switches: second order) "
+        "or 'paper' (trial force as load, sec. 2)",
+        "event",
+    )
     max_contact_iterations: int = _f("active-set iterations per step before a step counts as unsettled", 16)
     min_steps_per_contact_period: float = _f("flag runs with fewer steps per contact period 2 pi sqrt(m_eff/k_s)", 20.0)
 
@@ -114,8 +126,11 @@ class ExecutionConfig:
 
     threads: int = _f("worker threads of the local executor (0: all cores)", 0)
     batch_runs: int = _f("runs handed to a thread at a time (0: automatic)", 0)
-    executor: str = _f("'local' (threads in this process) or 'dask' (Dask distributed: a LocalCluster, or the "
-                       "scheduler at dask_address)", "local")
+    executor: str = _f(
+        "'local' (threads in this process) or 'dask' (Dask distributed: a LocalCluster, or the "
+        "scheduler at dask_address)",
+        "local",
+    )
     dask_address: str = _f("scheduler address, e.g. 'tcp://10.0.0.5:8786' (empty: start a LocalCluster here)", "")
     dask_workers: int = _f("worker processes of the LocalCluster, one thread each (0: all cores)", 0)
     chunk_runs: int = _f("runs per result part (Parquet file) and per task", 4096)
@@ -126,20 +141,33 @@ class ExecutionConfig:
 class ExperimentConfig:
     """Tracked displacement to score every run against (CSV or Parquet; see the README's format)."""
 
-    table: str | None = _f("path of the tracked-displacement table (.csv or .parquet); or an [experiment.video] "
-                           "section to track a video instead", None)
-    channels: dict | None = _f("table column -> model floor, e.g. {model1_floor3 = 'b1f3'} (with a video: default "
-                               "every marker named by a floor)", None)
+    table: str | None = _f(
+        "path of the tracked-displacement table (.csv or .parquet); or an [experiment.video] "
+        "section to track a video instead",
+        None,
+    )
+    channels: dict | None = _f(
+        "table column -> model floor, e.g. {model1_floor3 = 'b1f3'} (with a video: default "
+        "every marker named by a floor)",
+        None,
+    )
     time_column: str = _f("name of the time column [s]", "t_s")
     units: str = _f("units of the displacement columns: 'mm' or 'm'", "mm")
-    window_s: tuple[float, ...] | None = _f("[start, end] of the compared window in simulation time [s] (default: all overlap)", None)
-    time_offset_s: float = _f("experiment time minus simulation time [s] (the table's t = offset is the simulation's t = 0)", 0.0)
+    window_s: tuple[float, ...] | None = _f(
+        "[start, end] of the compared window in simulation time [s] (default: all overlap)", None
+    )
+    time_offset_s: float = _f(
+        "experiment time minus simulation time [s] (the table's t = offset is the simulation's t = 0)", 0.0
+    )
     max_lag_s: float = _f("largest lag searched for the best correlation [s]", 0.1)
     combine: str = _f("how channels combine into one error: 'mean', 'max' or 'rms' of their eq. 20 errors", "mean")
     refine: bool = _f("after the grid, minimise the combined error over continuous k_s/k and r (scipy.optimize)", False)
     refine_max_evals: int = _f("simulations the refinement may spend", 80)
-    video: VideoSpec | None = _f("[experiment.video]: a shake-table video whose LED markers are tracked into the "
-                                 "table (see python -m pounding_sweep track --help for its keys)", None)
+    video: VideoSpec | None = _f(
+        "[experiment.video]: a shake-table video whose LED markers are tracked into the "
+        "table (see python -m pounding_sweep track --help for its keys)",
+        None,
+    )
 
 
 @dataclass(frozen=True)

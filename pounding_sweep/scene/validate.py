@@ -28,8 +28,14 @@ def validate(s: Scene) -> None:
         has_k = b.story_stiffness_N_per_m is not None
         has_ei = b.column_EI_Nm2 is not None
         if has_k == has_ei:
-            raise ConfigError(f"[{bname}]: give either story_stiffness_N_per_m or column_EI_Nm2 (+ n_columns, story_height_m), not {'both' if has_k else 'neither'}")
-        lists = {"story_stiffness_N_per_m": b.story_stiffness_N_per_m, "column_EI_Nm2": b.column_EI_Nm2, "story_height_m": b.story_height_m}
+            raise ConfigError(
+                f"[{bname}]: give either story_stiffness_N_per_m or column_EI_Nm2 (+ n_columns, story_height_m), not {'both' if has_k else 'neither'}"
+            )
+        lists = {
+            "story_stiffness_N_per_m": b.story_stiffness_N_per_m,
+            "column_EI_Nm2": b.column_EI_Nm2,
+            "story_height_m": b.story_height_m,
+        }
         for k, vals in lists.items():
             if vals is None:
                 continue
@@ -53,7 +59,9 @@ def validate(s: Scene) -> None:
             raise ConfigError(f"[{bname}] damping_ratio = {b.damping_ratio!r}: must lie in [0, 1)")
         if len(b.damping_modes) != 2 or len(set(b.damping_modes)) != 2 or not all(1 <= m <= n for m in b.damping_modes):
             if n > 1:
-                raise ConfigError(f"[{bname}] damping_modes = {list(b.damping_modes)}: two different modes between 1 and {n}")
+                raise ConfigError(
+                    f"[{bname}] damping_modes = {list(b.damping_modes)}: two different modes between 1 and {n}"
+                )
     c = s.contact
     axes = {a.name: a.values for a in s.sweep}
     _check_r(c.r, "[contact] r")
@@ -106,20 +114,28 @@ def validate(s: Scene) -> None:
         if not i.dt_max_s > i.dt_min_s:
             raise ConfigError(f"[integration] dt_max_s = {i.dt_max_s!r}: must be larger than dt_min_s = {i.dt_min_s!r}")
         if s.output.histories:
-            raise ConfigError("[output] histories need one time step for all runs: give [integration] dt_s a number "
-                              "(not 'auto'), e.g. the dt_s an 'auto' sweep chose")
+            raise ConfigError(
+                "[output] histories need one time step for all runs: give [integration] dt_s a number "
+                "(not 'auto'), e.g. the dt_s an 'auto' sweep chose"
+            )
     else:
         _positive(i.dt_s, "[integration] dt_s")
     if i.scheme not in SCHEMES:
         raise ConfigError(f"[integration] scheme = {i.scheme!r}: expected one of {sorted(SCHEMES)}")
     _positive(i.max_contact_iterations, "[integration] max_contact_iterations")
     if i.min_steps_per_contact_period < 0:
-        raise ConfigError(f"[integration] min_steps_per_contact_period = {i.min_steps_per_contact_period!r}: must be >= 0")
+        raise ConfigError(
+            f"[integration] min_steps_per_contact_period = {i.min_steps_per_contact_period!r}: must be >= 0"
+        )
     if e.type == "harmonic" and e.duration_s is not None and i.first_dt_s >= e.duration_s:
-        raise ConfigError(f"[integration] dt_s = {i.first_dt_s!r}: must be shorter than [excitation] duration_s = {e.duration_s!r}")
+        raise ConfigError(
+            f"[integration] dt_s = {i.first_dt_s!r}: must be shorter than [excitation] duration_s = {e.duration_s!r}"
+        )
     if e.type == "harmonic" and e.duration_s is not None and e.duration_s / i.first_dt_s > MAX_STEPS:
-        raise ConfigError(f"[integration] {'dt_max_s' if i.auto else 'dt_s'} = {i.first_dt_s!r}: {e.duration_s / i.first_dt_s:.3g} "
-                          f"steps over [excitation] duration_s = {e.duration_s!r}, more than {MAX_STEPS:,} (dt in the wrong units?)")
+        raise ConfigError(
+            f"[integration] {'dt_max_s' if i.auto else 'dt_s'} = {i.first_dt_s!r}: {e.duration_s / i.first_dt_s:.3g} "
+            f"steps over [excitation] duration_s = {e.duration_s!r}, more than {MAX_STEPS:,} (dt in the wrong units?)"
+        )
     _positive(s.output.history_decimate, "[output] history_decimate")
     for ch in s.output.histories:
         parse_channel(ch, (len(s.building1.masses_kg), len(s.building2.masses_kg)))
@@ -151,7 +167,9 @@ def _check_story_stiffness(b: BuildingConfig, bname: str, n: int) -> None:
     if b.story_stiffness_N_per_m is not None:
         for k in b.story_stiffness_N_per_m:
             if not math.isfinite(2.0 * k):
-                raise ConfigError(f"[{bname}] story_stiffness_N_per_m = {k!r}: too large (the stiffness matrix overflows)")
+                raise ConfigError(
+                    f"[{bname}] story_stiffness_N_per_m = {k!r}: too large (the stiffness matrix overflows)"
+                )
         return
     ei, h = (v if len(v) == n else v * n for v in (b.column_EI_Nm2, b.story_height_m))
     for e, hh in zip(ei, h):
@@ -162,20 +180,26 @@ def _check_story_stiffness(b: BuildingConfig, bname: str, n: int) -> None:
         except ZeroDivisionError:  # h^3 below the smallest
             k = math.inf
         if not (k > 0 and math.isfinite(2.0 * k)):
-            raise ConfigError(f"[{bname}] column_EI_Nm2 = {e!r}, n_columns = {b.n_columns}, story_height_m = {hh!r}: "
-                              f"k = n_columns 12 EI / h^3 = {k!r} N/m, not a usable story stiffness")
+            raise ConfigError(
+                f"[{bname}] column_EI_Nm2 = {e!r}, n_columns = {b.n_columns}, story_height_m = {hh!r}: "
+                f"k = n_columns 12 EI / h^3 = {k!r} N/m, not a usable story stiffness"
+            )
 
 
 def _validate_experiment(s: Scene) -> None:
     x = s.experiment
     if (x.table is None) == (x.video is None):
-        raise ConfigError("[experiment]: give either table = '...' (a tracked-displacement table) or an "
-                          "[experiment.video] section (a video to track), not " + ("both" if x.table else "neither"))
+        raise ConfigError(
+            "[experiment]: give either table = '...' (a tracked-displacement table) or an "
+            "[experiment.video] section (a video to track), not " + ("both" if x.table else "neither")
+        )
     if x.video is not None and x.units != "mm":
         raise ConfigError(f"[experiment] units = {x.units!r}: a tracked video gives millimetres; use 'mm'")
     if not x.channels:
-        raise ConfigError("[experiment] channels: map at least one table column to a floor, e.g. "
-                          "channels = { model1_floor3_mm = 'b1f3' }")
+        raise ConfigError(
+            "[experiment] channels: map at least one table column to a floor, e.g. "
+            "channels = { model1_floor3_mm = 'b1f3' }"
+        )
     if x.units not in ("mm", "m"):
         raise ConfigError(f"[experiment] units = {x.units!r}: expected 'mm' or 'm'")
     if x.combine not in ("mean", "max", "rms"):

@@ -37,7 +37,9 @@ class VideoSpec:
     path: str  # video file (absolute once parsed)
     markers: tuple[str, ...]  # every marker, references included; floor markers become table columns
     references: tuple[str, ...]  # markers fixed to the shaking table (>= 2 also removes camera roll)
-    positions_px: tuple[tuple[float, float], ...] | None = None  # first-frame (x, y) of each marker; None: automatic layout
+    positions_px: tuple[tuple[float, float], ...] | None = (
+        None  # first-frame (x, y) of each marker; None: automatic layout
+    )
     mm_per_px: float | None = None  # image scale; or scale_markers + scale_distance_mm
     scale_markers: tuple[str, ...] | None = None  # two markers a known distance apart
     scale_distance_mm: float | None = None
@@ -47,8 +49,12 @@ class VideoSpec:
     roi_px: tuple[int, int, int, int] | None = None  # x0, y0, x1, y1 (x1, y1 exclusive)
     channel: str = "blue"  # the paper's B component; 'green', 'red' or 'grey'
     method: str = "weighted"  # 'weighted' (sub-pixel, this package) or 'paper' (0.99 binary, sec. 3)
-    threshold: float | None = None  # weighted: fraction of each marker's own peak above background (0.2); paper: of full scale (0.99)
-    detect_level: float | None = None  # grey levels above the background that detect a marker (default: from the first frame's noise)
+    threshold: float | None = (
+        None  # weighted: fraction of each marker's own peak above background (0.2); paper: of full scale (0.99)
+    )
+    detect_level: float | None = (
+        None  # grey levels above the background that detect a marker (default: from the first frame's noise)
+    )
     median_ksize: int = 3  # the paper's median filter, on the detection image
     min_area_px: int = 2  # smaller bright specks are unrelated pixels
     max_step_px: float = 10.0  # largest move of a marker from its predicted position between frames
@@ -136,10 +142,17 @@ def parse_video_section(table: dict, base_dir: Path) -> VideoSpec:
             raise _err("markers", raw_m, "expected at least one marker")
         names, pos = [], []
         for n, xy in raw_m.items():
-            ok = isinstance(xy, list) and len(xy) == 2 and all(
-                isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c) and c >= 0 for c in xy)
+            ok = (
+                isinstance(xy, list)
+                and len(xy) == 2
+                and all(
+                    isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c) and c >= 0 for c in xy
+                )
+            )
             if not ok:
-                raise ConfigError(f"{SECTION} markers.{n} = {xy!r}: expected [x, y], the marker's pixel position in the first frame")
+                raise ConfigError(
+                    f"{SECTION} markers.{n} = {xy!r}: expected [x, y], the marker's pixel position in the first frame"
+                )
             names.append(str(n))
             pos.append((float(xy[0]), float(xy[1])))
         markers, positions = tuple(names), tuple(pos)
@@ -149,7 +162,11 @@ def parse_video_section(table: dict, base_dir: Path) -> VideoSpec:
             raise _err("markers", raw_m, "expected at least one marker")
     refs = _names(table, "references", table.get("references", []))
     if not refs:
-        raise _err("references", list(refs), "name at least one marker fixed to the table (two or more also remove camera roll)")
+        raise _err(
+            "references",
+            list(refs),
+            "name at least one marker fixed to the table (two or more also remove camera roll)",
+        )
     for r in refs:
         if r not in markers:
             raise _err("references", list(refs), f"'{r}' is not one of the markers")
@@ -161,8 +178,12 @@ def parse_video_section(table: dict, base_dir: Path) -> VideoSpec:
     if positions is None:
         others = [m for m in markers if m not in refs and floor_code(m) is None]
         if others:
-            raise _err("markers", list(markers), f"automatic layout needs floor names (b1f3 or model1_floor3_mm), not '{others[0]}': "
-                       "give first-frame positions instead, markers = {name = [x, y], ...}")
+            raise _err(
+                "markers",
+                list(markers),
+                f"automatic layout needs floor names (b1f3 or model1_floor3_mm), not '{others[0]}': "
+                "give first-frame positions instead, markers = {name = [x, y], ...}",
+            )
         codes = [floor_code(m) for m in markers if m not in refs]
         if len(set(codes)) != len(codes):
             raise _err("markers", list(markers), "two markers name the same floor")
@@ -174,12 +195,19 @@ def parse_video_section(table: dict, base_dir: Path) -> VideoSpec:
         if len(sm) != 2 or any(x not in markers for x in sm):
             raise _err("scale_markers", list(sm), "expected two of the markers")
     if (mm is None) == (sm is None or sd is None) or (mm is not None and (sm is not None or sd is not None)):
-        raise ConfigError(f"{SECTION}: give the image scale either as mm_per_px or as scale_markers = [a, b] with "
-                          f"scale_distance_mm (got mm_per_px = {mm!r}, scale_markers = {sm!r}, scale_distance_mm = {sd!r})")
+        raise ConfigError(
+            f"{SECTION}: give the image scale either as mm_per_px or as scale_markers = [a, b] with "
+            f"scale_distance_mm (got mm_per_px = {mm!r}, scale_markers = {sm!r}, scale_distance_mm = {sd!r})"
+        )
     roi = table.get("roi_px")
     if roi is not None:
-        if not (isinstance(roi, list) and len(roi) == 4 and all(isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in roi)
-                and roi[0] < roi[2] and roi[1] < roi[3]):
+        if not (
+            isinstance(roi, list)
+            and len(roi) == 4
+            and all(isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in roi)
+            and roi[0] < roi[2]
+            and roi[1] < roi[3]
+        ):
             raise _err("roi_px", roi, "expected [x0, y0, x1, y1], integers with x0 < x1 and y0 < y1")
         roi = tuple(roi)
     method = _choice(table, "method", ("weighted", "paper"), "weighted")

@@ -41,14 +41,16 @@ class AutoDt:
     def check_finest(self) -> None:
         """Refuse before any run a dt_min_s whose runs would be too long to integrate (the finest
         level is otherwise only built mid-sweep, after parts were written)."""
-        from pounding_sweep.scene import MAX_STEPS, ConfigError
         from pounding_sweep.model.excitation import Excitation
+        from pounding_sweep.scene import MAX_STEPS, ConfigError
 
         duration = Excitation.from_scene(self.scene, self.dt_max).max_duration_s
         steps = duration / self.dt(self.n_levels - 1)
         if steps > MAX_STEPS:
-            raise ConfigError(f"[integration] dt_min_s = {self.scene.integration.dt_min_s!r}: runs of {duration:.4g} s "
-                              f"would take {steps:,.0f} steps at the finest level, more than {MAX_STEPS:,}")
+            raise ConfigError(
+                f"[integration] dt_min_s = {self.scene.integration.dt_min_s!r}: runs of {duration:.4g} s "
+                f"would take {steps:,.0f} steps at the finest level, more than {MAX_STEPS:,}"
+            )
 
     def dt(self, level: int) -> float:
         return self.dt_max / 2.0**level
@@ -117,4 +119,3 @@ class AutoDt:
         bad = (fine[:, status_col].astype(np.int64) | coarse[:, status_col].astype(np.int64)) & L.STATUS_NONFINITE
         err = err / self.factor
         return np.where((bad != 0) | ~np.isfinite(err), np.inf, err)
-

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import logging
 import os
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
-from typing import Iterable, Iterator
 
 import numpy as np
 
@@ -78,8 +78,9 @@ class DaskExecutor:
             self.client = Client(address, timeout="30s")
         else:
             n = workers or resolve_threads(0)
-            self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-                                        silence_logs=logging.ERROR)
+            self.cluster = LocalCluster(
+                n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=logging.ERROR
+            )
             self.client = Client(self.cluster)
         self.workers = max(1, len(self.client.scheduler_info().get("workers", {})) or workers or 1)
         self.window = window_per_worker * self.workers
@@ -97,8 +98,11 @@ class DaskExecutor:
             if c is None:
                 return False
             index, start, stop = c
-            done.add(self.client.submit(run_part, shared, index, start, stop, 1, 0, key=f"pounding-part-{tag}-{index}",
-                                        retries=2))
+            done.add(
+                self.client.submit(
+                    run_part, shared, index, start, stop, 1, 0, key=f"pounding-part-{tag}-{index}", retries=2
+                )
+            )
             return True
 
         for _ in range(self.window):

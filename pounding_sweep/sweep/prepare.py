@@ -46,8 +46,9 @@ class Prepared:
         if self.auto is not None:
             return self.auto.run(params, threads, batch_runs)
         runs, rec, derived = self.kernel_inputs(params)
-        metrics, run_time, hist, scores = run_chunk(self.sysarr, runs, rec, self.hist, self.opts, threads, batch_runs,
-                                                    self.score, self.kernel)
+        metrics, run_time, hist, scores = run_chunk(
+            self.sysarr, runs, rec, self.hist, self.opts, threads, batch_runs, self.score, self.kernel
+        )
         return metrics, run_time, hist, scores, derived
 
     def kernel_inputs(self, params: dict[str, np.ndarray]):
@@ -55,8 +56,9 @@ class Prepared:
         contact columns)."""
         ks, c, xi, spp, status = contact_arrays(self.model, self.scene, params, self.dt)
         ex = self.excitation.run_arrays(params)
-        runs = RunArrays(ks, c, params["gap_m"], ex["exc_kind"], ex["exc_amp"], ex["exc_omega"], ex["rec_id"],
-                         ex["nsteps"], status)
+        runs = RunArrays(
+            ks, c, params["gap_m"], ex["exc_kind"], ex["exc_amp"], ex["exc_omega"], ex["rec_id"], ex["nsteps"], status
+        )
         rec = Records(self.excitation.rec_flat, self.excitation.rec_off, self.excitation.rec_len)
         return runs, rec, {"ks_N_per_m": ks, "contact_damping_ratio": xi, "steps_per_contact_period": spp}
 
@@ -68,8 +70,9 @@ def prepare(scene: Scene, kernel: str = "auto") -> Prepared:
     dt = scene.integration.first_dt_s
     model = CoupledModel.from_scene(scene)
     exc = Excitation.from_scene(scene, dt)
-    opts = KernelOptions(SCHEMES[scene.integration.scheme], CONTACT_LAWS[scene.contact.law],
-                         scene.integration.max_contact_iterations)
+    opts = KernelOptions(
+        SCHEMES[scene.integration.scheme], CONTACT_LAWS[scene.contact.law], scene.integration.max_contact_iterations
+    )
     hspec, hcols = history_spec(scene, model.floors)
     score, codes = ScoreSpec.none(), []
     if scene.experiment is not None:
@@ -83,8 +86,20 @@ def prepare(scene: Scene, kernel: str = "auto") -> Prepared:
         from pounding_sweep.sweep.autodt import AutoDt
 
         auto = AutoDt(scene, lambda s: prepare(s, kernel))
-    return Prepared(scene, model, model.system_arrays(dt), exc, Grid.from_scene(scene), opts, hspec, hcols, score, codes,
-                    auto, kernel)
+    return Prepared(
+        scene,
+        model,
+        model.system_arrays(dt),
+        exc,
+        Grid.from_scene(scene),
+        opts,
+        hspec,
+        hcols,
+        score,
+        codes,
+        auto,
+        kernel,
+    )
 
 
 def contact_arrays(model: CoupledModel, scene: Scene, params: dict[str, np.ndarray], dt: float):
@@ -102,6 +117,9 @@ def history_spec(scene: Scene, floors: tuple[int, int]) -> tuple[HistorySpec, li
     if not scene.output.histories:
         return HistorySpec.none(), []
     parsed = [parse_channel(ch, floors) for ch in scene.output.histories]
-    spec = HistorySpec(np.array([p[0] for p in parsed], np.int64), np.array([p[1] for p in parsed], np.int64),
-                       scene.output.history_decimate)
+    spec = HistorySpec(
+        np.array([p[0] for p in parsed], np.int64),
+        np.array([p[1] for p in parsed], np.int64),
+        scene.output.history_decimate,
+    )
     return spec, [p[2] for p in parsed]

@@ -3,10 +3,9 @@ combined error, and an optional continuous refinement of (k_s/k, r) with scipy.o
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pyarrow as pa
@@ -14,7 +13,7 @@ import pyarrow as pa
 if TYPE_CHECKING:  # pandas costs 0.3 s to import: only where a table is built
     import pandas as pd
 
-from pounding_sweep.engine.score import SCORE_NAMES, S_REL_RMS_PCT
+from pounding_sweep.engine.score import S_REL_RMS_PCT, SCORE_NAMES
 
 PARAM_COLUMNS = ("run_id", "ks_ratio", "ks_N_per_m", "r", "gap_m", "amplitude_m", "frequency_Hz", "record", "scale")
 
@@ -84,8 +83,13 @@ class Refinement:
     message: str
 
 
-def refine(objective: Callable[[dict], float], start: dict, start_error: float, bounds: dict[str, tuple[float, float]],
-           max_evals: int) -> Refinement:
+def refine(
+    objective: Callable[[dict], float],
+    start: dict,
+    start_error: float,
+    bounds: dict[str, tuple[float, float]],
+    max_evals: int,
+) -> Refinement:
     """Minimise objective({ks_ratio, r}) by bounded Nelder-Mead from the best grid cell.
 
     k_s/k is searched on a log scale (the grid spans decades); the objective is not smooth
@@ -100,7 +104,7 @@ def refine(objective: Callable[[dict], float], start: dict, start_error: float, 
         return np.array([np.log10(p[n]) if log[n] else p[n] for n in names])
 
     def from_x(x):
-        return {n: float(10 ** xi if log[n] else xi) for n, xi in zip(names, x)}
+        return {n: float(10**xi if log[n] else xi) for n, xi in zip(names, x)}
 
     lo = np.array([np.log10(bounds[n][0]) if log[n] else bounds[n][0] for n in names])
     hi = np.array([np.log10(bounds[n][1]) if log[n] else bounds[n][1] for n in names])
@@ -123,8 +127,13 @@ def refine(objective: Callable[[dict], float], start: dict, start_error: float, 
         step = 0.25 * span[i] if span[i] > 0 else 0.0
         xi[i] = x0[i] + step if x0[i] + step <= hi[i] else x0[i] - step
         simplex.append(xi)
-    res = minimize(f, x0, method="Nelder-Mead", bounds=list(zip(lo, hi)),
-                   options={"initial_simplex": np.array(simplex), "maxfev": max_evals, "xatol": 1e-3, "fatol": 1e-4})
+    res = minimize(
+        f,
+        x0,
+        method="Nelder-Mead",
+        bounds=list(zip(lo, hi)),
+        options={"initial_simplex": np.array(simplex), "maxfev": max_evals, "xatol": 1e-3, "fatol": 1e-4},
+    )
     xbest = np.clip(res.x, lo, hi)
     ebest = f(xbest)
     if not ebest < e0:  # never report worse than the start; report the start exactly

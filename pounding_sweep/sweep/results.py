@@ -91,8 +91,9 @@ def arrow_array(values) -> pa.Array:
     offsets = np.zeros(n + 1, dtype=np.int32)
     np.cumsum([len(e) for e in enc], out=offsets[1:])
     validity = None if valid.all() else pa.py_buffer(np.packbits(valid, bitorder="little"))
-    return pa.Array.from_buffers(pa.string(), n, [validity, pa.py_buffer(offsets), pa.py_buffer(b"".join(enc))],
-                                 null_count=int(n - valid.sum()))
+    return pa.Array.from_buffers(
+        pa.string(), n, [validity, pa.py_buffer(offsets), pa.py_buffer(b"".join(enc))], null_count=int(n - valid.sum())
+    )
 
 
 def numpy_column(table: pa.Table, name: str) -> np.ndarray:
@@ -115,8 +116,13 @@ def arrow_table(cols: dict) -> pa.Table:
     return pa.Table.from_arrays([arrow_array(v) for v in cols.values()], names=list(cols))
 
 
-def metrics_table(params: dict[str, np.ndarray], metric_names: list[str], metrics: np.ndarray,
-                  run_time: np.ndarray, extra: dict[str, np.ndarray] | None = None) -> pa.Table:
+def metrics_table(
+    params: dict[str, np.ndarray],
+    metric_names: list[str],
+    metrics: np.ndarray,
+    run_time: np.ndarray,
+    extra: dict[str, np.ndarray] | None = None,
+) -> pa.Table:
     """Arrow table of a chunk: parameters, metrics, scores (extra), status and run time."""
     cols: dict[str, np.ndarray] = dict(params)
     for i, name in enumerate(metric_names):
@@ -186,7 +192,7 @@ def part_files(folder: str | Path) -> list[Path]:
 
 
 def part_index(path: Path) -> int:
-    return int(path.name[len("part-"): -len(".parquet")])
+    return int(path.name[len("part-") : -len(".parquet")])
 
 
 def write_part(folder: Path, index: int, table: pa.Table, metadata: dict[bytes, bytes]) -> Path:

@@ -6,8 +6,14 @@ from __future__ import annotations
 from pathlib import Path
 
 from pounding_sweep.errors import OutputError
-from pounding_sweep.sweep.results import (MANIFEST, part_files, part_index, read_manifest, remove_stale_temporaries,
-                                          sidecar_path)
+from pounding_sweep.sweep.results import (
+    MANIFEST,
+    part_files,
+    part_index,
+    read_manifest,
+    remove_stale_temporaries,
+    sidecar_path,
+)
 
 
 def claim_output(out: Path, hpath: Path | None, manifest: dict, overwrite: bool) -> set[int]:
@@ -28,14 +34,17 @@ def claim_output(out: Path, hpath: Path | None, manifest: dict, overwrite: bool)
         return set()
     if old is None:
         if any(out.iterdir()):
-            raise OutputError(f"{out} exists and is not a pounding_sweep result folder (no {MANIFEST}): "
-                              "give another --out")
+            raise OutputError(
+                f"{out} exists and is not a pounding_sweep result folder (no {MANIFEST}): give another --out"
+            )
         return set()
     same = {k: old.get(k) == v for k, v in manifest.items() if k != "scene"}
     if not all(same.values()):
         what = ", ".join(f"{k} {old.get(k)!r} here vs {manifest[k]!r} now" for k, ok in same.items() if not ok)
-        raise OutputError(f"{out} holds results of a different sweep ({what}); resuming would mix them: "
-                          "give another --out, or --overwrite to replace them")
+        raise OutputError(
+            f"{out} holds results of a different sweep ({what}); resuming would mix them: "
+            "give another --out, or --overwrite to replace them"
+        )
     remove_stale_temporaries(out)
     if hpath is not None and hpath.is_dir():
         remove_stale_temporaries(hpath)

@@ -8,13 +8,12 @@ scored as it finishes and the best runs are kept as running minima.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import time
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pyarrow.parquet as pq
@@ -22,19 +21,29 @@ import pyarrow.parquet as pq
 if TYPE_CHECKING:  # pandas costs 0.3 s to import: only where a table is built
     import pandas as pd
 
+from pounding_sweep import __version__
 from pounding_sweep.engine import layout as L
-from pounding_sweep.scene import Scene
 from pounding_sweep.engine.driver import compile_kernel
+from pounding_sweep.errors import ConfigError, OutputError  # noqa: F401
 from pounding_sweep.model.excitation import Excitation
 from pounding_sweep.model.grid import Grid
-from pounding_sweep.sweep.ranking import Ranking, Refinement, refine, score_columns, score_table_columns
-from pounding_sweep import __version__
-from pounding_sweep.errors import ConfigError, OutputError  # noqa: F401
+from pounding_sweep.scene import Scene
 from pounding_sweep.sweep.prepare import Prepared, prepare  # noqa: F401
+from pounding_sweep.sweep.ranking import Ranking, Refinement, refine, score_columns, score_table_columns
+from pounding_sweep.sweep.results import (
+    MANIFEST,
+    PART_NAME,
+    AtomicParquetWriter,
+    file_metadata,
+    histories_path,
+    histories_table,
+    metrics_table,
+    numpy_column,
+    sidecar_path,
+    write_manifest,
+    write_part,
+)
 from pounding_sweep.sweep.resume import claim_output
-from pounding_sweep.sweep.results import (MANIFEST, PART_NAME, AtomicParquetWriter, file_metadata, histories_path, histories_table, numpy_column,
-                      metrics_table, sidecar_path,
-                      write_manifest, write_part)
 
 HISTORY_CHUNK_BYTES = 256 * 2**20
 
@@ -62,9 +71,16 @@ class SweepSummary:
     executor: str = "local"
 
 
-def run_scene(scene: Scene, out_path: str | Path | None = None, threads: int | None = None,
-              progress: Callable[[int, int], None] | None = None, executor=None,
-              overwrite: bool = False, confirmed: bool = False, kernel: str = "auto") -> SweepSummary:
+def run_scene(
+    scene: Scene,
+    out_path: str | Path | None = None,
+    threads: int | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    executor=None,
+    overwrite: bool = False,
+    confirmed: bool = False,
+    kernel: str = "auto",
+) -> SweepSummary:
     """Run every grid point of the scene into a Parquet dataset folder (one part per chunk); return
     a summary. Parts already in the folder from an interrupted run of the same scene (same config
     hash and package version) are kept and skipped; other results there are refused unless
@@ -76,8 +92,10 @@ def run_scene(scene: Scene, out_path: str | Path | None = None, threads: int | N
     ex = scene.execution
     size = Grid.from_scene(scene).size
     if size > ex.max_runs and not confirmed:
-        raise ConfigError(f"[sweep] gives {size:,} runs, more than [execution] max_runs = {ex.max_runs:,}: "
-                          "confirm with --yes (or raise max_runs) if that many is meant")
+        raise ConfigError(
+            f"[sweep] gives {size:,} runs, more than [execution] max_runs = {ex.max_runs:,}: "
+            "confirm with --yes (or raise max_runs) if that many is meant"
+        )
     prep = prepare(scene, kernel)
     grid, model, exc = prep.grid, prep.model, prep.excitation
     chunk_runs = ex.chunk_runs
@@ -85,8 +103,14 @@ def run_scene(scene: Scene, out_path: str | Path | None = None, threads: int | N
         per_run = prep.hist.kinds.size * (int(exc.max_steps) // prep.hist.decimate + 1) * 8
         chunk_runs = max(1, min(chunk_runs, HISTORY_CHUNK_BYTES // per_run))
     chunks = [(i, s, e) for i, (s, e) in enumerate(grid.chunks(chunk_runs))]
-    manifest = {"config_hash": scene.config_hash(), "version": __version__, "scene": scene.name,
-                "grid_size": grid.size, "chunk_runs": chunk_runs, "parts": len(chunks)}
+    manifest = {
+        "config_hash": scene.config_hash(),
+        "version": __version__,
+        "scene": scene.name,
+        "grid_size": grid.size,
+        "chunk_runs": chunk_runs,
+        "parts": len(chunks),
+    }
     hpath = histories_path(out_path) if prep.hist.active else None
     done = claim_output(out_path, hpath, manifest, overwrite)
     todo = [c for c in chunks if c[0] not in done]
@@ -94,15 +118,18 @@ def run_scene(scene: Scene, out_path: str | Path | None = None, threads: int | N
     how = scene.experiment.combine if scene.experiment else "mean"
     meta = file_metadata(scene, _model_facts(prep))
     names = L.metric_columns(model.floors, model.n_pairs)
-    ranking = Ranking([f"rel_rms_{c}_pct" for c in prep.score_codes] + ["rel_rms_combined_pct"]) if prep.score_codes else None
+    ranking = (
+        Ranking([f"rel_rms_{c}_pct" for c in prep.score_codes] + ["rel_rms_combined_pct"]) if prep.score_codes else None
+    )
     tally = _Tally(ranking)
     for i in sorted(done):
         tally.add(pq.read_table(out_path / PART_NAME.format(i)))
     if progress is not None and done:
         progress(tally.runs, grid.size)
 
-    exe = executor or make_executor(ex.executor, threads if threads is not None else ex.threads, ex.dask_address,
-                                    ex.dask_workers)
+    exe = executor or make_executor(
+        ex.executor, threads if threads is not None else ex.threads, ex.dask_address, ex.dask_workers
+    )
     compile_s = compile_kernel(prep.sysarr, prep.opts, prep.hist, prep.score, kernel)  # the kernel this sweep uses
     t_run = time.perf_counter()
     try:
@@ -113,8 +140,12 @@ def run_scene(scene: Scene, out_path: str | Path | None = None, threads: int | N
             if not (out_path / MANIFEST).exists():
                 write_manifest(out_path, manifest)
             if hpath is not None:  # histories first: a finished main part implies its histories exist
-                write_part(hpath, res.index, histories_table(res.params["run_id"], res.hist,
-                                                             prep.dt * prep.hist.decimate, prep.hist_columns), meta)
+                write_part(
+                    hpath,
+                    res.index,
+                    histories_table(res.params["run_id"], res.hist, prep.dt * prep.hist.decimate, prep.hist_columns),
+                    meta,
+                )
             write_part(out_path, res.index, table, meta)
             tally.add(table)
             if progress is not None:
@@ -123,9 +154,22 @@ def run_scene(scene: Scene, out_path: str | Path | None = None, threads: int | N
         if executor is None:
             exe.close()
     run_s = time.perf_counter() - t_run
-    summary = SweepSummary(scene.name, grid.size, out_path, hpath, tally.statuses, compile_s, run_s, tally.kernel_s,
-                           tally.steps, exe.workers, {"peak_force_N": tally.peak_force}, parts=len(chunks),
-                           resumed_parts=len(done), executor=exe.name)
+    summary = SweepSummary(
+        scene.name,
+        grid.size,
+        out_path,
+        hpath,
+        tally.statuses,
+        compile_s,
+        run_s,
+        tally.kernel_s,
+        tally.steps,
+        exe.workers,
+        {"peak_force_N": tally.peak_force},
+        parts=len(chunks),
+        resumed_parts=len(done),
+        executor=exe.name,
+    )
     if ranking is not None:
         import pandas as pd
 
@@ -136,8 +180,10 @@ def run_scene(scene: Scene, out_path: str | Path | None = None, threads: int | N
             summary.refinement = refine_best(prep, best)
             if summary.refinement is not None:
                 rf = summary.refinement
-                best = pd.concat([best, pd.DataFrame([{"criterion": "refined_combined", "error_pct": rf.error_pct,
-                                                       **rf.optimum}])], ignore_index=True)
+                best = pd.concat(
+                    [best, pd.DataFrame([{"criterion": "refined_combined", "error_pct": rf.error_pct, **rf.optimum}])],
+                    ignore_index=True,
+                )
         best["run_id"] = best["run_id"].astype("Int64")
         summary.best = best
         summary.best_path = sidecar_path(out_path, "best")
@@ -207,20 +253,32 @@ def _model_facts(prep: Prepared) -> dict:
         "grid_axes": {name: list(v) for name, v in grid.axes},
         "grid_size": grid.size,
         "buildings": [
-            {"name": b.name, "masses_kg": list(b.masses_kg), "story_stiffness_N_per_m": list(b.story_stiffness_N_per_m),
-             "rayleigh_a0_per_s": b.rayleigh_a0_per_s, "rayleigh_a1_s": b.rayleigh_a1_s,
-             "frequencies_Hz": md.frequency_Hz.tolist(), "damping_ratios": md.damping_ratio.tolist()}
+            {
+                "name": b.name,
+                "masses_kg": list(b.masses_kg),
+                "story_stiffness_N_per_m": list(b.story_stiffness_N_per_m),
+                "rayleigh_a0_per_s": b.rayleigh_a0_per_s,
+                "rayleigh_a1_s": b.rayleigh_a1_s,
+                "frequencies_Hz": md.frequency_Hz.tolist(),
+                "damping_ratios": md.damping_ratio.tolist(),
+            }
             for b, md in zip((model.b1, model.b2), modes)
         ],
-        "records": [{"name": r.name, "source": Path(r.source).name, "dt_s": r.dt_s, "description": r.description}
-                    for r in prep.excitation.records],
+        "records": [
+            {"name": r.name, "source": Path(r.source).name, "dt_s": r.dt_s, "description": r.description}
+            for r in prep.excitation.records
+        ],
     }
     if prep.score_codes:
         x = scene.experiment
         facts["experiment"] = {
             "table": Path(x.table).name if x.table else None,
-            "video": Path(x.video.path).name if x.video is not None else None, "channels": x.channels, "units": x.units, "combine": x.combine,
-            "window_s": [float(prep.score.t[0]), float(prep.score.t[-1])], "samples": int(prep.score.t.size),
+            "video": Path(x.video.path).name if x.video is not None else None,
+            "channels": x.channels,
+            "units": x.units,
+            "combine": x.combine,
+            "window_s": [float(prep.score.t[0]), float(prep.score.t[-1])],
+            "samples": int(prep.score.t.size),
             "score_columns": dict(score_columns(prep.score_codes)),
         }
     return facts

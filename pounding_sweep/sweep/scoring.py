@@ -49,8 +49,9 @@ def _tracked(spec) -> tuple:
     return df, {"tracking": md}, spec.path
 
 
-def score_spec(exp: Experiment, cfg: ExperimentConfig, floors: tuple[int, int], sim_duration_s: float,
-               dt: float) -> ScoreSpec:
+def score_spec(
+    exp: Experiment, cfg: ExperimentConfig, floors: tuple[int, int], sim_duration_s: float, dt: float
+) -> ScoreSpec:
     """The samples inside the scored window, on the simulation clock, as kernel arrays.
 
     Simulation time = experiment time - time_offset_s. The window defaults to all of the

@@ -12,8 +12,8 @@ import numpy as np
 import pandas as pd
 
 from pounding_sweep.engine import layout as L
-from pounding_sweep.scene.axes import KS_FORMS, setting_ks
 from pounding_sweep.scene import SWEEPABLE, ConfigError, Scene, validate
+from pounding_sweep.scene.axes import KS_FORMS, setting_ks
 from pounding_sweep.sweep.ranking import score_table_columns
 from pounding_sweep.sweep.results import status_words
 
@@ -64,8 +64,12 @@ def simulate(scene: Scene, channels: list[str] | None = None, decimate: int = 1,
         auto = {"dt_s": float(derived["dt_s"][0]), "dt_error_estimate": float(derived["dt_error_estimate"][0])}
         s = with_overrides(s, dt_s=auto["dt_s"])
     floors = (len(s.building1.masses_kg), len(s.building2.masses_kg))
-    s = dataclasses.replace(s, output=dataclasses.replace(s.output, histories=tuple(channels or all_channels(floors)),
-                                                          history_decimate=decimate))
+    s = dataclasses.replace(
+        s,
+        output=dataclasses.replace(
+            s.output, histories=tuple(channels or all_channels(floors)), history_decimate=decimate
+        ),
+    )
     prep = prepare(s)  # checks the channels (history_spec) and decimate
     params = prep.grid.chunk(0, 1)
     metrics, run_time, hist, scores, derived = prep.run(params)

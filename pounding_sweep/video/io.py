@@ -19,14 +19,13 @@ and a sweep never import it.
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterator
 
 import numpy as np
 
 from pounding_sweep.errors import VideoError  # noqa: F401  (raised here; imported by callers from here too)
-
 
 #: fourcc -> container suffix this machine writes it to; lossless ones first
 CODECS = {"FFV1": ".mkv", "HFYU": ".avi", "MJPG": ".avi", "mp4v": ".mp4"}
@@ -99,9 +98,15 @@ class VideoReader:
         if not (np.isfinite(use_fps) and use_fps > 0):
             cap.release()
             raise VideoError(p, "the video states no frame rate: give one (fps)", container_fps)
-        self.info = VideoInfo(str(p), first.shape[1], first.shape[0], use_fps,
-                              max(int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0), 0), fourcc.strip("\x00"),
-                              cap.getBackendName())
+        self.info = VideoInfo(
+            str(p),
+            first.shape[1],
+            first.shape[0],
+            use_fps,
+            max(int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0), 0),
+            fourcc.strip("\x00"),
+            cap.getBackendName(),
+        )
         self.container_fps = container_fps
         self.timestamps_ms: list[float] = []
 
@@ -132,8 +137,11 @@ class VideoReader:
                 self._check_complete(len(self.timestamps_ms))
                 return
             if frame.shape != shape:
-                raise VideoError(self.info.path, f"frame {len(self.timestamps_ms)} changes size",
-                                 f"{frame.shape[1]}x{frame.shape[0]} after {shape[1]}x{shape[0]}")
+                raise VideoError(
+                    self.info.path,
+                    f"frame {len(self.timestamps_ms)} changes size",
+                    f"{frame.shape[1]}x{frame.shape[0]} after {shape[1]}x{shape[0]}",
+                )
             self.timestamps_ms.append(cap.get(cv2.CAP_PROP_POS_MSEC))
             yield frame
 
@@ -143,8 +151,11 @@ class VideoReader:
         only a header value, so a shortfall of 2 frames or 2 % is let pass."""
         hint = self.info.frame_count_hint
         if hint > 0 and decoded < hint - max(2, 0.02 * hint):
-            raise VideoError(self.info.path, "the video ends early: truncated or damaged",
-                             f"{decoded} of the {hint} frames its container states decoded")
+            raise VideoError(
+                self.info.path,
+                "the video ends early: truncated or damaged",
+                f"{decoded} of the {hint} frames its container states decoded",
+            )
 
     def check_uniform_timestamps(self, fps_container: float | None = None) -> None:
         """Refuse variable-frame-rate video (dropped or repeated frames make the frame index a
@@ -159,9 +170,12 @@ class VideoReader:
         dev = np.abs(d - step)
         if np.any(dev > 0.5 * step):
             k = int(np.argmax(dev > 0.5 * step)) + 1
-            raise VideoError(self.info.path, f"variable frame rate: frame {k} is {d[k - 1]:.3f} ms after frame {k - 1}, "
-                             f"not {step:.3f} ms; re-encode at a constant rate (ffmpeg -fps_mode cfr)",
-                             f"{ts[k]:.3f} ms")
+            raise VideoError(
+                self.info.path,
+                f"variable frame rate: frame {k} is {d[k - 1]:.3f} ms after frame {k - 1}, "
+                f"not {step:.3f} ms; re-encode at a constant rate (ffmpeg -fps_mode cfr)",
+                f"{ts[k]:.3f} ms",
+            )
 
 
 def write_video(path: str | Path, frames, fps: float, codec: str = "FFV1", color: bool = True) -> Path:

@@ -24,9 +24,9 @@ are written lossless (FFV1 .mkv) by default and read back to check the codec.
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 from scipy.special import ndtr
@@ -60,10 +60,18 @@ class Layout:
         return tuple(n for n in self.names if n not in self.references)
 
 
-def shake_table_layout(size=(320, 240), mm_per_px: float = 5.0, floors=(3, 3), story_height_mm: float = 336.0,
-                       slab_width_mm: float = 200.0, marker_inset_mm: float = 100.0, gap_mm: float = 0.0,
-                       reference_spacing_mm: float = 1400.0, table_margin_px: float = 14.0,
-                       positive_right: bool = True) -> Layout:
+def shake_table_layout(
+    size=(320, 240),
+    mm_per_px: float = 5.0,
+    floors=(3, 3),
+    story_height_mm: float = 336.0,
+    slab_width_mm: float = 200.0,
+    marker_inset_mm: float = 100.0,
+    gap_mm: float = 0.0,
+    reference_spacing_mm: float = 1400.0,
+    table_margin_px: float = 14.0,
+    positive_right: bool = True,
+) -> Layout:
     """Two buildings side by side on the table (building 1 on the left when positive_right), one
     marker per floor `marker_inset_mm` from the slab's facing edge (100: slab centre; small: the
     two buildings' markers nearly meet), two table references `reference_spacing_mm` apart."""
@@ -71,8 +79,10 @@ def shake_table_layout(size=(320, 240), mm_per_px: float = 5.0, floors=(3, 3), s
     s = mm_per_px
     xc = w / 2.0
     y_table = h - table_margin_px
-    names, pos = ["table_left", "table_right"], [[xc - reference_spacing_mm / 2 / s, y_table],
-                                                 [xc + reference_spacing_mm / 2 / s, y_table]]
+    names, pos = (
+        ["table_left", "table_right"],
+        [[xc - reference_spacing_mm / 2 / s, y_table], [xc + reference_spacing_mm / 2 / s, y_table]],
+    )
     side = {1: -1.0 if positive_right else 1.0, 2: 1.0 if positive_right else -1.0}
     for b, nf in zip((1, 2), floors):
         x = xc + side[b] * (gap_mm / 2 + marker_inset_mm) / s
@@ -93,8 +103,12 @@ def harmonic_table(amplitude_mm: float, frequency_Hz: float) -> Callable[[np.nda
     return lambda t: amplitude_mm * np.sin(2 * np.pi * frequency_Hz * np.asarray(t, dtype=float))
 
 
-def motion_from_history(hist, table: Callable[[np.ndarray], np.ndarray] | None = None,
-                        columns: dict[str, str] | None = None, scale: float = 1e3) -> Motion:
+def motion_from_history(
+    hist,
+    table: Callable[[np.ndarray], np.ndarray] | None = None,
+    columns: dict[str, str] | None = None,
+    scale: float = 1e3,
+) -> Motion:
     """Motion from time histories (a DataFrame with `t_s`; by default the `disp_b<i>f<j>_m` columns of
     `simulate`, in metres, scaled to mm), linearly interpolated in time; `table(t)` in mm (None: at rest)."""
     t0 = hist["t_s"].to_numpy(dtype=float)
@@ -125,7 +139,9 @@ def table_from_ground_acceleration(t_s: np.ndarray, acc_m_s2: np.ndarray) -> Cal
     return lambda t: np.interp(np.asarray(t, dtype=float), t_s, x)
 
 
-def write_pulse_record(path: str | Path, peak_m_s2: float = 3.0, frequency_Hz: float = 10.0, dt_s: float = 1e-3) -> Path:
+def write_pulse_record(
+    path: str | Path, peak_m_s2: float = 3.0, frequency_Hz: float = 10.0, dt_s: float = 1e-3
+) -> Path:
     """A ground-acceleration record of one full sine cycle (a knock: the table ends at rest, shifted by
     peak / (2 pi f^2)), as the two-column CSV the scenes read; runs padded with zeros give free vibration."""
     t = np.arange(0.0, 1.0 / frequency_Hz + dt_s / 2, dt_s)
@@ -226,8 +242,9 @@ def _spot(img: np.ndarray, x: float, y: float, sigma: float, peak: float) -> Non
     img[y0:y1, x0:x1] += (peak * 2 * np.pi * sigma**2) * np.outer(gy, gx)
 
 
-def render_video(path: str | Path, layout: Layout, motion: Motion, n_frames: int,
-                 opts: RenderOptions = RenderOptions()) -> RenderedVideo:
+def render_video(
+    path: str | Path, layout: Layout, motion: Motion, n_frames: int, opts: RenderOptions = RenderOptions()
+) -> RenderedVideo:
     """Render `n_frames` at `opts.fps`, write them with `opts.codec`, read the file back and check it."""
     path = Path(path)
     if opts.codec not in CODECS:
@@ -244,7 +261,9 @@ def render_video(path: str | Path, layout: Layout, motion: Motion, n_frames: int
     theta, shift = _camera(sub_t, opts, shake_phases)
     c, s = np.cos(theta)[:, None], np.sin(theta)[:, None]
     d = world - centre
-    img_pos = np.stack([c * d[..., 0] - s * d[..., 1], s * d[..., 0] + c * d[..., 1]], axis=-1) + centre + shift[:, None, :]
+    img_pos = (
+        np.stack([c * d[..., 0] - s * d[..., 1], s * d[..., 0] + c * d[..., 1]], axis=-1) + centre + shift[:, None, :]
+    )
     img_pos = img_pos.reshape(n_frames, ns, len(layout.names), 2)
     truth_px = img_pos.mean(axis=1)
     rel = motion(sub_t)
@@ -281,7 +300,9 @@ def render_video(path: str | Path, layout: Layout, motion: Motion, n_frames: int
     write_video(path, frames, opts.fps, opts.codec, color=opts.color)
     back = read_all(path, channel=0)
     if back.shape[0] != n_frames:
-        raise VideoError(path, "the video does not read back with as many frames as written", f"{back.shape[0]} of {n_frames}")
+        raise VideoError(
+            path, "the video does not read back with as many frames as written", f"{back.shape[0]} of {n_frames}"
+        )
     written = np.stack([f[:, :, 0] if f.ndim == 3 else f for f in frames])
     err = int(np.abs(back.astype(np.int16) - written.astype(np.int16)).max())
     if opts.codec in LOSSLESS and err:

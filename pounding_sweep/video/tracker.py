@@ -65,8 +65,8 @@ import pandas as pd
 from scipy.interpolate import CubicSpline
 from scipy.optimize import linear_sum_assignment
 
-from pounding_sweep.video.io import VideoError, VideoReader, cv2_module
 from pounding_sweep.scene.video import VideoSpec, floor_code
+from pounding_sweep.video.io import VideoError, VideoReader, cv2_module
 
 QUALITY = {
     "lost": 1,  # no core found near the prediction: interpolated
@@ -215,8 +215,15 @@ class Tracker:
             keep = np.nonzero(st[1:, cv2.CC_STAT_AREA] >= s.min_area_px)[0] + 1
             w, h = st[keep, cv2.CC_STAT_WIDTH], st[keep, cv2.CC_STAT_HEIGHT]
             el = np.maximum(w, h) / np.maximum(np.minimum(w, h), 1)
-            return Candidates(cen[keep, 0], cen[keep, 1], st[keep, cv2.CC_STAT_AREA].astype(float), el.astype(float),
-                              st[keep, cv2.CC_STAT_AREA].astype(float), keep, np.zeros(keep.size, bool))
+            return Candidates(
+                cen[keep, 0],
+                cen[keep, 1],
+                st[keep, cv2.CC_STAT_AREA].astype(float),
+                el.astype(float),
+                st[keep, cv2.CC_STAT_AREA].astype(float),
+                keep,
+                np.zeros(keep.size, bool),
+            )
         det = cv2.medianBlur(ch, s.median_ksize) if s.median_ksize > 1 else ch
         _, mask = cv2.threshold(det, self.level, 255, cv2.THRESH_BINARY)
         # blobs by their outer contours (much cheaper than labelling the whole frame), then each
@@ -251,7 +258,7 @@ class Tracker:
                 parts = [(got, T, False)]
                 if got[3] > SPLIT_ELONGATION and a >= 2 * s.min_area_px + 2:
                     parts = self._deblend(win, comp, T, float(win[comp].max())) or parts
-                for (cx, cy, a2, e2, f2), level, split in parts:
+                for (cx, cy, a2, e2, f2), _level, split in parts:
                     xs.append(cx + xa)
                     ys.append(cy + ya)
                     ar.append(float(a2))
@@ -259,8 +266,9 @@ class Tracker:
                     fl.append(f2)
                     bl.append(b)
                     sp.append(split)
-        return Candidates(np.array(xs), np.array(ys), np.array(ar), np.array(el), np.array(fl), np.array(bl, int),
-                          np.array(sp, bool))
+        return Candidates(
+            np.array(xs), np.array(ys), np.array(ar), np.array(el), np.array(fl), np.array(bl, int), np.array(sp, bool)
+        )
 
     def _measure(self, win: np.ndarray, mask: np.ndarray, T: float):
         """(x, y, area, elongation, flux) of the pixels in `mask` weighted by (I - T) (window coordinates)."""
@@ -286,7 +294,9 @@ class Tracker:
             sub = ((win > L) & comp).astype(np.uint8)
             m, lab, st, _ = cv2.connectedComponentsWithStats(sub, connectivity=8)
             depth = max(4.0 * self.noise, 0.1 * (peak - T), 2.0)  # a real second spot rises well above the saddle
-            big = [j for j in range(1, m) if st[j, cv2.CC_STAT_AREA] >= s.min_area_px and win[lab == j].max() - L >= depth]
+            big = [
+                j for j in range(1, m) if st[j, cv2.CC_STAT_AREA] >= s.min_area_px and win[lab == j].max() - L >= depth
+            ]
             if len(big) < 2:
                 continue
             L2 = L + 0.5 * (peak - L)
@@ -311,7 +321,11 @@ class Tracker:
         if s.positions_px is not None:
             p = np.asarray(s.positions_px, float) - self.off
             gate = 2 * s.max_step_px
-            D = np.hypot(p[:, None, 0] - c.x[None, :], p[:, None, 1] - c.y[None, :]) if len(c) else np.zeros((self.n, 0))
+            D = (
+                np.hypot(p[:, None, 0] - c.x[None, :], p[:, None, 1] - c.y[None, :])
+                if len(c)
+                else np.zeros((self.n, 0))
+            )
             C = np.where(D <= gate, D, _BIG)
             idx = np.full(self.n, -1)
             if len(c):
@@ -319,16 +333,27 @@ class Tracker:
                 ok = C[r, k] < _BIG
                 idx[r[ok]] = k[ok]
             for i in np.nonzero(idx < 0)[0]:
-                near = f"; the nearest bright spot is {D[i].min():.1f} px away" if len(c) else "; no bright spot in the frame"
+                near = (
+                    f"; the nearest bright spot is {D[i].min():.1f} px away"
+                    if len(c)
+                    else "; no bright spot in the frame"
+                )
                 if len(c) and D[i].min() <= gate:
                     near += " but belongs to another marker (merged spots? start at a frame where they are apart)"
-                raise VideoError(self.path, f"marker '{self.names[i]}' not found within {gate:g} px of its first-frame position"
-                                 f"{near} (frame {s.start_frame})", f"x = {s.positions_px[i][0]:g}, y = {s.positions_px[i][1]:g}")
+                raise VideoError(
+                    self.path,
+                    f"marker '{self.names[i]}' not found within {gate:g} px of its first-frame position"
+                    f"{near} (frame {s.start_frame})",
+                    f"x = {s.positions_px[i][0]:g}, y = {s.positions_px[i][1]:g}",
+                )
             return idx
         if len(c) != self.n:
-            raise VideoError(self.path, f"expected {self.n} markers in the first frame (frame {s.start_frame}), found {len(c)} "
-                             "bright spots: give first-frame positions, a region of interest (roi_px) or a detect_level",
-                             f"{len(c)} != {self.n}")
+            raise VideoError(
+                self.path,
+                f"expected {self.n} markers in the first frame (frame {s.start_frame}), found {len(c)} "
+                "bright spots: give first-frame positions, a region of interest (roi_px) or a detect_level",
+                f"{len(c)} != {self.n}",
+            )
         idx = np.full(self.n, -1)
         order = np.argsort(-c.y, kind="stable")
         nref = len(s.references)
@@ -345,14 +370,20 @@ class Tracker:
         else:
             gaps = np.diff([c.x[j] for j in xs])
             cut = int(np.argmax(gaps)) + 1 if gaps.size else 0
-            left_b, right_b = (buildings[0], buildings[1]) if s.positive_direction == "right" else (buildings[1], buildings[0])
+            left_b, right_b = (
+                (buildings[0], buildings[1]) if s.positive_direction == "right" else (buildings[1], buildings[0])
+            )
             groups[left_b], groups[right_b] = xs[:cut], xs[cut:]
         for b in buildings:
             ms = sorted([m for m in codes if codes[m].startswith(f"b{b}f")], key=lambda m: int(codes[m].split("f")[1]))
             js = sorted(groups[b], key=lambda j: -c.y[j])  # floor 1 lowest
             if len(js) != len(ms):
-                raise VideoError(self.path, f"automatic layout: building {b} has {len(ms)} markers but {len(js)} bright spots "
-                                 "sit in its column: give first-frame positions", f"{len(js)} != {len(ms)}")
+                raise VideoError(
+                    self.path,
+                    f"automatic layout: building {b} has {len(ms)} markers but {len(js)} bright spots "
+                    "sit in its column: give first-frame positions",
+                    f"{len(js)} != {len(ms)}",
+                )
             for m, j in zip(ms, js):
                 idx[self.names.index(m)] = j
         return idx
@@ -418,7 +449,10 @@ class Tracker:
                 for i in np.nonzero(idx >= 0)[0]:
                     j = idx[i]
                     for u in free:
-                        if c.blob[u] == c.blob[j] or np.hypot(c.x[u] - c.x[j], c.y[u] - c.y[j]) < s.reflection_radius_px:
+                        if (
+                            c.blob[u] == c.blob[j]
+                            or np.hypot(c.x[u] - c.x[j], c.y[u] - c.y[j]) < s.reflection_radius_px
+                        ):
                             q[i] |= QUALITY["reflection"]
                             break
                 for i, j, sgn in self._pairs:
@@ -470,10 +504,17 @@ class Tracker:
                     cur = 0
             if longest[1] > s.max_gap_frames:
                 k0, L = longest
-                why = "merged with another marker" if Q[k0:k0 + L, i].any() and (Q[k0:k0 + L, i] & QUALITY["merged"]).all() else "lost"
-                raise VideoError(self.path, f"marker '{name}' {why} for {L} frames from frame {k0 + s.start_frame} "
-                                 f"(t = {(k0 + s.start_frame) / self.fps:.3f} s); at most max_gap_frames may be interpolated",
-                                 f"max_gap_frames = {s.max_gap_frames}")
+                why = (
+                    "merged with another marker"
+                    if Q[k0 : k0 + L, i].any() and (Q[k0 : k0 + L, i] & QUALITY["merged"]).all()
+                    else "lost"
+                )
+                raise VideoError(
+                    self.path,
+                    f"marker '{name}' {why} for {L} frames from frame {k0 + s.start_frame} "
+                    f"(t = {(k0 + s.start_frame) / self.fps:.3f} s); at most max_gap_frames may be interpolated",
+                    f"max_gap_frames = {s.max_gap_frames}",
+                )
             if bad.any():
                 X[:, i] = _fill(X[:, i])
                 Y[:, i] = _fill(Y[:, i])
@@ -493,8 +534,12 @@ class Tracker:
             spread = np.sqrt((np.abs(zc) ** 2).sum(axis=1))
             if spread.min() < 1.0:
                 k = int(np.argmin(spread))
-                raise VideoError(self.path, f"the references {', '.join(s.references)} are less than 1 px apart in frame "
-                                 f"{k + s.start_frame}: they cannot give the camera's rotation", f"{spread[k]:.3g} px")
+                raise VideoError(
+                    self.path,
+                    f"the references {', '.join(s.references)} are less than 1 px apart in frame "
+                    f"{k + s.start_frame}: they cannot give the camera's rotation",
+                    f"{spread[k]:.3g} px",
+                )
         if mode == "translation":
             a = np.ones(nf, complex)
         else:
@@ -507,8 +552,12 @@ class Tracker:
         if s.axis == "references" and len(ref_idx) >= 2:
             e = W[-1] - W[0]
             if abs(e.real) < 0.5 * abs(e):
-                raise VideoError(self.path, "axis = 'references' needs the first and last reference side by side on the table "
-                                 "(use axis = 'image')", f"{s.references[0]} -> {s.references[-1]}")
+                raise VideoError(
+                    self.path,
+                    "axis = 'references' needs the first and last reference side by side on the table "
+                    "(use axis = 'image')",
+                    f"{s.references[0]} -> {s.references[-1]}",
+                )
             e = e / abs(e) * (1.0 if e.real > 0 else -1.0)
         else:
             e = 1.0 + 0j
@@ -519,35 +568,44 @@ class Tracker:
             ia, ib = (self.names.index(m) for m in s.scale_markers)
             dpx = abs(rest[ia] - rest[ib])
             if dpx < 1.0:
-                raise VideoError(self.path, f"scale markers {s.scale_markers[0]} and {s.scale_markers[1]} are less than 1 px apart",
-                                 f"{dpx:.3g} px")
+                raise VideoError(
+                    self.path,
+                    f"scale markers {s.scale_markers[0]} and {s.scale_markers[1]} are less than 1 px apart",
+                    f"{dpx:.3g} px",
+                )
             mm = float(s.scale_distance_mm) / dpx
         floor_idx = [self.names.index(m) for m in s.floor_markers]
         disp = ((Qz[:, floor_idx] - rest[floor_idx]) * np.conj(e)).real * sign * mm
         table_cam = ((Zr - Zr[:nrest].mean(axis=0)) * np.conj(e)).real.mean(axis=1) * sign * mm
         roll = np.rad2deg(-np.angle(a))
         prov = dict(provenance or {})
-        prov.update({
-            "what": "marker displacement tracked from video by pounding_sweep.video (relative to the table, mm)",
-            "method": s.method,
-            "threshold": self.frac,
-            "background_grey": self.bg,
-            "noise_grey": self.noise,
-            "detect_level_grey": self.level,
-            "fps": self.fps,
-            "frames": int(nf),
-            "start_frame": int(s.start_frame),
-            "mm_per_px": mm,
-            "transform": mode,
-            "references": list(s.references),
-            "axis_unit_vector": [float(e.real), float(e.imag)],
-            "max_abs_roll_removed_deg": float(np.abs(roll).max()),
-            "first_frame_positions_px": {n: [float(X[0, i]), float(Y[0, i])] for i, n in enumerate(self.names)},
-            "reference_area_px": {n: (None if not np.isfinite(v) else float(v)) for n, v in zip(self.names, self.ref_area)},
-            "quality_bits": QUALITY,
-            "flagged_frames": {n: {k: int(((Q[:, i] & v) > 0).sum()) for k, v in QUALITY.items()} for i, n in enumerate(self.names)},
-            "spec": _jsonable(dataclasses.asdict(s)),
-        })
+        prov.update(
+            {
+                "what": "marker displacement tracked from video by pounding_sweep.video (relative to the table, mm)",
+                "method": s.method,
+                "threshold": self.frac,
+                "background_grey": self.bg,
+                "noise_grey": self.noise,
+                "detect_level_grey": self.level,
+                "fps": self.fps,
+                "frames": int(nf),
+                "start_frame": int(s.start_frame),
+                "mm_per_px": mm,
+                "transform": mode,
+                "references": list(s.references),
+                "axis_unit_vector": [float(e.real), float(e.imag)],
+                "max_abs_roll_removed_deg": float(np.abs(roll).max()),
+                "first_frame_positions_px": {n: [float(X[0, i]), float(Y[0, i])] for i, n in enumerate(self.names)},
+                "reference_area_px": {
+                    n: (None if not np.isfinite(v) else float(v)) for n, v in zip(self.names, self.ref_area)
+                },
+                "quality_bits": QUALITY,
+                "flagged_frames": {
+                    n: {k: int(((Q[:, i] & v) > 0).sum()) for k, v in QUALITY.items()} for i, n in enumerate(self.names)
+                },
+                "spec": _jsonable(dataclasses.asdict(s)),
+            }
+        )
         return TrackResult(s, self.names, self.fps, frames, X, Y, measured, Q, A, disp, table_cam, mm, roll, prov)
 
 
@@ -569,7 +627,9 @@ def _jsonable(d):
     return json.loads(json.dumps(d, default=str))
 
 
-def track_frames(frames, spec: VideoSpec, fps: float, path: str = "<frames>", progress=None, total: int = 0) -> TrackResult:
+def track_frames(
+    frames, spec: VideoSpec, fps: float, path: str = "<frames>", progress=None, total: int = 0
+) -> TrackResult:
     """Track an iterable of frames (uint8 BGR or grey), e.g. already decoded ones."""
     tr = Tracker(spec, fps, path)
     n = 0
@@ -592,6 +652,16 @@ def prefetch(frames, depth: int = 16):
     done = object()
     errors: list[BaseException] = []
 
+    def hand_over_end():
+        """The end-of-frames marker to the consumer (unless it stopped reading)."""
+        while True:
+            try:
+                q.put(done, timeout=0.05)
+                return
+            except queue.Full:
+                if stop.is_set():
+                    return
+
     def run():
         try:
             for f in frames:
@@ -606,13 +676,7 @@ def prefetch(frames, depth: int = 16):
         except BaseException as e:  # handed to the consumer
             errors.append(e)
         finally:
-            while True:
-                try:
-                    q.put(done, timeout=0.05)
-                    return
-                except queue.Full:
-                    if stop.is_set():
-                        return
+            hand_over_end()
 
     th = threading.Thread(target=run, name="video-decode", daemon=True)
     th.start()
@@ -708,7 +772,9 @@ def cached_track(spec: VideoSpec, cache_dir: Path, progress=None):
     with open(spec.path, "rb") as fh:
         for block in iter(lambda: fh.read(1 << 20), b""):
             h.update(block)
-    key = hashlib.sha256((h.hexdigest() + json.dumps(_jsonable(dataclasses.asdict(spec)), sort_keys=True)).encode()).hexdigest()[:20]
+    key = hashlib.sha256(
+        (h.hexdigest() + json.dumps(_jsonable(dataclasses.asdict(spec)), sort_keys=True)).encode()
+    ).hexdigest()[:20]
     path = Path(cache_dir) / f"{Path(spec.path).stem}.{key}.tracked.parquet"
     if path.is_file():
         import pyarrow.parquet as pq

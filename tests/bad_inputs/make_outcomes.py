@@ -45,14 +45,28 @@ def render_row(index: int, case, code: int, message: str) -> str:
 
 def render(rows: list[str], gaps: list[str]) -> str:
     counts = Counter(c.category for c in CASES)
-    lines = [HEADER, f"**{len(CASES)} cases**: " + ", ".join(f"{k} {v}" for k, v in counts.items())
-             + f"; {sum(c.subprocess for c in CASES)} of them also run through a real `python -m pounding_sweep` "
-             "process by the tests.\n",
-             "| # | case | category | input | exit | message (stderr) |", "|---|---|---|---|---|---|", *rows, ""]
+    lines = [
+        HEADER,
+        f"**{len(CASES)} cases**: "
+        + ", ".join(f"{k} {v}" for k, v in counts.items())
+        + f"; {sum(c.subprocess for c in CASES)} of them also run through a real `python -m pounding_sweep` "
+        "process by the tests.\n",
+        "| # | case | category | input | exit | message (stderr) |",
+        "|---|---|---|---|---|---|",
+        *rows,
+        "",
+    ]
     if gaps:
-        lines += ["## Known gaps", "",
-                  "Inputs that should be refused and are not yet (the tests run them as strict expected failures).", "",
-                  "| case | input | exit | what happens | what is missing |", "|---|---|---|---|---|", *gaps, ""]
+        lines += [
+            "## Known gaps",
+            "",
+            "Inputs that should be refused and are not yet (the tests run them as strict expected failures).",
+            "",
+            "| case | input | exit | what happens | what is missing |",
+            "|---|---|---|---|---|",
+            *gaps,
+            "",
+        ]
     return "\n".join(lines)
 
 

@@ -24,9 +24,19 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-
-from bad_inputs.corpus import (BASE, CASES, GOOD_AT2, TABLE_SECTION, edit, fresh_dir, problems,
-                               record_scene, run_in_process, run_subprocess, table_csv)
+from bad_inputs.corpus import (
+    BASE,
+    CASES,
+    GOOD_AT2,
+    TABLE_SECTION,
+    edit,
+    fresh_dir,
+    problems,
+    record_scene,
+    run_in_process,
+    run_subprocess,
+    table_csv,
+)
 from bad_inputs.make_outcomes import OUTCOMES, render_row, row_ids, rows_by_id
 from conftest import REPO
 
@@ -94,8 +104,10 @@ def test_a_scene_error_is_reported_before_the_engine_is_loaded(tmp_path):
     """A scene that fails to load never imports Numba, pyarrow or SciPy (about 1 s of start-up here)."""
     scene = tmp_path / "bad.toml"
     scene.write_text(BASE.replace("r = [0.2, 0.6]", "r = [0.2, 1.5]"))
-    code = ("import sys; from pounding_sweep.cli import main; rc = main([sys.argv[1]]); "
-            "print(rc, [m for m in ('numba', 'pyarrow', 'scipy') if m in sys.modules])")
+    code = (
+        "import sys; from pounding_sweep.cli import main; rc = main([sys.argv[1]]); "
+        "print(rc, [m for m in ('numba', 'pyarrow', 'scipy') if m in sys.modules])"
+    )
     p = subprocess.run([sys.executable, "-c", code, str(scene)], capture_output=True, text=True, cwd=REPO)
     assert p.stdout.strip() == "2 []", (p.stdout, p.stderr)
     assert "r" in p.stderr and "1.5" in p.stderr
@@ -110,8 +122,11 @@ def test_diverging_runs_are_flagged_and_the_sweep_goes_on(tmp_path):
     `diverged` (and stopped early), the others are `ok` with finite metrics."""
     from pounding_sweep.cli.run import main
 
-    text = edit(edit(edit(BASE, 'scheme = "event"', 'scheme = "paper"'), "dt_s = 1e-4", "dt_s = 2e-3"),
-                "ks_ratio = [0.1, 1.0]", "ks_ratio = [0.1, 1.0, 1000.0, 10000.0]")
+    text = edit(
+        edit(edit(BASE, 'scheme = "event"', 'scheme = "paper"'), "dt_s = 1e-4", "dt_s = 2e-3"),
+        "ks_ratio = [0.1, 1.0]",
+        "ks_ratio = [0.1, 1.0, 1000.0, 10000.0]",
+    )
     text = edit(text, "duration_s = 0.2", "duration_s = 1.0") + "\n[execution]\nchunk_runs = 3\n"
     (tmp_path / "scene.toml").write_text(text)
     assert main([str(tmp_path / "scene.toml"), "--quiet", "--threads", "1"]) == 0
@@ -174,7 +189,9 @@ def test_scene_strings_are_never_executed_and_files_never_unpickled(tmp_path):
     # strings that would run code if anything evaluated them
     evil = [f'!!python/object/apply:os.system ["touch {marker}"]', f"__import__('pathlib').Path('{marker}').touch()"]
     for e in evil:
-        (tmp_path / "s.toml").write_text(edit(BASE, 'name = "bad_input_case"', f'name = "bad_input_case"\ndescription = {e!r}'))
+        (tmp_path / "s.toml").write_text(
+            edit(BASE, 'name = "bad_input_case"', f'name = "bad_input_case"\ndescription = {e!r}')
+        )
         assert load_scene(tmp_path / "s.toml").description == e  # a plain string
         (tmp_path / "s.toml").write_text(edit(BASE, 'name = "bad_input_case"', f"name = {e!r}"))
         with pytest.raises(ConfigError, match="no path separators"):  # names become file names: refused
@@ -182,16 +199,36 @@ def test_scene_strings_are_never_executed_and_files_never_unpickled(tmp_path):
     # a pickle as record, table and video, by its own name and disguised as each format
     for name in ("rec.pkl", "rec.AT2", "rec.csv", "exp.pkl", "exp.csv", "exp.parquet", "run.pkl", "run.mkv"):
         (tmp_path / name).write_bytes(payload)
-    scenes = {"rec.pkl": record_scene("rec.pkl"), "rec.AT2": record_scene("rec.AT2"), "rec.csv": record_scene("rec.csv"),
-              "rec.pkl as csv": record_scene("rec.pkl", 'format = "csv"\n')}
+    scenes = {
+        "rec.pkl": record_scene("rec.pkl"),
+        "rec.AT2": record_scene("rec.AT2"),
+        "rec.csv": record_scene("rec.csv"),
+        "rec.pkl as csv": record_scene("rec.pkl", 'format = "csv"\n'),
+    }
     scenes.update({t: BASE + TABLE_SECTION.format(table=t) for t in ("exp.pkl", "exp.csv", "exp.parquet")})
     for i, (what, scene_text) in enumerate(scenes.items()):
         (tmp_path / f"{i}.toml").write_text(scene_text)
         assert main([str(tmp_path / f"{i}.toml"), "--out", str(tmp_path / "out.parquet"), "--quiet"]) == 2, what
     for video in ("run.pkl", "run.mkv"):
         pytest.importorskip("cv2")
-        assert main(["track", str(tmp_path / video), "--markers", "table_left,b1f1", "--references", "table_left",
-                     "--mm-per-px", "1", "--out", str(tmp_path / "t.csv"), "--quiet"]) == 2
+        assert (
+            main(
+                [
+                    "track",
+                    str(tmp_path / video),
+                    "--markers",
+                    "table_left,b1f1",
+                    "--references",
+                    "table_left",
+                    "--mm-per-px",
+                    "1",
+                    "--out",
+                    str(tmp_path / "t.csv"),
+                    "--quiet",
+                ]
+            )
+            == 2
+        )
     assert not marker.exists()
     assert not (tmp_path / "out.parquet").exists() and not (tmp_path / "t.csv").exists()
 
@@ -204,8 +241,10 @@ ALLOWED_READERS = {
     "pq.read_schema": {"sweep/results.py"},
     "cv2.VideoCapture": {"video/io.py"},
 }
-FORBIDDEN = r"\bpickle\b|\beval\(|\bexec\(|__import__|\bmarshal\b|\bshelve\b|\bjoblib\b|\bdill\b|yaml|allow_pickle|" \
-            r"\bnp\.load\(|read_pickle|read_excel|read_html|read_sql|read_json|read_feather|read_hdf|\bsubprocess\b|os\.system"
+FORBIDDEN = (
+    r"\bpickle\b|\beval\(|\bexec\(|__import__|\bmarshal\b|\bshelve\b|\bjoblib\b|\bdill\b|yaml|allow_pickle|"
+    r"\bnp\.load\(|read_pickle|read_excel|read_html|read_sql|read_json|read_feather|read_hdf|\bsubprocess\b|os\.system"
+)
 
 
 def test_no_reader_can_run_code():

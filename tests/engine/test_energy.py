@@ -8,28 +8,39 @@ import dataclasses
 import numpy as np
 import pandas as pd
 import pytest
-
 from conftest import SWEEPS
-from pounding_sweep.scene import Axis, load_scene
-from pounding_sweep.sweep.simulate import simulate
-from pounding_sweep.sweep.run import run_scene
 from tolerances import energy_balance_tolerance
 
-ENERGY = ["kinetic_energy_end_J", "strain_energy_end_J", "structural_damping_energy_J", "contact_damping_energy_J",
-          "contact_spring_energy_end_J", "energy_residual_J"]
+from pounding_sweep.scene import Axis, load_scene
+from pounding_sweep.sweep.run import run_scene
+from pounding_sweep.sweep.simulate import simulate
+
+ENERGY = [
+    "kinetic_energy_end_J",
+    "strain_energy_end_J",
+    "structural_damping_energy_J",
+    "contact_damping_energy_J",
+    "contact_spring_energy_end_J",
+    "energy_residual_J",
+]
 
 
 def scene(duration=1.0, damping=True):
     s = load_scene(SWEEPS / "paper_6hz.toml")
     s = dataclasses.replace(s, excitation=dataclasses.replace(s.excitation, duration_s=duration))
     if not damping:
-        s = dataclasses.replace(s, building1=dataclasses.replace(s.building1, damping_ratio=0.0),
-                                building2=dataclasses.replace(s.building2, damping_ratio=0.0))
+        s = dataclasses.replace(
+            s,
+            building1=dataclasses.replace(s.building1, damping_ratio=0.0),
+            building2=dataclasses.replace(s.building2, damping_ratio=0.0),
+        )
     return s
 
 
-@pytest.mark.parametrize("ks, r, scheme", [(1.0, 0.4, "implicit"), (10.0, 0.0, "implicit"), (1.0, 0.4, "paper"),
-                                           (1.0, 0.4, "event"), (10.0, 0.0, "event")])
+@pytest.mark.parametrize(
+    "ks, r, scheme",
+    [(1.0, 0.4, "implicit"), (10.0, 0.0, "implicit"), (1.0, 0.4, "paper"), (1.0, 0.4, "event"), (10.0, 0.0, "event")],
+)
 def test_energy_bookkeeping_closes(ks, r, scheme):
     """E_in = KE + SE + D_struct + D_contact + E_spring + residual (the Newmark identity), to rounding:
     tolerances.energy_balance_tolerance (measured: at most 5900 u of the energies' scale over 10,000 steps,
@@ -52,9 +63,15 @@ def test_elastic_contact_without_damping_conserves_energy():
 def _stability_grid(tmp_path, scheme, law="classic"):
     """k_s/k 0.01..1e4, r in {0, 1e-3, 0.6, 1}, amplitude 2 and 10 mm, dt 1e-4, 1e-3, 5e-3 s (1 s runs)."""
     s = scene(duration=1.0)
-    s = dataclasses.replace(s, sweep=(Axis("ks_ratio", (0.01, 1.0, 100.0, 1e4)), Axis("r", (0.0, 1e-3, 0.6, 1.0)),
-                                      Axis("amplitude_m", (0.002, 0.01))),
-                            contact=dataclasses.replace(s.contact, law=law))
+    s = dataclasses.replace(
+        s,
+        sweep=(
+            Axis("ks_ratio", (0.01, 1.0, 100.0, 1e4)),
+            Axis("r", (0.0, 1e-3, 0.6, 1.0)),
+            Axis("amplitude_m", (0.002, 0.01)),
+        ),
+        contact=dataclasses.replace(s.contact, law=law),
+    )
     rows = []
     for dt in (1e-4, 1e-3, 5e-3):
         s2 = dataclasses.replace(s, integration=dataclasses.replace(s.integration, dt_s=dt, scheme=scheme))
@@ -86,8 +103,10 @@ def test_default_scheme_is_stable_and_conserves_on_stiff_coarse_contact(tmp_path
     assert not df.status.str.contains("diverged").any()
     assert not df.status.str.contains("energy_residual").any()
     gap = _balance_gap(df)
-    print(f"\n[event stability {law}] runs {len(df)}, max balance gap {gap.max():.1e}, "
-          f"unsettled {df.status.str.contains('unsettled').sum()}")
+    print(
+        f"\n[event stability {law}] runs {len(df)}, max balance gap {gap.max():.1e}, "
+        f"unsettled {df.status.str.contains('unsettled').sum()}"
+    )
     # not a summation bound: the balance closes to the rounding of the shortest sub-steps, whose velocity
     # 2/h_s (u_end - u) - v carries the rounding of u amplified by dt / h_s, up to 1e9 at the shortest
     # sub-step the scheme integrates (kernel.EVENT_MIN_FRACTION = 1e-9 dt): 1e9 u = 1e-7 of the energy per

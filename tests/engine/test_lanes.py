@@ -30,19 +30,18 @@ import functools
 
 import numpy as np
 import pytest
-
 from conftest import SWEEPS
-from pounding_sweep.reference import newmark_reference
-from tolerances import (SEEDS, backward_error_twin, count_bounds, mca_twins, switch_residue_force,
-                        value_tolerance)
+from tolerances import SEEDS, backward_error_twin, count_bounds, mca_twins, switch_residue_force, value_tolerance
+
 from pounding_sweep import codes
 from pounding_sweep.engine import driver
-from pounding_sweep.engine import scalar as kernel
 from pounding_sweep.engine import lanes as kernel_lanes
 from pounding_sweep.engine import layout as L
-from pounding_sweep.scene import Axis, load_scene
-from pounding_sweep.model.contact import CONTACT_LAWS
+from pounding_sweep.engine import scalar as kernel
 from pounding_sweep.engine.driver import HistorySpec, RunArrays, ScoreSpec
+from pounding_sweep.model.contact import CONTACT_LAWS
+from pounding_sweep.reference import newmark_reference
+from pounding_sweep.scene import Axis, load_scene
 from pounding_sweep.sweep.prepare import prepare
 
 KS = (0.01, 0.1, 1.0, 10.0, 100.0, 1e4)
@@ -57,8 +56,7 @@ def implicit(scene, law="classic", duration=None, scheme="implicit", dt=None):
     integ = dataclasses.replace(scene.integration, scheme=scheme)
     if dt is not None:
         integ = dataclasses.replace(integ, dt_s=dt)
-    s = dataclasses.replace(scene, integration=integ,
-                            contact=dataclasses.replace(scene.contact, law=law))
+    s = dataclasses.replace(scene, integration=integ, contact=dataclasses.replace(scene.contact, law=law))
     if duration is not None:
         s = dataclasses.replace(s, excitation=dataclasses.replace(s.excitation, duration_s=duration))
     return s
@@ -82,8 +80,11 @@ NUMPY_REFERENCE_CASES = [
 ]
 
 
-@pytest.mark.parametrize("ks_ratio, r, gap_m, law, scheme", NUMPY_REFERENCE_CASES,
-                         ids=lambda v: f"{v}" if not isinstance(v, float) else f"{v:g}")
+@pytest.mark.parametrize(
+    "ks_ratio, r, gap_m, law, scheme",
+    NUMPY_REFERENCE_CASES,
+    ids=lambda v: f"{v}" if not isinstance(v, float) else f"{v:g}",
+)
 def test_lane_kernel_metrics_equal_the_numpy_reference(ks_ratio, r, gap_m, law, scheme):
     """The lane kernel against the plain NumPy Newmark loop of tests/reference.py directly (not only
     through the scalar kernel), 1 s of the 6 Hz scene: impacts and unsettled steps equal (or between the
@@ -91,8 +92,9 @@ def test_lane_kernel_metrics_equal_the_numpy_reference(ks_ratio, r, gap_m, law, 
     within tolerances.SAFETY times the twins' difference, contact time within one step per impact (the
     lane kernel sums whole steps between switches in its vector steps; tests/tolerances.py)."""
     base = implicit(load_scene(SWEEPS / "paper_6hz.toml"), law=law, duration=1.0, scheme=scheme)
-    s = dataclasses.replace(base, sweep=(), contact=dataclasses.replace(base.contact, ks_ratio=ks_ratio, r=r,
-                                                                        gap_m=gap_m))
+    s = dataclasses.replace(
+        base, sweep=(), contact=dataclasses.replace(base.contact, ks_ratio=ks_ratio, r=r, gap_m=gap_m)
+    )
     prep = prepare(s)
     assert kernel_lanes.lanes_ineligible_reason(prep.sysarr, HistorySpec.none(), prep.opts, None) is None
     runs, rec = chunk_inputs(prep)
@@ -105,7 +107,9 @@ def test_lane_kernel_metrics_equal_the_numpy_reference(ks_ratio, r, gap_m, law, 
     dt = ref["problem"].dt
 
     def agrees(got, values):
-        tol = value_tolerance(np.array(values[0]), [np.array(v) for v in values[1:]], np.array(values[0]), n_steps, n_dof)
+        tol = value_tolerance(
+            np.array(values[0]), [np.array(v) for v in values[1:]], np.array(values[0]), n_steps, n_dof
+        )
         return abs(got - values[0]) <= tol
 
     floors = [f"b{b}f{f}" for b, nf in zip((1, 2), prep.model.floors) for f in range(1, nf + 1)]
@@ -145,8 +149,10 @@ COUNTS = ("impacts_", "compression_phases_", "steps", "status_code", "max_contac
 
 def scalar_twins(prep, runs, rec):
     """The scalar kernel's rows on the backward-error twins of the model (tests/tolerances.py)."""
-    return [driver.run_chunk_scalar(backward_error_twin(prep.sysarr, seed), runs, rec, HistorySpec.none(), prep.opts,
-                                    2)[0] for seed in SEEDS]
+    return [
+        driver.run_chunk_scalar(backward_error_twin(prep.sysarr, seed), runs, rec, HistorySpec.none(), prep.opts, 2)[0]
+        for seed in SEEDS
+    ]
 
 
 def assert_rows_agree(prep, runs, rec, lanes, scalar, floors=(3, 3)):
@@ -191,8 +197,9 @@ def assert_rows_agree(prep, runs, rec, lanes, scalar, floors=(3, 3)):
             err = np.abs(x - y)
             if name.startswith("min_force"):
                 j = int(name.removeprefix("min_force_f").split("_")[0])
-                tol = tol + 2 * switch_residue_force(ks, b[:, col[f"peak_disp_b1f{j}_m"]],
-                                                     b[:, col[f"peak_disp_b2f{j}_m"]])
+                tol = tol + 2 * switch_residue_force(
+                    ks, b[:, col[f"peak_disp_b1f{j}_m"]], b[:, col[f"peak_disp_b2f{j}_m"]]
+                )
             elif name.startswith(("contact_time", "compression_time")):
                 j = name.split("_f")[1].split("_")[0]
                 tol = tol + dt * (b[:, col[f"compression_phases_f{j}"]] + b[:, col[f"impacts_f{j}"]] + 1)
@@ -200,8 +207,9 @@ def assert_rows_agree(prep, runs, rec, lanes, scalar, floors=(3, 3)):
                 tol = tol + dt * (1 + 1e-9)
         for r in np.flatnonzero(err > tol)[:3]:
             run = np.flatnonzero(good)[r]
-            problems.append(f"run {run}: {name} lanes {x[r]!r} scalar {y[r]!r} twins {[t[r] for t in ty]} "
-                            f"(tolerance {tol[r]:.3g})")
+            problems.append(
+                f"run {run}: {name} lanes {x[r]!r} scalar {y[r]!r} twins {[t[r] for t in ty]} (tolerance {tol[r]:.3g})"
+            )
     if problems:
         raise AssertionError(f"{len(problems)} disagreements:\n" + "\n".join(problems[:12]))
     return good
@@ -211,12 +219,13 @@ def col(metrics, name, floors=(3, 3)):
     return metrics[:, L.metric_columns(floors, min(floors)).index(name)]
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def harmonic_grid(law, scheme="implicit"):
     """k_s/k x r x gap, 0.5 s of the 6 Hz table motion at 2 mm and 5 mm."""
     s = implicit(load_scene(SWEEPS / "paper_6hz.toml"), law, duration=0.5, scheme=scheme)
-    s = dataclasses.replace(s, sweep=(Axis("amplitude_m", (0.002, 0.005)), Axis("gap_m", GAPS),
-                                      Axis("ks_ratio", KS), Axis("r", R)))
+    s = dataclasses.replace(
+        s, sweep=(Axis("amplitude_m", (0.002, 0.005)), Axis("gap_m", GAPS), Axis("ks_ratio", KS), Axis("r", R))
+    )
     prep = prepare(s)
     runs, rec = chunk_inputs(prep)
     return (prep, runs, rec) + both(prep, runs, rec)
@@ -251,18 +260,27 @@ def test_record_grid_with_runs_of_unequal_length_rows_agree(tmp_path, scheme):
     rec = read_record(SWEEPS / "records" / "RSN1605_DUZCE_DZC180.AT2", units="g")
     short = tmp_path / "short.csv"
     n = rec.time_s.size // 3
-    np.savetxt(short, np.column_stack([rec.time_s[:n], rec.acc_m_s2[:n]]), delimiter=",", header="t_s,acc_m_s2",
-               comments="")
+    np.savetxt(
+        short, np.column_stack([rec.time_s[:n], rec.acc_m_s2[:n]]), delimiter=",", header="t_s,acc_m_s2", comments=""
+    )
     s = implicit(load_scene(SWEEPS / "paper_duzce.toml"), scheme=scheme)
-    s = dataclasses.replace(s, excitation=dataclasses.replace(s.excitation, duration_s=None),
-                            sweep=(Axis("ks_ratio", (0.1, 1.0, 10.0)), Axis("r", (0.0, 0.4, 1.0)),
-                                   Axis("record", (str(SWEEPS / "records" / "RSN1605_DUZCE_DZC180.AT2"), str(short))),
-                                   Axis("scale", (0.5, 1.0))))
+    s = dataclasses.replace(
+        s,
+        excitation=dataclasses.replace(s.excitation, duration_s=None),
+        sweep=(
+            Axis("ks_ratio", (0.1, 1.0, 10.0)),
+            Axis("r", (0.0, 0.4, 1.0)),
+            Axis("record", (str(SWEEPS / "records" / "RSN1605_DUZCE_DZC180.AT2"), str(short))),
+            Axis("scale", (0.5, 1.0)),
+        ),
+    )
     prep = prepare(s)
     runs, recarr = chunk_inputs(prep)
     assert len(set(runs.nsteps.tolist())) == 2
     lanes, scalar = both(prep, runs, recarr)
-    assert assert_rows_agree(prep, runs, recarr, lanes, scalar).sum() >= 24  # of 36: r = 0 at k_s/k = 10 cycles (implicit)
+    assert (
+        assert_rows_agree(prep, runs, recarr, lanes, scalar).sum() >= 24
+    )  # of 36: r = 0 at k_s/k = 10 cycles (implicit)
     assert (col(scalar, "impacts_f3") > 0).any()
 
 
@@ -348,8 +366,11 @@ def test_run_chunk_dispatch_and_the_eligibility_rules():
     assert "facing" in why(swapped, none_h, opts, none_s)
     # a model whose scratch vectors (6 N + P) would not fit the lane kernel's buffer runs on the scalar kernel
     tall = implicit(load_scene(SWEEPS / "paper_6hz.toml"), duration=0.05)
-    tall = dataclasses.replace(tall, building1=dataclasses.replace(tall.building1, masses_kg=(1.0,) * 14),
-                               building2=dataclasses.replace(tall.building2, masses_kg=(0.5,) * 13))
+    tall = dataclasses.replace(
+        tall,
+        building1=dataclasses.replace(tall.building1, masses_kg=(1.0,) * 14),
+        building2=dataclasses.replace(tall.building2, masses_kg=(0.5,) * 13),
+    )
     ptall = prepare(tall)
     assert "scratch" in why(ptall.sysarr, none_h, opts, none_s)
     assert driver.kernel_for(ptall.sysarr, none_h, opts, none_s) == "scalar"
@@ -387,8 +408,12 @@ def test_excitation_profiles_equal_the_scalar_kernels_ground_acceleration():
     runs, rec = chunk_inputs(prep, params)
     coef, pid, prof = kernel_lanes.excitation_profiles(runs, rec, prep.dt)
     steps = np.arange(int(runs.nsteps[0]) + 1)
-    ref = np.array([kernel.ground_acceleration(runs.exc_kind[0], runs.exc_amp[0], runs.exc_omega[0], rec[0], 0, 0, s,
-                                               prep.dt) for s in steps])
+    ref = np.array(
+        [
+            kernel.ground_acceleration(runs.exc_kind[0], runs.exc_amp[0], runs.exc_omega[0], rec[0], 0, 0, s, prep.dt)
+            for s in steps
+        ]
+    )
     assert np.array_equal((coef[0] * prof[pid[0], steps]).view(np.int64), ref.view(np.int64))
 
 
@@ -400,12 +425,21 @@ def test_event_scheme_stiff_coarse_steps(law):
     fix-up, next to lanes that stay in the vector path. Most of these runs are flagged (a contact
     period under one step): the contract holds on the others, the flags on all."""
     s = implicit(load_scene(SWEEPS / "paper_6hz.toml"), law, duration=0.5, scheme="event", dt=1e-3)
-    s = dataclasses.replace(s, sweep=(Axis("amplitude_m", (0.002, 0.005)), Axis("gap_m", GAPS),
-                                      Axis("ks_ratio", (0.1, 1.0, 1e3, 3e3, 1e4)), Axis("r", R)))
+    s = dataclasses.replace(
+        s,
+        sweep=(
+            Axis("amplitude_m", (0.002, 0.005)),
+            Axis("gap_m", GAPS),
+            Axis("ks_ratio", (0.1, 1.0, 1e3, 3e3, 1e4)),
+            Axis("r", R),
+        ),
+    )
     prep = prepare(s)
     runs, rec = chunk_inputs(prep)
     lanes, scalar = both(prep, runs, rec)
-    assert assert_rows_agree(prep, runs, rec, lanes, scalar).sum() >= 30  # of 90: the rest have a contact period under a step
+    assert (
+        assert_rows_agree(prep, runs, rec, lanes, scalar).sum() >= 30
+    )  # of 90: the rest have a contact period under a step
     events = col(scalar, "max_contact_iterations")
     assert (events == 0).any() and (events >= 3).any()
     assert (col(scalar, "impacts_f3") > 10).any()

@@ -18,14 +18,19 @@ import math
 
 import numpy as np
 import pytest
-
 from conftest import SWEEPS
+from tolerances import (
+    SAFETY,
+    count_bounds,
+    history_tolerance,
+    mca_twins,
+    rel_to_peak,
+    summation_tolerance,
+    value_tolerance,
+)
 
-from pounding_sweep.scene import load_scene
 from pounding_sweep.model.contact import damping_ratio_from_restitution, dashpot_coefficient
 from pounding_sweep.model.coupled import CoupledModel
-from pounding_sweep.sweep.simulate import simulate
-from tolerances import SAFETY, rel_to_peak, count_bounds, history_tolerance, mca_twins, summation_tolerance, value_tolerance
 from pounding_sweep.reference import (
     ivp_reference,
     modal_free_vibration,
@@ -34,12 +39,14 @@ from pounding_sweep.reference import (
     resolve,
     restitution_damping_ratio,
 )
+from pounding_sweep.scene import load_scene
+from pounding_sweep.sweep.simulate import simulate
 
 SCENE_6HZ = SWEEPS / "paper_6hz.toml"
 SHORT_S = 1.0  # duration of the kernel-vs-Newmark comparisons (rounding grows with time, see below)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def scene_6hz(duration_s: float | None = None):
     s = load_scene(SCENE_6HZ)
     if duration_s is not None:
@@ -129,7 +136,7 @@ def _params(which):
     return [pytest.param(*c[:5], marks=c[5 + which], id=_case_id(c)) for c in NEWMARK_CASES]
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def newmark_pair(ks_ratio, r, gap_m, law, scheme):
     """(kernel, reference, the reference's two Monte Carlo arithmetic twins) on the short 6 Hz scene,
     computed once per case for both tests below."""
@@ -142,8 +149,9 @@ def newmark_pair(ks_ratio, r, gap_m, law, scheme):
 
 def _histories(run: dict, kernel: bool = False) -> dict:
     """u, v, absolute acceleration and F (t = 0 excluded: see test_kernel_force_history_starts_at_zero)."""
-    return dict(u=run["u"], v=run["v"], abs_acc=run["abs_acc"] if kernel else run["a"] + run["ag"][:, None],
-                F=run["F"][1:])
+    return dict(
+        u=run["u"], v=run["v"], abs_acc=run["abs_acc"] if kernel else run["a"] + run["ag"][:, None], F=run["F"][1:]
+    )
 
 
 @pytest.mark.parametrize("ks_ratio, r, gap_m, law, scheme", _params(0))
@@ -163,8 +171,10 @@ def test_kernel_histories_equal_newmark_reference(ks_ratio, r, gap_m, law, schem
     kh, rh, th = _histories(k, kernel=True), _histories(ref), [_histories(t) for t in twins]
     errs = {q: rel_to_peak(kh[q], rh[q]) for q in rh}
     tols = {q: history_tolerance(rh, th, q, n_steps, n_dof) for q in rh}
-    print(f"\n[kernel vs newmark_reference] {_case_id((ks_ratio, r, gap_m, law, scheme))}: "
-          + ", ".join(f"{q} {errs[q]:.1e} (tolerance {tols[q]:.1e})" for q in rh))
+    print(
+        f"\n[kernel vs newmark_reference] {_case_id((ks_ratio, r, gap_m, law, scheme))}: "
+        + ", ".join(f"{q} {errs[q]:.1e} (tolerance {tols[q]:.1e})" for q in rh)
+    )
     for q in rh:
         assert errs[q] <= tols[q], (q, errs, tols)
 
@@ -188,8 +198,10 @@ def test_kernel_counts_equal_newmark_reference(ks_ratio, r, gap_m, law, scheme):
     n_steps, n_dof = ref["u"].shape[0] - 1, ref["u"].shape[1]
     impacts_k = np.array([int(m[f"impacts_f{j + 1}"]) for j in range(p)])
     lo, hi = count_bounds(ref["impacts"], [t["impacts"] for t in twins])
-    print(f"\n[impacts] {_case_id((ks_ratio, r, gap_m, law, scheme))}: kernel {impacts_k.tolist()}, reference "
-          f"{ref['impacts'].tolist()}, twins {[t['impacts'].tolist() for t in twins]}")
+    print(
+        f"\n[impacts] {_case_id((ks_ratio, r, gap_m, law, scheme))}: kernel {impacts_k.tolist()}, reference "
+        f"{ref['impacts'].tolist()}, twins {[t['impacts'].tolist() for t in twins]}"
+    )
     assert impacts_k.any(), "the case is meant to pound"
     assert np.all((lo <= impacts_k) & (impacts_k <= hi))
     t_end = n_steps * dt
@@ -224,7 +236,7 @@ def test_kernel_force_history_starts_at_zero():
 # ----------------------------------------------------------------------------- the continuous-time reference
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def ivp_6hz(law: str, dt_out: float):
     """ivp_reference on the full 5 s, 6 Hz scene with k_s/k = 1, r = 0.4, gap 0."""
     return ivp_reference(scene_6hz(), ks_ratio=1.0, r=0.4, law=law, dt_out=dt_out)
@@ -273,9 +285,11 @@ def test_kernel_close_to_ivp_reference(law):
     peak_ref = F_ref.max(axis=0)
     dpeak = (peak_k - peak_ref) / peak_ref
     impacts_k = [int(k["metrics"][f"impacts_f{j + 1}"]) for j in range(p)]
-    print(f"\n[kernel dt=1e-4 vs ivp, {law}, 5 s] rel RMS disp_b1f3 {e1:.2e}, disp_b2f3 {e2:.2e}; "
-          f"peak force ref {np.round(peak_ref, 3).tolist()} N, rel diff {np.round(dpeak, 5).tolist()}; "
-          f"impacts kernel {impacts_k} ivp {ref['impacts'].tolist()}; events {len(ref['events'])}")
+    print(
+        f"\n[kernel dt=1e-4 vs ivp, {law}, 5 s] rel RMS disp_b1f3 {e1:.2e}, disp_b2f3 {e2:.2e}; "
+        f"peak force ref {np.round(peak_ref, 3).tolist()} N, rel diff {np.round(dpeak, 5).tolist()}; "
+        f"impacts kernel {impacts_k} ivp {ref['impacts'].tolist()}; events {len(ref['events'])}"
+    )
     assert e1 < 3e-3 and e2 < 3e-3
     assert abs(dpeak[2]) < 5e-3 and np.all(np.abs(dpeak) < 1e-2)
     assert impacts_k == ref["impacts"].tolist()
@@ -295,15 +309,20 @@ def test_kernel_converges_to_ivp_reference():
     ref = ivp_6hz("classic", 5e-5)
     errs = {}
     for dt in (2e-4, 1e-4, 5e-5):
-        df, _ = simulate(scene_6hz(), ks_ratio=1.0, r=0.4, dt_s=dt, scheme="implicit", channels=["disp_b1f3", "disp_b2f3"])
+        df, _ = simulate(
+            scene_6hz(), ks_ratio=1.0, r=0.4, dt_s=dt, scheme="implicit", channels=["disp_b1f3", "disp_b2f3"]
+        )
         sk = int(round(2e-4 / dt))
         k1, k2 = df["disp_b1f3_m"].to_numpy()[::sk], df["disp_b2f3_m"].to_numpy()[::sk]
         r1, r2 = ref["u"][::4, 2], ref["u"][::4, 5]
         assert k1.shape == r1.shape
         errs[dt] = (rel_rms(k1, r1), rel_rms(k2, r2))
     orders = [math.log2(errs[2e-4][i] / errs[5e-5][i]) / 2 for i in range(2)]
-    print("\n[convergence vs ivp] " + "; ".join(f"dt {dt:g}: b1f3 {e[0]:.2e} b2f3 {e[1]:.2e}" for dt, e in errs.items())
-          + f"; observed order b1f3 {orders[0]:.2f}, b2f3 {orders[1]:.2f}")
+    print(
+        "\n[convergence vs ivp] "
+        + "; ".join(f"dt {dt:g}: b1f3 {e[0]:.2e} b2f3 {e[1]:.2e}" for dt, e in errs.items())
+        + f"; observed order b1f3 {orders[0]:.2f}, b2f3 {orders[1]:.2f}"
+    )
     for i in range(2):
         assert errs[2e-4][i] > errs[1e-4][i] > errs[5e-5][i]
         assert orders[i] > 0.7
@@ -322,7 +341,9 @@ def test_event_scheme_close_to_ivp_reference(law):
     peak_k = np.array([k["metrics"][f"peak_force_f{j + 1}_N"] for j in range(p)])
     dpeak = (peak_k - F_ref.max(axis=0)) / F_ref.max(axis=0)
     impacts_k = [int(k["metrics"][f"impacts_f{j + 1}"]) for j in range(p)]
-    print(f"\n[event dt=1e-4 vs ivp, {law}] rel RMS {e1:.2e}, {e2:.2e}; peak force rel diff {np.round(dpeak, 6).tolist()}")
+    print(
+        f"\n[event dt=1e-4 vs ivp, {law}] rel RMS {e1:.2e}, {e2:.2e}; peak force rel diff {np.round(dpeak, 6).tolist()}"
+    )
     assert e1 < 5e-5 and e2 < 1e-4
     assert np.all(np.abs(dpeak) < 2e-4)
     assert impacts_k == ref["impacts"].tolist()
@@ -338,11 +359,15 @@ def test_event_scheme_is_second_order_across_impacts():
     for dt in (2e-4, 1e-4, 5e-5):
         df, _ = simulate(scene_6hz(), ks_ratio=1.0, r=0.4, dt_s=dt, scheme="event", channels=["disp_b1f3", "disp_b2f3"])
         sk = int(round(2e-4 / dt))
-        errs[dt] = (rel_rms(df["disp_b1f3_m"].to_numpy()[::sk], ref["u"][::4, 2]),
-                    rel_rms(df["disp_b2f3_m"].to_numpy()[::sk], ref["u"][::4, 5]))
+        errs[dt] = (
+            rel_rms(df["disp_b1f3_m"].to_numpy()[::sk], ref["u"][::4, 2]),
+            rel_rms(df["disp_b2f3_m"].to_numpy()[::sk], ref["u"][::4, 5]),
+        )
     for i in range(2):
         orders = [math.log2(errs[2e-4][i] / errs[1e-4][i]), math.log2(errs[1e-4][i] / errs[5e-5][i])]
-        print(f"\n[event convergence] channel {i}: {[f'{e[i]:.2e}' for e in errs.values()]}, orders {np.round(orders, 2).tolist()}")
+        print(
+            f"\n[event convergence] channel {i}: {[f'{e[i]:.2e}' for e in errs.values()]}, orders {np.round(orders, 2).tolist()}"
+        )
         assert min(orders) > 1.8
 
 
@@ -395,12 +420,20 @@ def test_free_vibration_decays_as_the_modal_solution(tmp_path):
     path = tmp_path / "pulse.csv"
     np.savetxt(path, np.c_[tr, 3.0 * np.sin(np.pi * tr / tp)], delimiter=",", header="t,acc")
     base = scene_6hz()
-    exc = dataclasses.replace(base.excitation, type="record", record=str(path), amplitude_m=None, frequency_Hz=None,
-                              duration_s=3.0, format="csv", units="m/s2")
+    exc = dataclasses.replace(
+        base.excitation,
+        type="record",
+        record=str(path),
+        amplitude_m=None,
+        frequency_Hz=None,
+        duration_s=3.0,
+        format="csv",
+        units="m/s2",
+    )
     s = dataclasses.replace(base, excitation=exc)
     k = kernel_run(s, gap_m=1.0, dt_s=1e-4)
     k0 = int(round(0.2 / 1e-4))
-    assert np.all(k["ag"][k0 - 900:] == 0.0)  # the pulse is over
+    assert np.all(k["ag"][k0 - 900 :] == 0.0)  # the pulse is over
     M, C, K = CoupledModel.from_scene(s).matrices()
     tau = k["t"][k0:] - k["t"][k0]
     exact = modal_free_vibration(M, C, K, k["u"][k0], k["v"][k0], tau)

@@ -11,8 +11,21 @@ import numba
 import numpy as np
 import pytest
 
-from pounding_sweep.engine.simd import (VW, many, mcount, mconst, mfloat, scratch, sget, sset, vfma, vload, vsel, vsplat,
-                                        vstore)
+from pounding_sweep.engine.simd import (
+    VW,
+    many,
+    mconst,
+    mcount,
+    mfloat,
+    scratch,
+    sget,
+    sset,
+    vfma,
+    vload,
+    vsel,
+    vsplat,
+    vstore,
+)
 
 RNG = np.random.default_rng(5)
 SPECIAL = np.array([0.0, -0.0, 1.0, -1.5, np.inf, -np.inf, np.nan, 5e-324, 1.7976931348623157e308, 3.0])
@@ -27,7 +40,11 @@ def lanes(n_vectors: int = 16) -> np.ndarray:
 
 def same(a, b) -> bool:
     """Bit-for-bit equal, NaN equal to NaN."""
-    return np.array_equal(np.asarray(a).view(np.int64), np.asarray(b).view(np.int64)) or np.array_equal(a, b, equal_nan=True) and np.array_equal(np.signbit(a), np.signbit(b))
+    return (
+        np.array_equal(np.asarray(a).view(np.int64), np.asarray(b).view(np.int64))
+        or np.array_equal(a, b, equal_nan=True)
+        and np.array_equal(np.signbit(a), np.signbit(b))
+    )
 
 
 @numba.njit

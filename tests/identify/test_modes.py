@@ -98,12 +98,16 @@ def test_mode_shapes_of_the_shear_frame_free_vibration():
     t = np.arange(0, 30.0, 1 / FS)
     X = np.zeros((t.size, 3))
     for k, amp in enumerate((1.0, 0.2, 0.1)):
-        X += amp * np.outer(damped(t, modes.frequency_Hz[k], modes.damping_ratio[k]), modes.shapes[:, k] / modes.shapes[-1, k])
+        X += amp * np.outer(
+            damped(t, modes.frequency_Hz[k], modes.damping_ratio[k]), modes.shapes[:, k] / modes.shapes[-1, k]
+        )
     X += np.random.default_rng(0).normal(0, 1e-4, X.shape)
     r = identify(X, FS, ["b1f1", "b1f2", "b1f3"], n_modes=3, free_vibration=True)
     assert len(r.modes) == 3 and r.reference == "b1f3"
     for k, m in enumerate(r.modes):
-        assert m.frequency_Hz == pytest.approx(modes.frequency_Hz[k] * np.sqrt(1 - modes.damping_ratio[k] ** 2), rel=1e-3)
+        assert m.frequency_Hz == pytest.approx(
+            modes.frequency_Hz[k] * np.sqrt(1 - modes.damping_ratio[k] ** 2), rel=1e-3
+        )
         phi = np.array(list(m.shape.values()))
         assert mac(phi, modes.shapes[:, k]) > 0.999
         assert m.damping_log_decrement == pytest.approx(modes.damping_ratio[k], rel=0.05)

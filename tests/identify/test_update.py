@@ -7,9 +7,8 @@ import tomllib
 
 import numpy as np
 import pytest
+from conftest import SWEEPS
 
-from pounding_sweep.scene import BuildingConfig, load_scene
-from pounding_sweep.model.coupled import building_from_config
 from pounding_sweep.identify.update import (
     column_EI_for_story_stiffness,
     frequencies_Hz,
@@ -17,9 +16,9 @@ from pounding_sweep.identify.update import (
     update_building,
     update_scene,
 )
+from pounding_sweep.model.coupled import building_from_config
 from pounding_sweep.model.structure import column_story_stiffness
-
-from conftest import SWEEPS
+from pounding_sweep.scene import BuildingConfig, load_scene
 
 M1, M2 = (1.7, 1.7, 1.6), (0.56, 0.56, 0.45)
 INITIAL = dict(column_EI_Nm2=(5.4,), n_columns=4, story_height_m=(0.336,))  # k = 4 x 12 EI / h^3 = 6833 N/m

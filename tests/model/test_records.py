@@ -7,12 +7,10 @@ rtol 1e-15 is 4.5 u, 1e-14 allows the factor's own representation error (9.80665
 from __future__ import annotations
 
 import math
-
 from pathlib import Path
 
 import numpy as np
 import pytest
-
 from conftest import SHARED
 
 from pounding_sweep.model.records import (
@@ -112,9 +110,7 @@ def test_record_is_read_only(gm_dir):
 # --------------------------------------------------------------------------- synthetic AT2
 
 NGA_HEAD = (
-    "PEER NGA STRONG MOTION DATABASE RECORD\n"
-    "Test Event, 1/1/2000, Station, 0\n"
-    "ACCELERATION TIME SERIES IN UNITS OF G\n"
+    "PEER NGA STRONG MOTION DATABASE RECORD\nTest Event, 1/1/2000, Station, 0\nACCELERATION TIME SERIES IN UNITS OF G\n"
 )
 
 
@@ -194,8 +190,11 @@ def test_at2_errors(tmp_path):
     ok = _write(tmp_path, "ok.AT2", NGA_HEAD + "NPTS= 1, DT= .01\n .1\n")
     _raises(["ok.AT2", "'furlongs'", "'g'", "'cm/s2'"], read_at2, ok, units="furlongs")
 
-    vel = _write(tmp_path, "vel.AT2", NGA_HEAD.replace("ACCELERATION", "VELOCITY").replace("OF G", "OF CM/S")
-                 + "NPTS= 1, DT= .01\n .1\n")
+    vel = _write(
+        tmp_path,
+        "vel.AT2",
+        NGA_HEAD.replace("ACCELERATION", "VELOCITY").replace("OF G", "OF CM/S") + "NPTS= 1, DT= .01\n .1\n",
+    )
     _raises(["vel.AT2", "line 3", "not an acceleration"], read_at2, vel)
 
 
@@ -266,8 +265,7 @@ def test_csv_errors(tmp_path):
 
 
 def _rec(acc, dt, description="event") -> GroundRecord:
-    return GroundRecord(name="syn", source="syn.csv", dt_s=dt, acc_m_s2=np.asarray(acc, float),
-                        description=description)
+    return GroundRecord(name="syn", source="syn.csv", dt_s=dt, acc_m_s2=np.asarray(acc, float), description=description)
 
 
 def test_similitude_scale():

@@ -6,7 +6,12 @@ import numpy as np
 import pytest
 
 from pounding_sweep.model.contact import contact_period, damping_ratio_from_restitution, dashpot_coefficient
-from pounding_sweep.model.structure import build_shear_frame, column_story_stiffness, rayleigh_from_ratio, shear_frame_stiffness
+from pounding_sweep.model.structure import (
+    build_shear_frame,
+    column_story_stiffness,
+    rayleigh_from_ratio,
+    shear_frame_stiffness,
+)
 
 
 def test_paper_first_frequencies_from_table_1():

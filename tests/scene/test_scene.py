@@ -8,10 +8,10 @@ import sys
 from pathlib import Path
 
 import pytest
-
 from conftest import REPO, SWEEPS
-from pounding_sweep.scene import describe, load_scene
+
 from pounding_sweep.model.grid import Grid
+from pounding_sweep.scene import describe, load_scene
 
 BASE = (SWEEPS / "paper_6hz.toml").read_text()
 SHIPPED = sorted(SWEEPS.glob("*.toml"))
@@ -47,28 +47,60 @@ def edit(old, new, text=BASE):
 
 BAD = {
     "toml_syntax": (edit(r"^r = 0.4$", "r = = 0.4"), r"TOML syntax error"),
-    "misspelled_key": (edit(r"^ks_ratio = 1.0$", "ks_ration = 1.0"), r"unknown key 'ks_ration' in \[contact\]; did you mean 'ks_ratio'"),
-    "misspelled_section": (edit(r"^\[contact\]$", "[contcat]"), r"unknown key 'contcat' in top level; did you mean 'contact'"),
+    "misspelled_key": (
+        edit(r"^ks_ratio = 1.0$", "ks_ration = 1.0"),
+        r"unknown key 'ks_ration' in \[contact\]; did you mean 'ks_ratio'",
+    ),
+    "misspelled_section": (
+        edit(r"^\[contact\]$", "[contcat]"),
+        r"unknown key 'contcat' in top level; did you mean 'contact'",
+    ),
     "missing_r": (edit(r"^r = 0.4\n", ""), r"missing key 'r' in \[contact\]"),
     "r_above_1": (edit(r"^r = 0.4$", "r = 1.5"), r"\[contact\] r = 1.5: .* \[0, 1\]"),
     "r_negative_in_sweep": (edit(r"^r = \[0.2, .*$", "r = [0.2, -0.1]"), r"\[sweep\] r = -0.1"),
-    "negative_mass": (edit(r"^masses_kg = \[1.7, 1.7, 1.6\]", "masses_kg = [1.7, -1.7, 1.6]"), r"\[building1\] masses_kg = -1.7: must be > 0"),
-    "zero_mass": (edit(r"^masses_kg = \[0.56, 0.56, 0.45\]", "masses_kg = [0.56, 0.0, 0.45]"), r"\[building2\] masses_kg = 0.0: must be > 0"),
-    "zero_stiffness": (edit(r"^story_stiffness_N_per_m = 5920.0", "story_stiffness_N_per_m = 0"), r"story_stiffness_N_per_m = 0.0: must be > 0"),
-    "nan_value": (edit(r"^amplitude_m = 0.002$", "amplitude_m = nan"), r"\[excitation\] amplitude_m = nan: must be finite"),
+    "negative_mass": (
+        edit(r"^masses_kg = \[1.7, 1.7, 1.6\]", "masses_kg = [1.7, -1.7, 1.6]"),
+        r"\[building1\] masses_kg = -1.7: must be > 0",
+    ),
+    "zero_mass": (
+        edit(r"^masses_kg = \[0.56, 0.56, 0.45\]", "masses_kg = [0.56, 0.0, 0.45]"),
+        r"\[building2\] masses_kg = 0.0: must be > 0",
+    ),
+    "zero_stiffness": (
+        edit(r"^story_stiffness_N_per_m = 5920.0", "story_stiffness_N_per_m = 0"),
+        r"story_stiffness_N_per_m = 0.0: must be > 0",
+    ),
+    "nan_value": (
+        edit(r"^amplitude_m = 0.002$", "amplitude_m = nan"),
+        r"\[excitation\] amplitude_m = nan: must be finite",
+    ),
     "inf_value": (edit(r"^dt_s = 1e-4$", "dt_s = inf"), r"\[integration\] dt_s = inf: must be finite"),
-    "string_for_number": (edit(r"^frequency_Hz = 6.0$", 'frequency_Hz = "6 Hz"'), r"frequency_Hz = '6 Hz': expected a number"),
+    "string_for_number": (
+        edit(r"^frequency_Hz = 6.0$", 'frequency_Hz = "6 Hz"'),
+        r"frequency_Hz = '6 Hz': expected a number",
+    ),
     "negative_gap": (edit(r"^gap_m = 0.0", "gap_m = -0.001"), r"gap_m = -0.001: must be >= 0"),
     "dt_longer_than_run": (edit(r"^dt_s = 1e-4$", "dt_s = 6.0"), r"dt_s = 6.0: must be shorter than"),
     "unknown_law": (edit(r'^law = "classic"$', 'law = "hertz"'), r"law = 'hertz'"),
     "unknown_scheme": (edit(r'^scheme = "event" .*$', 'scheme = "euler"'), r"scheme = 'euler'"),
     "empty_axis": (edit(r"^r = \[0.2, .*$", "r = []"), r"\[sweep\] r = \[\]"),
     "unknown_axis": (edit(r"^r = \[0.2, .*$", "damping = [0.1]"), r"unknown key 'damping' in \[sweep\]"),
-    "both_ks_forms": (edit(r"^ks_ratio = 1.0$", "ks_ratio = 1.0\nks_N_per_m = 6830.0"), r"give ks_ratio or ks_N_per_m, not both"),
+    "both_ks_forms": (
+        edit(r"^ks_ratio = 1.0$", "ks_ratio = 1.0\nks_N_per_m = 6830.0"),
+        r"give ks_ratio or ks_N_per_m, not both",
+    ),
     "bad_channel": (BASE + '\nhistories = ["disp_b3f1"]\n', r"channel 'disp_b3f1'.*b<building>f<floor>"),
     "floor_out_of_range": (BASE + '\nhistories = ["disp_b1f4"]\n', r"building 1 has floors 1..3"),
-    "missing_record": (BASE.replace('type = "harmonic"', 'type = "record"\nrecord = "nowhere.AT2"').replace("amplitude_m = 0.002\n", "").replace("frequency_Hz = 6.0\n", ""), r"nowhere.AT2"),
-    "log_range_nonpositive": (edit(r"^ks_ratio = \[0.1.*$", "ks_ratio = {start = 0, stop = 10, num = 5, spacing = 'log'}"), r"log spacing needs start and stop > 0"),
+    "missing_record": (
+        BASE.replace('type = "harmonic"', 'type = "record"\nrecord = "nowhere.AT2"')
+        .replace("amplitude_m = 0.002\n", "")
+        .replace("frequency_Hz = 6.0\n", ""),
+        r"nowhere.AT2",
+    ),
+    "log_range_nonpositive": (
+        edit(r"^ks_ratio = \[0.1.*$", "ks_ratio = {start = 0, stop = 10, num = 5, spacing = 'log'}"),
+        r"log spacing needs start and stop > 0",
+    ),
 }
 
 
@@ -91,8 +123,9 @@ def test_cli_bad_input_exits_2_without_output(tmp_path, case):
     text, pattern = BAD[case]
     out = tmp_path / "out.parquet"
     path = write(tmp_path, text)
-    p = subprocess.run([sys.executable, "-m", "pounding_sweep", str(path), "--out", str(out)],
-                       capture_output=True, text=True, cwd=REPO)
+    p = subprocess.run(
+        [sys.executable, "-m", "pounding_sweep", str(path), "--out", str(out)], capture_output=True, text=True, cwd=REPO
+    )
     assert p.returncode == 2
     assert "Traceback" not in p.stderr
     assert p.stderr.startswith("error: ") and re.search(pattern, p.stderr)
@@ -131,7 +164,9 @@ def test_config_hash_changes_with_content_only(tmp_path):
 
 
 def test_column_properties_give_stiffness(tmp_path):
-    text = BASE.replace("story_stiffness_N_per_m = 5920.0", "column_EI_Nm2 = 5.4\nn_columns = 4\nstory_height_m = 0.33609")
+    text = BASE.replace(
+        "story_stiffness_N_per_m = 5920.0", "column_EI_Nm2 = 5.4\nn_columns = 4\nstory_height_m = 0.33609"
+    )
     from pounding_sweep.model.coupled import CoupledModel
 
     m = CoupledModel.from_scene(load_scene(write(tmp_path, text)))

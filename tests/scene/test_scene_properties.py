@@ -8,18 +8,22 @@ import math
 import tomllib
 
 import numpy as np
+from conftest import SWEEPS
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from conftest import SWEEPS
-from pounding_sweep.scene import ConfigError, scene_from_dict
 from pounding_sweep.model.grid import Grid
+from pounding_sweep.scene import ConfigError, scene_from_dict
 
 BASE = tomllib.loads((SWEEPS / "paper_6hz.toml").read_text())
 
 scalars = st.one_of(
-    st.none(), st.booleans(), st.integers(-10, 10**6), st.floats(allow_nan=True, allow_infinity=True),
-    st.text(max_size=8), st.lists(st.floats(-1e3, 1e3), max_size=4),
+    st.none(),
+    st.booleans(),
+    st.integers(-10, 10**6),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.text(max_size=8),
+    st.lists(st.floats(-1e3, 1e3), max_size=4),
 )
 KEYS = [(sec, key) for sec, table in BASE.items() if isinstance(table, dict) for key in table]
 EXTRA_KEYS = ["ks_ration", "mass_kg", "dt", "gap", "r_", "histories", "damping_modes", "spacing"]
@@ -50,8 +54,12 @@ def mutated_scene(draw):
             if draw(st.booleans()):
                 spec = draw(st.lists(st.floats(-2, 20), max_size=5))
             else:
-                spec = {"start": draw(st.floats(-1, 10)), "stop": draw(st.floats(-1, 10)), "num": draw(st.integers(-1, 6)),
-                        "spacing": draw(st.sampled_from(["linear", "log", "cubic"]))}
+                spec = {
+                    "start": draw(st.floats(-1, 10)),
+                    "stop": draw(st.floats(-1, 10)),
+                    "num": draw(st.integers(-1, 6)),
+                    "spacing": draw(st.sampled_from(["linear", "log", "cubic"])),
+                }
             if isinstance(raw.get("sweep", {}), dict):
                 raw.setdefault("sweep", {})[axis] = spec
     return raw

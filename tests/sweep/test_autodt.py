@@ -11,11 +11,11 @@ import dataclasses
 import numpy as np
 import pandas as pd
 import pytest
-
 from conftest import SWEEPS
+
 from pounding_sweep.scene import Axis, ConfigError, load_scene, validate
-from pounding_sweep.sweep.simulate import simulate
 from pounding_sweep.sweep.run import run_scene
+from pounding_sweep.sweep.simulate import simulate
 
 
 def scene(tol=1e-3, dt_min=1e-6, duration=1.0, **integration):
@@ -44,8 +44,14 @@ def test_auto_dt_meets_its_tolerance_against_a_fine_run(tmp_path):
     fine_scene = dataclasses.replace(scene(), integration=dataclasses.replace(scene().integration, dt_s=1e-5))
     fine = pd.read_parquet(run_scene(fine_scene, out_path=tmp_path / "fine.parquet").path)
     actual = rel_err(auto, fine)
-    print("\n[auto dt] chosen", auto.dt_s.tolist(), "\n estimate", np.round(auto.dt_error_estimate, 6).tolist(),
-          "\n actual  ", np.round(actual, 6).tolist())
+    print(
+        "\n[auto dt] chosen",
+        auto.dt_s.tolist(),
+        "\n estimate",
+        np.round(auto.dt_error_estimate, 6).tolist(),
+        "\n actual  ",
+        np.round(actual, 6).tolist(),
+    )
     assert (auto.dt_error_estimate <= tol).all() and (auto.status == "ok").all()
     assert (actual <= 3 * tol).all()  # the estimate is of the right size, not wildly optimistic
     assert auto.dt_s.nunique() > 1  # it does adapt per run (stiffer contact needs smaller steps)
@@ -70,11 +76,14 @@ def test_simulate_with_auto_dt_keeps_histories_at_the_chosen_step():
     assert np.diff(df.t_s.to_numpy())[0] == pytest.approx(m["dt_s"])
 
 
-@pytest.mark.parametrize("changes, message", [
-    (dict(dt_s="fast"), r"dt_s = 'fast': expected a time step in seconds or 'auto'"),
-    (dict(dt_s="auto", dt_max_s=1e-6, dt_min_s=1e-5), r"dt_max_s = 1e-06: must be larger than dt_min_s"),
-    (dict(dt_s="auto", dt_tolerance=0.0), r"dt_tolerance"),
-])
+@pytest.mark.parametrize(
+    "changes, message",
+    [
+        (dict(dt_s="fast"), r"dt_s = 'fast': expected a time step in seconds or 'auto'"),
+        (dict(dt_s="auto", dt_max_s=1e-6, dt_min_s=1e-5), r"dt_max_s = 1e-06: must be larger than dt_min_s"),
+        (dict(dt_s="auto", dt_tolerance=0.0), r"dt_tolerance"),
+    ],
+)
 def test_bad_auto_settings_are_refused(changes, message):
     s = load_scene(SWEEPS / "paper_6hz.toml")
     with pytest.raises(ConfigError, match=message):
@@ -83,8 +92,11 @@ def test_bad_auto_settings_are_refused(changes, message):
 
 def test_auto_dt_with_histories_is_refused():
     s = load_scene(SWEEPS / "paper_6hz.toml")
-    s = dataclasses.replace(s, integration=dataclasses.replace(s.integration, dt_s="auto"),
-                            output=dataclasses.replace(s.output, histories=("disp_b1f3",)))
+    s = dataclasses.replace(
+        s,
+        integration=dataclasses.replace(s.integration, dt_s="auto"),
+        output=dataclasses.replace(s.output, histories=("disp_b1f3",)),
+    )
     with pytest.raises(ConfigError, match=r"histories need one time step"):
         validate(s)
 

@@ -19,11 +19,11 @@ import time
 import numpy as np
 import pandas as pd
 import pytest
-
 from conftest import REPO, SWEEPS
+
+from pounding_sweep.errors import OutputError
 from pounding_sweep.scene import Axis, load_scene
 from pounding_sweep.sweep.results import MANIFEST, part_files, read_manifest
-from pounding_sweep.errors import OutputError
 from pounding_sweep.sweep.run import run_scene
 
 pytest.importorskip("dask.distributed")
@@ -91,7 +91,9 @@ def _write_scene(tmp_path, r_values="[0.2, 0.6, 1.0]", duration="3.0", name="kil
     """A scene file slow enough to kill mid-way (30 runs of 3 s at dt = 2e-5 s, one run per part)."""
     text = (SWEEPS / "paper_6hz.toml").read_text()
     text = text.replace("duration_s = 5.0", f"duration_s = {duration}").replace("dt_s = 1e-4", "dt_s = 2e-5")
-    text = text.replace("ks_ratio = [0.1, 1.0, 5.0, 10.0]", "ks_ratio = [0.1, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0]")
+    text = text.replace(
+        "ks_ratio = [0.1, 1.0, 5.0, 10.0]", "ks_ratio = [0.1, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0]"
+    )
     text = text.replace("r = [0.2, 0.4, 0.6, 0.8, 1.0]", f"r = {r_values}")
     text += "\n[execution]\nchunk_runs = 1\n"
     f = tmp_path / name

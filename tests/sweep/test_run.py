@@ -8,10 +8,10 @@ import sys
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import REPO, SWEEPS
+from tolerances import switch_residue_force
 
 import pounding_sweep
-from tolerances import switch_residue_force
-from conftest import REPO, SWEEPS
 from pounding_sweep.scene import load_scene
 from pounding_sweep.sweep.results import read_metadata, read_schema
 from pounding_sweep.sweep.run import run_scene
@@ -20,8 +20,12 @@ from pounding_sweep.sweep.run import run_scene
 @pytest.fixture(scope="module")
 def six_hz(tmp_path_factory):
     out = tmp_path_factory.mktemp("run") / "paper_6hz.parquet"
-    p = subprocess.run([sys.executable, "-m", "pounding_sweep", str(SWEEPS / "paper_6hz.toml"), "--out", str(out)],
-                       capture_output=True, text=True, cwd=REPO)
+    p = subprocess.run(
+        [sys.executable, "-m", "pounding_sweep", str(SWEEPS / "paper_6hz.toml"), "--out", str(out)],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+    )
     assert p.returncode == 0, p.stderr
     return out, p.stdout
 
@@ -62,7 +66,14 @@ def test_metadata_is_self_describing(six_hz):
     assert md["dt_s"] == 1e-4 and md["scheme"] == "event"
     assert "peak_force_f*_N" in md["columns"]
     names = read_schema(out).names
-    for col in ("peak_disp_b1f3_m", "peak_abs_acc_b2f3_m_s2", "peak_force_f3_N", "contact_time_f1_s", "status", "run_time_s"):
+    for col in (
+        "peak_disp_b1f3_m",
+        "peak_abs_acc_b2f3_m_s2",
+        "peak_force_f3_N",
+        "contact_time_f1_s",
+        "status",
+        "run_time_s",
+    ):
         assert col in names
 
 
@@ -71,9 +82,15 @@ def test_metrics_only_scene_writes_no_histories(six_hz):
 
 
 def test_histories_when_asked_and_identical_across_threads(tmp_path):
-    text = (SWEEPS / "paper_6hz.toml").read_text().replace(
-        'path = "../results/paper_6hz.parquet"', 'path = "out.parquet"\nhistories = ["disp_b1f3", "force_f3"]\nhistory_decimate = 10'
-    ).replace("duration_s = 5.0", "duration_s = 1.0")
+    text = (
+        (SWEEPS / "paper_6hz.toml")
+        .read_text()
+        .replace(
+            'path = "../results/paper_6hz.parquet"',
+            'path = "out.parquet"\nhistories = ["disp_b1f3", "force_f3"]\nhistory_decimate = 10',
+        )
+        .replace("duration_s = 5.0", "duration_s = 1.0")
+    )
     (tmp_path / "s.toml").write_text(text)
     scene = load_scene(tmp_path / "s.toml")
     s1 = run_scene(scene, out_path=tmp_path / "one.parquet", threads=1)
@@ -120,8 +137,12 @@ def test_record_axis_and_csv_record(tmp_path, shared_dir):
     np.savetxt(csv, np.column_stack([rec.time_s, rec.acc_m_s2]), delimiter=",", header="t_s,acc_m_s2", comments="")
     text = (SWEEPS / "paper_duzce.toml").read_text()
     text = text.replace('record = "records/RSN1605_DUZCE_DZC180.AT2"', f'record = "{gm}/RSN1605_DUZCE_DZC180.AT2"')
-    text = text.replace('units = "g"\n', "").replace("[sweep]\n", f'[sweep]\nrecord = ["{gm}/RSN1605_DUZCE_DZC180.AT2", "{gm}/RSN1605_DUZCE_DZC270.AT2", "{csv}"]\n')
-    text = text.replace("ks_ratio = [0.1, 1.0, 5.0, 10.0]", "ks_ratio = [1.0]").replace("r = [0.2, 0.4, 0.6, 0.8, 1.0]", "r = [0.2]")
+    text = text.replace('units = "g"\n', "").replace(
+        "[sweep]\n", f'[sweep]\nrecord = ["{gm}/RSN1605_DUZCE_DZC180.AT2", "{gm}/RSN1605_DUZCE_DZC270.AT2", "{csv}"]\n'
+    )
+    text = text.replace("ks_ratio = [0.1, 1.0, 5.0, 10.0]", "ks_ratio = [1.0]").replace(
+        "r = [0.2, 0.4, 0.6, 0.8, 1.0]", "r = [0.2]"
+    )
     (tmp_path / "s.toml").write_text(text)
     s = run_scene(load_scene(tmp_path / "s.toml"), out_path=tmp_path / "o.parquet")
     df = pd.read_parquet(s.path).set_index("record")
@@ -137,7 +158,9 @@ def test_record_axis_and_csv_record(tmp_path, shared_dir):
 def test_amplitude_and_frequency_axes(tmp_path):
     text = (SWEEPS / "paper_6hz.toml").read_text().replace("duration_s = 5.0", "duration_s = 1.0")
     text = text.replace("[sweep]\n", "[sweep]\namplitude_m = [0.001, 0.002]\nfrequency_Hz = [4.613, 6.0]\n")
-    text = text.replace("ks_ratio = [0.1, 1.0, 5.0, 10.0]", "ks_ratio = [1.0]").replace("r = [0.2, 0.4, 0.6, 0.8, 1.0]", "r = [0.4]")
+    text = text.replace("ks_ratio = [0.1, 1.0, 5.0, 10.0]", "ks_ratio = [1.0]").replace(
+        "r = [0.2, 0.4, 0.6, 0.8, 1.0]", "r = [0.4]"
+    )
     (tmp_path / "s.toml").write_text(text)
     df = pd.read_parquet(run_scene(load_scene(tmp_path / "s.toml"), out_path=tmp_path / "o.parquet").path)
     assert list(zip(df.amplitude_m, df.frequency_Hz)) == [(0.001, 4.613), (0.001, 6.0), (0.002, 4.613), (0.002, 6.0)]

@@ -12,16 +12,15 @@ import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
 import pytest
-
 from conftest import REPO, SWEEPS
 from tolerances import SAFETY, SEEDS, U, backward_error_twin, floor_steps
-from pounding_sweep.scene import Axis, load_scene
+
+from pounding_sweep.engine.score import lagged_correlation, peak_abs, relative_rms_error_pct, score_channel
 from pounding_sweep.model.coupled import CoupledModel
 from pounding_sweep.model.experiment import ExperimentError
-from pounding_sweep.engine.score import lagged_correlation, peak_abs, relative_rms_error_pct, score_channel
-from pounding_sweep.sweep.simulate import simulate
+from pounding_sweep.scene import Axis, load_scene
 from pounding_sweep.sweep.run import run_scene
-
+from pounding_sweep.sweep.simulate import simulate
 
 # ------------------------------------------------------------------ metrics by hand
 
@@ -65,8 +64,9 @@ def _scene_with_table(tmp_path, table: pd.DataFrame, channels=None, **exp_kw):
     path = tmp_path / "exp.csv"
     table.to_csv(path, index=False)
     base = load_scene(SWEEPS / "scored_6hz.toml")
-    exp = dataclasses.replace(base.experiment, table=str(path), refine=False,
-                              channels=channels or base.experiment.channels, **exp_kw)
+    exp = dataclasses.replace(
+        base.experiment, table=str(path), refine=False, channels=channels or base.experiment.channels, **exp_kw
+    )
     return dataclasses.replace(base, experiment=exp)
 
 
@@ -74,7 +74,9 @@ def test_run_scored_against_its_own_history_is_zero(tmp_path):
     scene = load_scene(SWEEPS / "paper_6hz.toml")
     hist, _ = simulate(scene, channels=["disp_b1f3", "disp_b2f3"], ks_ratio=5.0, r=0.4)
     own = hist.iloc[::100]  # 100 fps from the 1e-4 s steps
-    table = pd.DataFrame({"t_s": own.t_s, "model1_floor3_mm": own.disp_b1f3_m * 1e3, "model2_floor3_mm": own.disp_b2f3_m * 1e3})
+    table = pd.DataFrame(
+        {"t_s": own.t_s, "model1_floor3_mm": own.disp_b1f3_m * 1e3, "model2_floor3_mm": own.disp_b2f3_m * 1e3}
+    )
     s = _scene_with_table(tmp_path, table)
     _, m = simulate(s, ks_ratio=5.0, r=0.4)
     # each sample went through m -> mm -> m (two roundings, 4 u |x|), and the kernel interpolates it between
@@ -111,7 +113,13 @@ def test_synthetic_experiment_hidden_parameters_are_the_best_cell(tmp_path, scen
     if scene_file == "scored_6hz.toml":  # Duzce: k_s/k is weakly identifiable under model error (README)
         assert abs(rf.optimum["ks_ratio"] / hidden[0] - 1) < 0.10
     rows = pd.read_parquet(s.path)
-    assert {"rel_rms_b1f3_pct", "peak_diff_b2f3_pct", "corr_max_b1f3", "corr_lag_b2f3_s", "rel_rms_combined_pct"} <= set(rows)
+    assert {
+        "rel_rms_b1f3_pct",
+        "peak_diff_b2f3_pct",
+        "corr_max_b1f3",
+        "corr_lag_b2f3_s",
+        "rel_rms_combined_pct",
+    } <= set(rows)
     assert pd.read_parquet(s.best_path).criterion.tolist()[-1] == "refined_combined"
 
 
@@ -120,7 +128,9 @@ def test_refinement_recovers_hidden_values_without_model_error(tmp_path):
     from pounding_sweep.synthetic import make_experiment
 
     base = load_scene(SWEEPS / "paper_6hz.toml")
-    df, _ = make_experiment(base, {"ks_ratio": 3.0, "r": 0.5}, stiffness_factor=(1, 1), damping_factor=(1, 1), dt_s=1e-4)
+    df, _ = make_experiment(
+        base, {"ks_ratio": 3.0, "r": 0.5}, stiffness_factor=(1, 1), damping_factor=(1, 1), dt_s=1e-4
+    )
     s = _scene_with_table(tmp_path, df)
     s = dataclasses.replace(s, experiment=dataclasses.replace(s.experiment, refine=True))
     summary = run_scene(s, out_path=tmp_path / "o.parquet")
@@ -129,15 +139,25 @@ def test_refinement_recovers_hidden_values_without_model_error(tmp_path):
 
 
 def test_cli_summary_names_the_best_runs(tmp_path):
-    p = subprocess.run([sys.executable, "-m", "pounding_sweep", str(SWEEPS / "scored_6hz.toml"), "--out", str(tmp_path / "o.parquet")],
-                       capture_output=True, text=True, cwd=REPO)
+    p = subprocess.run(
+        [sys.executable, "-m", "pounding_sweep", str(SWEEPS / "scored_6hz.toml"), "--out", str(tmp_path / "o.parquet")],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+    )
     assert p.returncode == 0, p.stderr
     assert re.search(r"best.*combined", p.stdout) and "refined" in p.stdout
 
 
 # ------------------------------------------------------------------ bad tables
 
-GOOD = pd.DataFrame({"t_s": [0.0, 0.01, 0.02, 0.03], "model1_floor3_mm": [0.0, 0.1, 0.2, 0.1], "model2_floor3_mm": [0.0, -0.1, 0.0, 0.1]})
+GOOD = pd.DataFrame(
+    {
+        "t_s": [0.0, 0.01, 0.02, 0.03],
+        "model1_floor3_mm": [0.0, 0.1, 0.2, 0.1],
+        "model2_floor3_mm": [0.0, -0.1, 0.0, 0.1],
+    }
+)
 
 
 def _bad(name):
@@ -166,7 +186,9 @@ def _bad(name):
     raise KeyError(name)
 
 
-@pytest.mark.parametrize("name", ["missing_time", "unsorted", "duplicate", "nan", "text", "missing_channel", "no_overlap"])
+@pytest.mark.parametrize(
+    "name", ["missing_time", "unsorted", "duplicate", "nan", "text", "missing_channel", "no_overlap"]
+)
 def test_bad_experiment_table(tmp_path, name):
     df, pattern = _bad(name)
     s = _scene_with_table(tmp_path, df)
@@ -182,8 +204,12 @@ def test_channel_mapping_to_no_floor_is_refused(tmp_path):
     text = (SWEEPS / "scored_6hz.toml").read_text().replace('model2_floor3_mm = "b2f3"', 'model2_floor3_mm = "b2f4"')
     text = text.replace('table = "experiments/', f'table = "{SWEEPS}/experiments/')
     (tmp_path / "s.toml").write_text(text)
-    p = subprocess.run([sys.executable, "-m", "pounding_sweep", str(tmp_path / "s.toml"), "--out", str(tmp_path / "o.parquet")],
-                       capture_output=True, text=True, cwd=REPO)
+    p = subprocess.run(
+        [sys.executable, "-m", "pounding_sweep", str(tmp_path / "s.toml"), "--out", str(tmp_path / "o.parquet")],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+    )
     assert p.returncode == 2 and "Traceback" not in p.stderr
     assert "channels.model2_floor3_mm = 'b2f4'" in p.stderr and "maps to no floor" in p.stderr
     assert not list(tmp_path.glob("*.parquet*"))
@@ -192,11 +218,21 @@ def test_channel_mapping_to_no_floor_is_refused(tmp_path):
 def test_cli_bad_table_exit_2_and_no_output(tmp_path):
     df, _ = _bad("unsorted")
     df.to_csv(tmp_path / "exp.csv", index=False)
-    text = (SWEEPS / "scored_6hz.toml").read_text().replace('table = "experiments/synthetic_6hz.parquet"', f'table = "{tmp_path}/exp.csv"')
+    text = (
+        (SWEEPS / "scored_6hz.toml")
+        .read_text()
+        .replace('table = "experiments/synthetic_6hz.parquet"', f'table = "{tmp_path}/exp.csv"')
+    )
     (tmp_path / "s.toml").write_text(text)
-    p = subprocess.run([sys.executable, "-m", "pounding_sweep", str(tmp_path / "s.toml"), "--out", str(tmp_path / "o.parquet")],
-                       capture_output=True, text=True, cwd=REPO)
-    assert p.returncode == 2 and p.stderr.startswith("error: ") and "exp.csv" in p.stderr and "Traceback" not in p.stderr
+    p = subprocess.run(
+        [sys.executable, "-m", "pounding_sweep", str(tmp_path / "s.toml"), "--out", str(tmp_path / "o.parquet")],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+    )
+    assert (
+        p.returncode == 2 and p.stderr.startswith("error: ") and "exp.csv" in p.stderr and "Traceback" not in p.stderr
+    )
     assert not list(tmp_path.glob("*.parquet*"))
 
 
@@ -219,8 +255,20 @@ print(summary.runs, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
 def test_peak_memory_does_not_grow_with_runs(tmp_path):
     res = {}
     for n_ks, n_r in ((4, 5), (200, 100)):
-        p = subprocess.run([sys.executable, "-c", MEM_SCRIPT, str(n_ks), str(n_r), str(tmp_path / f"m{n_ks}.parquet"),
-                            str(SWEEPS / "scored_6hz.toml")], capture_output=True, text=True, cwd=REPO)
+        p = subprocess.run(
+            [
+                sys.executable,
+                "-c",
+                MEM_SCRIPT,
+                str(n_ks),
+                str(n_r),
+                str(tmp_path / f"m{n_ks}.parquet"),
+                str(SWEEPS / "scored_6hz.toml"),
+            ],
+            capture_output=True,
+            text=True,
+            cwd=REPO,
+        )
         assert p.returncode == 0, p.stderr
         runs, kib = map(int, p.stdout.split())
         res[runs] = kib / 1024
@@ -247,12 +295,17 @@ def test_shipped_synthetic_tables_regenerate(name):
     for seed in SEEDS:
         with pytest.MonkeyPatch.context() as mp:
             plain = CoupledModel.system_arrays
-            mp.setattr(CoupledModel, "system_arrays", lambda self, dt, seed=seed: backward_error_twin(plain(self, dt), seed))
+            mp.setattr(
+                CoupledModel, "system_arrays", lambda self, dt, seed=seed: backward_error_twin(plain(self, dt), seed)
+            )
             twins.append(mod.build(name)[0].to_numpy())
     x = df.to_numpy()
     tol = SAFETY * np.max([np.abs(t - x) for t in twins], axis=0) + floor_steps(2 * len(x) * 200, 6) * np.abs(x).max()
     assert np.all(np.abs(shipped.to_numpy() - x) <= tol)
-    assert json.loads(pq.read_schema(SWEEPS / "experiments" / name).metadata[b"provenance"])["hidden_parameters"] == prov["hidden_parameters"]
+    assert (
+        json.loads(pq.read_schema(SWEEPS / "experiments" / name).metadata[b"provenance"])["hidden_parameters"]
+        == prov["hidden_parameters"]
+    )
 
 
 # ------------------------------------------------------------------ regressions from the review
@@ -261,17 +314,23 @@ def test_shipped_synthetic_tables_regenerate(name):
 def test_window_end_matches_the_last_step(tmp_path):
     """dt = 3e-4 s over 4.2 s ends at 4.199999999999999 s: the last sample is still filled, not NaN."""
     s = load_scene(SWEEPS / "scored_6hz.toml")
-    s = dataclasses.replace(s, integration=dataclasses.replace(s.integration, dt_s=3e-4),
-                            excitation=dataclasses.replace(s.excitation, duration_s=4.2),
-                            experiment=dataclasses.replace(s.experiment, refine=False))
+    s = dataclasses.replace(
+        s,
+        integration=dataclasses.replace(s.integration, dt_s=3e-4),
+        excitation=dataclasses.replace(s.excitation, duration_s=4.2),
+        experiment=dataclasses.replace(s.experiment, refine=False),
+    )
     df = pd.read_parquet(run_scene(s, out_path=tmp_path / "o.parquet").path)
     assert np.isfinite(df.rel_rms_combined_pct).all() and not df.status.str.contains("unscored").any()
 
 
 def test_all_runs_diverged_gives_a_summary_not_a_crash(tmp_path):
     s = load_scene(SWEEPS / "scored_6hz.toml")
-    s = dataclasses.replace(s, integration=dataclasses.replace(s.integration, scheme="paper", dt_s=2e-3),
-                            sweep=(Axis("ks_ratio", (1000.0, 10000.0)), Axis("r", (0.2, 0.4))))
+    s = dataclasses.replace(
+        s,
+        integration=dataclasses.replace(s.integration, scheme="paper", dt_s=2e-3),
+        sweep=(Axis("ks_ratio", (1000.0, 10000.0)), Axis("r", (0.2, 0.4))),
+    )
     summary = run_scene(s, out_path=tmp_path / "o.parquet")
     df = pd.read_parquet(summary.path)
     assert df.status.str.contains("diverged").all() and df.status.str.contains("unscored").all()
@@ -290,8 +349,12 @@ def test_non_uniform_experiment_sampling_is_refused(tmp_path):
 def test_out_is_a_foreign_folder_exit_2(tmp_path):
     """--out naming a folder that holds something else: refused, nothing written into it."""
     (tmp_path / "notes.txt").write_text("mine")
-    p = subprocess.run([sys.executable, "-m", "pounding_sweep", str(SWEEPS / "paper_6hz.toml"), "--out", str(tmp_path)],
-                       capture_output=True, text=True, cwd=REPO)
+    p = subprocess.run(
+        [sys.executable, "-m", "pounding_sweep", str(SWEEPS / "paper_6hz.toml"), "--out", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+    )
     assert p.returncode == 2 and "Traceback" not in p.stderr
     assert "is not a pounding_sweep result folder" in p.stderr and str(tmp_path) in p.stderr
     assert sorted(x.name for x in tmp_path.iterdir()) == ["notes.txt"]
@@ -300,8 +363,12 @@ def test_out_is_a_foreign_folder_exit_2(tmp_path):
 def test_plot_from_another_folder(tmp_path):
     pytest.importorskip("matplotlib")
     out = tmp_path / "rel.parquet"
-    subprocess.run([sys.executable, "-m", "pounding_sweep", "sweeps/scored_6hz.toml", "--out", str(out), "--quiet"],
-                   check=True, cwd=REPO)
-    p = subprocess.run([sys.executable, "-m", "pounding_sweep", "plot", "rel.parquet"], capture_output=True, text=True,
-                       cwd=tmp_path)
+    subprocess.run(
+        [sys.executable, "-m", "pounding_sweep", "sweeps/scored_6hz.toml", "--out", str(out), "--quiet"],
+        check=True,
+        cwd=REPO,
+    )
+    p = subprocess.run(
+        [sys.executable, "-m", "pounding_sweep", "plot", "rel.parquet"], capture_output=True, text=True, cwd=tmp_path
+    )
     assert p.returncode == 0, p.stderr

@@ -12,8 +12,8 @@ import subprocess
 import sys
 
 import pytest
-
 from conftest import REPO, SWEEPS
+
 from pounding_sweep.scene import ConfigError, load_scene
 from pounding_sweep.sweep.run import run_scene
 
@@ -30,22 +30,34 @@ mm_per_px = {mm_per_px}
 
 def _scene_text(video: str, markers, references, mm_per_px: float, duration: float = 2.0) -> str:
     text = (SWEEPS / "scored_6hz.toml").read_text()
-    for old, new in (('table = "experiments/synthetic_6hz.parquet"   # SYNTHETIC: see its Parquet metadata (\'provenance\')\n', ""),
-                     ('channels = { model1_floor3_mm = "b1f3", model2_floor3_mm = "b2f3" }   # 3rd floors, as Tables 2-3',
-                      'channels = { b1f3 = "b1f3", b2f3 = "b2f3" }'),
-                     ("refine = true", "refine = false"),
-                     ("duration_s = 5.0", f"duration_s = {duration}"),
-                     ('path = "../results/scored_6hz.parquet"', 'path = "out.parquet"')):
+    for old, new in (
+        ("table = \"experiments/synthetic_6hz.parquet\"   # SYNTHETIC: see its Parquet metadata ('provenance')\n", ""),
+        (
+            'channels = { model1_floor3_mm = "b1f3", model2_floor3_mm = "b2f3" }   # 3rd floors, as Tables 2-3',
+            'channels = { b1f3 = "b1f3", b2f3 = "b2f3" }',
+        ),
+        ("refine = true", "refine = false"),
+        ("duration_s = 5.0", f"duration_s = {duration}"),
+        ('path = "../results/scored_6hz.parquet"', 'path = "out.parquet"'),
+    ):
         assert old in text, old
         text = text.replace(old, new)
     fmt = lambda xs: "[" + ", ".join(f'"{x}"' for x in xs) + "]"  # noqa: E731
-    return text + VIDEO_SECTION.format(video=video, markers=fmt(markers), references=fmt(references), mm_per_px=mm_per_px)
+    return text + VIDEO_SECTION.format(
+        video=video, markers=fmt(markers), references=fmt(references), mm_per_px=mm_per_px
+    )
 
 
 @pytest.fixture(scope="module")
 def rendered(tmp_path_factory):
     from pounding_sweep.synthetic import make_experiment
-    from pounding_sweep.video.render import RenderOptions, harmonic_table, motion_from_history, render_video, shake_table_layout
+    from pounding_sweep.video.render import (
+        RenderOptions,
+        harmonic_table,
+        motion_from_history,
+        render_video,
+        shake_table_layout,
+    )
 
     d = tmp_path_factory.mktemp("video_scene")
     base = load_scene(SWEEPS / "scored_6hz.toml")
@@ -72,8 +84,10 @@ def test_sweep_scored_from_a_video_finds_the_hidden_contact_parameters(rendered)
 def test_loading_a_video_scene_does_not_import_opencv(rendered):
     d, lay = rendered
     (d / "lazy.toml").write_text(_scene_text("run.mkv", lay.names, lay.references, lay.mm_per_px))
-    code = ("import sys; from pounding_sweep.scene import load_scene; s = load_scene(sys.argv[1]); "
-            "print(s.experiment.video is not None, 'cv2' in sys.modules)")
+    code = (
+        "import sys; from pounding_sweep.scene import load_scene; s = load_scene(sys.argv[1]); "
+        "print(s.experiment.video is not None, 'cv2' in sys.modules)"
+    )
     out = subprocess.run([sys.executable, "-c", code, str(d / "lazy.toml")], capture_output=True, text=True, cwd=REPO)
     assert out.stdout.split() == ["True", "False"], out.stderr
 
@@ -81,8 +95,9 @@ def test_loading_a_video_scene_does_not_import_opencv(rendered):
 def test_missing_video_is_one_error_and_no_output(rendered, tmp_path):
     _, lay = rendered
     (tmp_path / "scene.toml").write_text(_scene_text("nowhere.mkv", lay.names, lay.references, lay.mm_per_px))
-    p = subprocess.run([sys.executable, "-m", "pounding_sweep", str(tmp_path / "scene.toml")], capture_output=True,
-                       text=True, cwd=REPO)
+    p = subprocess.run(
+        [sys.executable, "-m", "pounding_sweep", str(tmp_path / "scene.toml")], capture_output=True, text=True, cwd=REPO
+    )
     assert p.returncode == 2 and "Traceback" not in p.stderr
     assert "nowhere.mkv" in p.stderr and "not found" in p.stderr
     assert not (tmp_path / "out.parquet").exists()
@@ -92,8 +107,9 @@ def test_unreadable_video_is_one_error_and_no_output(rendered, tmp_path):
     _, lay = rendered
     (tmp_path / "fake.mkv").write_bytes(b"this is not a video" * 100)
     (tmp_path / "scene.toml").write_text(_scene_text("fake.mkv", lay.names, lay.references, lay.mm_per_px))
-    p = subprocess.run([sys.executable, "-m", "pounding_sweep", str(tmp_path / "scene.toml")], capture_output=True,
-                       text=True, cwd=REPO)
+    p = subprocess.run(
+        [sys.executable, "-m", "pounding_sweep", str(tmp_path / "scene.toml")], capture_output=True, text=True, cwd=REPO
+    )
     assert p.returncode == 2 and "Traceback" not in p.stderr and "fake.mkv" in p.stderr, p.stderr
     assert not (tmp_path / "out.parquet").exists()
 
@@ -101,7 +117,8 @@ def test_unreadable_video_is_one_error_and_no_output(rendered, tmp_path):
 def test_table_and_video_together_are_refused(rendered, tmp_path):
     _, lay = rendered
     text = _scene_text("run.mkv", lay.names, lay.references, lay.mm_per_px).replace(
-        "[experiment]\n", '[experiment]\ntable = "t.csv"\n')
+        "[experiment]\n", '[experiment]\ntable = "t.csv"\n'
+    )
     (tmp_path / "scene.toml").write_text(text)
     with pytest.raises(ConfigError, match=r"either table = .* or an \[experiment.video\] section.*not both"):
         load_scene(tmp_path / "scene.toml")

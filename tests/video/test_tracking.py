@@ -12,7 +12,10 @@ import pytest
 
 cv2 = pytest.importorskip("cv2")  # in the test extra; only absent when OpenCV truly is
 
+from conftest import SWEEPS  # noqa: E402
+
 from pounding_sweep.scene import load_scene  # noqa: E402
+from pounding_sweep.scene.video import VideoSpec  # noqa: E402
 from pounding_sweep.sweep.simulate import simulate  # noqa: E402
 from pounding_sweep.video.io import VideoError  # noqa: E402
 from pounding_sweep.video.render import (  # noqa: E402
@@ -23,10 +26,7 @@ from pounding_sweep.video.render import (  # noqa: E402
     render_video,
     shake_table_layout,
 )
-from pounding_sweep.scene.video import VideoSpec  # noqa: E402
 from pounding_sweep.video.tracker import QUALITY, track_video  # noqa: E402
-
-from conftest import SWEEPS  # noqa: E402
 
 N_FRAMES = 120
 
@@ -40,7 +40,9 @@ def sway(layout, top_mm=6.0, table_mm=2.0, table_Hz=6.0):
         out = {"table": table(t)}
         for n in layout.floor_markers:
             f = int(n[-1])
-            out[n] = top_mm * f / 3 * np.sin(2 * np.pi * 4.25 * t) + (0.5 if n.startswith("b2") else 0.0) * np.sin(2 * np.pi * 11.8 * t)
+            out[n] = top_mm * f / 3 * np.sin(2 * np.pi * 4.25 * t) + (0.5 if n.startswith("b2") else 0.0) * np.sin(
+                2 * np.pi * 11.8 * t
+            )
         return out
 
     return motion
@@ -48,8 +50,13 @@ def sway(layout, top_mm=6.0, table_mm=2.0, table_Hz=6.0):
 
 def spec_for(rv, **kw) -> VideoSpec:
     lay = rv.layout
-    args = dict(path=str(rv.path), markers=lay.names, references=lay.references,
-                positions_px=tuple(map(tuple, rv.truth_px[0])), mm_per_px=lay.mm_per_px)
+    args = dict(
+        path=str(rv.path),
+        markers=lay.names,
+        references=lay.references,
+        positions_px=tuple(map(tuple, rv.truth_px[0])),
+        mm_per_px=lay.mm_per_px,
+    )
     return VideoSpec(**{**args, **kw})
 
 
@@ -96,12 +103,15 @@ def test_paper_recipe_is_pixel_locked_on_the_same_video(clean):
     assert rms_2d > 0.05, rms_2d
 
 
-@pytest.mark.parametrize("case, opts, top_mm", [
-    ("noise", RenderOptions(noise=3.0, seed=1), 6.0),
-    ("blur", RenderOptions(exposure=1.0, noise=1.0, seed=2), 60.0),  # streaks of up to 3.3 px
-    ("mjpg", RenderOptions(codec="MJPG", noise=1.0, seed=3), 6.0),
-    ("mp4v", RenderOptions(codec="mp4v", noise=1.0, seed=4), 6.0),
-])
+@pytest.mark.parametrize(
+    "case, opts, top_mm",
+    [
+        ("noise", RenderOptions(noise=3.0, seed=1), 6.0),
+        ("blur", RenderOptions(exposure=1.0, noise=1.0, seed=2), 60.0),  # streaks of up to 3.3 px
+        ("mjpg", RenderOptions(codec="MJPG", noise=1.0, seed=3), 6.0),
+        ("mp4v", RenderOptions(codec="mp4v", noise=1.0, seed=4), 6.0),
+    ],
+)
 def test_noise_blur_and_lossy_codecs_stay_under_five_hundredths(case, opts, top_mm, tmp_path, layout):
     suffix = {"FFV1": ".mkv", "MJPG": ".avi", "mp4v": ".mp4"}[opts.codec]
     rv = render_video(tmp_path / f"{case}{suffix}", layout, sway(layout, top_mm), N_FRAMES, opts)
@@ -126,8 +136,13 @@ def test_camera_roll_of_three_tenths_of_a_degree_is_removed(tmp_path):
     """0.3 deg roll (and 0.5 px shake): removed to under 0.05 mm by the similarity through the two
     table references; one reference (translation only) cannot remove it."""
     lay = shake_table_layout(size=(640, 480), mm_per_px=2.5)
-    rv = render_video(tmp_path / "roll.mkv", lay, sway(lay), 100,
-                      RenderOptions(roll_deg=0.3, roll_frequency_Hz=1.3, shake_px=0.5, sigma_px=2.0, seed=5))
+    rv = render_video(
+        tmp_path / "roll.mkv",
+        lay,
+        sway(lay),
+        100,
+        RenderOptions(roll_deg=0.3, roll_frequency_Hz=1.3, shake_px=0.5, sigma_px=2.0, seed=5),
+    )
     res = track_video(spec_for(rv))
     _, _, rms_mm = errors(res, rv)
     assert rms_mm < 0.05, rms_mm
@@ -142,11 +157,17 @@ def touching(tmp_path_factory):
     """The real model at 6 Hz with a 10 mm gap; markers on the facing slab edges (6.8 px apart at
     rest, 4.6 px when the buildings touch: their spots merge into one)."""
     scene = load_scene(SWEEPS / "paper_6hz.toml")
-    hist, m = simulate(scene, channels=[f"disp_b{b}f{f}" for b in (1, 2) for f in (1, 2, 3)], ks_ratio=5.0, r=0.4,
-                       gap_m=0.01)
+    hist, m = simulate(
+        scene, channels=[f"disp_b{b}f{f}" for b in (1, 2) for f in (1, 2, 3)], ks_ratio=5.0, r=0.4, gap_m=0.01
+    )
     lay = shake_table_layout(gap_mm=10.0, marker_inset_mm=12.0)
-    rv = render_video(tmp_path_factory.mktemp("touch") / "touch.mkv", lay, motion_from_history(hist, harmonic_table(2.0, 6.0)),
-                      200, RenderOptions(noise=1.0, seed=6))
+    rv = render_video(
+        tmp_path_factory.mktemp("touch") / "touch.mkv",
+        lay,
+        motion_from_history(hist, harmonic_table(2.0, 6.0)),
+        200,
+        RenderOptions(noise=1.0, seed=6),
+    )
     return rv, track_video(spec_for(rv))
 
 
@@ -178,8 +199,11 @@ def test_reflections_next_to_a_marker_are_flagged(tmp_path, layout):
     on = np.zeros(N_FRAMES, bool)
     on[30:60] = True
     on[90:110] = True
-    opts = RenderOptions(noise=2.0, seed=7, reflections=(Reflection("b1f3", (0.0, 8.0), 0.4, on),
-                                                         Reflection("b2f2", (5.0, 5.0), 0.5, on)))
+    opts = RenderOptions(
+        noise=2.0,
+        seed=7,
+        reflections=(Reflection("b1f3", (0.0, 8.0), 0.4, on), Reflection("b2f2", (5.0, 5.0), 0.5, on)),
+    )
     rv = render_video(tmp_path / "refl.mkv", layout, sway(layout), N_FRAMES, opts)
     res = track_video(spec_for(rv))
     for name in ("b1f3", "b2f2"):
@@ -195,21 +219,26 @@ def test_reflections_next_to_a_marker_are_flagged(tmp_path, layout):
 
 
 def test_occluded_marker_short_gap_is_interpolated_long_gap_is_an_error(tmp_path, layout):
-    short = render_video(tmp_path / "short.mkv", layout, sway(layout), 60,
-                         RenderOptions(hidden=(("b2f3", slice(20, 25)),)))
+    short = render_video(
+        tmp_path / "short.mkv", layout, sway(layout), 60, RenderOptions(hidden=(("b2f3", slice(20, 25)),))
+    )
     res = track_video(spec_for(short))
     i = res.index("b2f3")
     assert ((res.quality[20:25, i] & QUALITY["lost"]) > 0).all()
     assert ((res.quality[20:25, i] & QUALITY["interpolated"]) > 0).all()
     assert (res.quality[:20, i] == 0).all() and (res.quality[25:, i] == 0).all()
     assert np.abs(res.x_px[20:25, i] - short.truth("b2f3")[20:25, 0]).max() < 0.3  # cubic through a 4.25 Hz sway
-    long = render_video(tmp_path / "long.mkv", layout, sway(layout), 60, RenderOptions(hidden=(("b2f3", slice(20, 45)),)))
+    long = render_video(
+        tmp_path / "long.mkv", layout, sway(layout), 60, RenderOptions(hidden=(("b2f3", slice(20, 45)),))
+    )
     with pytest.raises(VideoError, match=r"marker 'b2f3' lost for 25 frames from frame 20"):
         track_video(spec_for(long))
 
 
 def test_reference_flags_reach_every_floor_marker(tmp_path, layout):
-    rv = render_video(tmp_path / "ref.mkv", layout, sway(layout), 40, RenderOptions(hidden=(("table_right", slice(10, 13)),)))
+    rv = render_video(
+        tmp_path / "ref.mkv", layout, sway(layout), 40, RenderOptions(hidden=(("table_right", slice(10, 13)),))
+    )
     res = track_video(spec_for(rv))
     for n in res.floor_markers:
         q = res.quality[:, res.index(n)]
@@ -218,8 +247,13 @@ def test_reference_flags_reach_every_floor_marker(tmp_path, layout):
 
 def test_automatic_layout_and_scale_from_a_known_distance(clean):
     lay = clean.layout
-    spec = VideoSpec(path=str(clean.path), markers=tuple(reversed(lay.names[2:])) + lay.references, references=lay.references,
-                     scale_markers=("table_left", "table_right"), scale_distance_mm=1400.0)
+    spec = VideoSpec(
+        path=str(clean.path),
+        markers=tuple(reversed(lay.names[2:])) + lay.references,
+        references=lay.references,
+        scale_markers=("table_left", "table_right"),
+        scale_distance_mm=1400.0,
+    )
     res = track_video(spec)
     assert res.mm_per_px == pytest.approx(lay.mm_per_px, rel=1e-4)
     for n in lay.names:
@@ -229,13 +263,26 @@ def test_automatic_layout_and_scale_from_a_known_distance(clean):
 def test_wrong_number_of_markers_and_a_missing_marker_are_errors(clean):
     lay = clean.layout
     with pytest.raises(VideoError, match="expected 6 markers in the first frame .* found 8"):
-        track_video(VideoSpec(path=str(clean.path), markers=lay.references + ("b1f1", "b1f2", "b2f1", "b2f2"),
-                              references=lay.references, mm_per_px=5.0))
+        track_video(
+            VideoSpec(
+                path=str(clean.path),
+                markers=lay.references + ("b1f1", "b1f2", "b2f1", "b2f2"),
+                references=lay.references,
+                mm_per_px=5.0,
+            )
+        )
     pos = list(map(tuple, clean.truth_px[0]))
     pos[4] = (60.0, 60.0)
     with pytest.raises(VideoError, match="marker 'b1f3' not found within 20 px"):
-        track_video(VideoSpec(path=str(clean.path), markers=lay.names, references=lay.references,
-                              positions_px=tuple(pos), mm_per_px=5.0))
+        track_video(
+            VideoSpec(
+                path=str(clean.path),
+                markers=lay.names,
+                references=lay.references,
+                positions_px=tuple(pos),
+                mm_per_px=5.0,
+            )
+        )
 
 
 def test_region_of_interest_and_frame_range(clean):

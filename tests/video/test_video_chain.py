@@ -9,12 +9,15 @@ import pytest
 
 cv2 = pytest.importorskip("cv2")
 
-from pounding_sweep.scene import load_scene  # noqa: E402
+from conftest import SWEEPS  # noqa: E402
+
 from pounding_sweep.identify.modes import identify  # noqa: E402
-from pounding_sweep.model.coupled import CoupledModel  # noqa: E402
 from pounding_sweep.identify.update import update_building  # noqa: E402
-from pounding_sweep.sweep.simulate import simulate  # noqa: E402
+from pounding_sweep.model.coupled import CoupledModel  # noqa: E402
+from pounding_sweep.scene import load_scene  # noqa: E402
+from pounding_sweep.scene.video import VideoSpec  # noqa: E402
 from pounding_sweep.sweep.run import run_scene  # noqa: E402
+from pounding_sweep.sweep.simulate import simulate  # noqa: E402
 from pounding_sweep.synthetic import make_experiment  # noqa: E402
 from pounding_sweep.video.render import (  # noqa: E402
     RenderOptions,
@@ -25,10 +28,7 @@ from pounding_sweep.video.render import (  # noqa: E402
     table_from_ground_acceleration,
     write_pulse_record,
 )
-from pounding_sweep.scene.video import VideoSpec  # noqa: E402
 from pounding_sweep.video.tracker import track_video, write_tracked_table  # noqa: E402
-
-from conftest import SWEEPS  # noqa: E402
 
 FREE_SCENE = """name = "knock"
 [building1]
@@ -63,7 +63,9 @@ def free_vibration(tmp_path_factory):
     table = table_from_ground_acceleration(hist.t_s.to_numpy(), hist.ground_acc_m_s2.to_numpy())
     lay = shake_table_layout()
     rv = render_video(d / "knock.mkv", lay, motion_from_history(hist, table), 400, RenderOptions(noise=2.0, seed=11))
-    res = track_video(VideoSpec(path=str(rv.path), markers=lay.names, references=lay.references, mm_per_px=lay.mm_per_px))
+    res = track_video(
+        VideoSpec(path=str(rv.path), markers=lay.names, references=lay.references, mm_per_px=lay.mm_per_px)
+    )
     return scene, res
 
 
@@ -96,8 +98,9 @@ def test_model_update_from_the_video_recovers_the_true_stiffness(free_vibration)
     names = ["b1f1", "b1f2", "b1f3"]
     X = np.column_stack([res.displacement_mm[:, res.floor_markers.index(n)] for n in names])
     f1 = identify(X, res.fps, names, n_modes=1, start_s=0.2).modes[0].frequency_Hz
-    initial = scene.building1.__class__(masses_kg=(1.7, 1.7, 1.6), column_EI_Nm2=(5.4,), n_columns=4,
-                                        story_height_m=(0.336,), damping_ratio=0.0105)
+    initial = scene.building1.__class__(
+        masses_kg=(1.7, 1.7, 1.6), column_EI_Nm2=(5.4,), n_columns=4, story_height_m=(0.336,), damping_ratio=0.0105
+    )
     u = update_building(initial, f1)
     assert u.factor < 1  # the paper's direction: the columns are softer than 5.4 N m^2
     assert u.story_stiffness_N_per_m[0] == pytest.approx(5920.0, rel=0.01)
@@ -113,17 +116,25 @@ def test_video_to_tracked_table_to_sweep_finds_the_hidden_contact_parameters(tmp
     cols = {f"b{b}f{f}": f"model{b}_floor{f}_mm" for b in (1, 2) for f in (1, 2, 3)}
     motion = motion_from_history(truth, harmonic_table(2.0, 6.0), columns=cols, scale=1.0)
     lay = shake_table_layout()
-    rv = render_video(tmp_path / "run.mkv", lay, motion, len(truth),
-                      RenderOptions(noise=2.0, shake_px=0.3, roll_deg=0.1, seed=3))
-    res = track_video(VideoSpec(path=str(rv.path), markers=lay.names, references=lay.references, mm_per_px=lay.mm_per_px))
+    rv = render_video(
+        tmp_path / "run.mkv", lay, motion, len(truth), RenderOptions(noise=2.0, shake_px=0.3, roll_deg=0.1, seed=3)
+    )
+    res = track_video(
+        VideoSpec(path=str(rv.path), markers=lay.names, references=lay.references, mm_per_px=lay.mm_per_px)
+    )
     for j, n in enumerate(res.floor_markers):
         assert np.sqrt(np.mean((res.displacement_mm[:, j] - rv.truth_rel_mm[n]) ** 2)) < 0.1, n
     write_tracked_table(res.table(), res.provenance, tmp_path / "tracked.parquet")
     text = (SWEEPS / "scored_6hz.toml").read_text()
-    for old, new in (('table = "experiments/synthetic_6hz.parquet"', 'table = "tracked.parquet"'),
-                     ('channels = { model1_floor3_mm = "b1f3", model2_floor3_mm = "b2f3" }', 'channels = { b1f3 = "b1f3", b2f3 = "b2f3" }'),
-                     ("refine = true", "refine = false"),
-                     ('path = "../results/scored_6hz.parquet"', 'path = "out.parquet"')):
+    for old, new in (
+        ('table = "experiments/synthetic_6hz.parquet"', 'table = "tracked.parquet"'),
+        (
+            'channels = { model1_floor3_mm = "b1f3", model2_floor3_mm = "b2f3" }',
+            'channels = { b1f3 = "b1f3", b2f3 = "b2f3" }',
+        ),
+        ("refine = true", "refine = false"),
+        ('path = "../results/scored_6hz.parquet"', 'path = "out.parquet"'),
+    ):
         assert old in text
         text = text.replace(old, new)
     (tmp_path / "scene.toml").write_text(text)

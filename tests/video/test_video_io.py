@@ -14,16 +14,16 @@ import pytest
 
 cv2 = pytest.importorskip("cv2")
 
-from pounding_sweep.scene import ConfigError, ExperimentConfig  # noqa: E402
-from pounding_sweep.sweep.scoring import load_experiment  # noqa: E402
+from conftest import REPO  # noqa: E402
+
 from pounding_sweep.cli.identify import identify_main  # noqa: E402
 from pounding_sweep.cli.track import track_main  # noqa: E402
+from pounding_sweep.scene import ConfigError, ExperimentConfig  # noqa: E402
+from pounding_sweep.scene.video import VideoSpec, floor_code, parse_video_section  # noqa: E402
+from pounding_sweep.sweep.scoring import load_experiment  # noqa: E402
 from pounding_sweep.video.io import VideoError, VideoReader, write_video  # noqa: E402
 from pounding_sweep.video.render import RenderOptions, harmonic_table, render_video, shake_table_layout  # noqa: E402
-from pounding_sweep.scene.video import VideoSpec, floor_code, parse_video_section  # noqa: E402
 from pounding_sweep.video.tracker import tracked_table  # noqa: E402
-
-from conftest import REPO  # noqa: E402
 
 NAMES = "table_left,table_right,b1f1,b1f2,b1f3,b2f1,b2f2,b2f3"
 
@@ -93,8 +93,22 @@ def test_writer_refuses_unknown_codecs_and_leaves_no_partial_file(tmp_path):
 
 def test_track_writes_a_table_that_scoring_reads(video, tmp_path, capsys):
     out = tmp_path / "tracked.csv"
-    code, stdout, err = run_cli(track_main, [str(video.path), "--markers", NAMES, "--references", "table_left,table_right",
-                                             "--mm-per-px", "5", "--out", str(out), "--quiet"], capsys)
+    code, stdout, err = run_cli(
+        track_main,
+        [
+            str(video.path),
+            "--markers",
+            NAMES,
+            "--references",
+            "table_left,table_right",
+            "--mm-per-px",
+            "5",
+            "--out",
+            str(out),
+            "--quiet",
+        ],
+        capsys,
+    )
     assert code == 0, err
     assert err == "" and stdout == ""
     df = pd.read_csv(out)
@@ -112,8 +126,21 @@ def test_track_writes_a_table_that_scoring_reads(video, tmp_path, capsys):
 def test_track_parquet_keeps_provenance_and_positions(video, tmp_path, capsys):
     out = tmp_path / "tracked.parquet"
     pos = [f"--marker={n}={x:.2f},{y:.2f}" for n, (x, y) in zip(video.layout.names, video.truth_px[0])]
-    code, stdout, err = run_cli(track_main, [str(video.path), *pos, "--references", "table_left,table_right",
-                                             "--scale", "table_left,table_right,1400", "--pixels", "--out", str(out)], capsys)
+    code, stdout, err = run_cli(
+        track_main,
+        [
+            str(video.path),
+            *pos,
+            "--references",
+            "table_left,table_right",
+            "--scale",
+            "table_left,table_right,1400",
+            "--pixels",
+            "--out",
+            str(out),
+        ],
+        capsys,
+    )
     assert code == 0, err
     assert "b1f3" in stdout and "every frame ok" in stdout
     t = pq.read_table(out)
@@ -124,20 +151,28 @@ def test_track_parquet_keeps_provenance_and_positions(video, tmp_path, capsys):
     assert "b1f3_x_px" in df and abs(df.b1f3_x_px.iloc[5] - video.truth("b1f3")[5, 0]) < 0.05
 
 
-@pytest.mark.parametrize("argv, message", [
-    (["{missing}"], "video file not found"),
-    (["{junk}"], "not a video OpenCV can decode"),
-    (["{video}", "--markers", "table_left,table_right,b1f1"], "expected 3 markers in the first frame"),
-    (["{video}", "--mm-per-px", "-5"], "mm_per_px = -5.0: must be > 0"),
-    (["{video}", "--out", "{tmp}/x.txt"], "must be .csv or .parquet"),
-    (["{video}", "--roi", "1,2,3"], "--roi"),
-    (["{video}", "--references", "nobody"], "'nobody' is not one of the markers"),
-    (["{video}", "--max-gap", "0", "--start-frame", "79"], "fewer than 2 frames"),
-])
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["{missing}"], "video file not found"),
+        (["{junk}"], "not a video OpenCV can decode"),
+        (["{video}", "--markers", "table_left,table_right,b1f1"], "expected 3 markers in the first frame"),
+        (["{video}", "--mm-per-px", "-5"], "mm_per_px = -5.0: must be > 0"),
+        (["{video}", "--out", "{tmp}/x.txt"], "must be .csv or .parquet"),
+        (["{video}", "--roi", "1,2,3"], "--roi"),
+        (["{video}", "--references", "nobody"], "'nobody' is not one of the markers"),
+        (["{video}", "--max-gap", "0", "--start-frame", "79"], "fewer than 2 frames"),
+    ],
+)
 def test_track_bad_input_is_one_line_exit_2_and_no_table(argv, message, video, tmp_path, capsys):
     junk = tmp_path / "junk.avi"
     junk.write_bytes(b"RIFF" + bytes(500))
-    subs = {"{missing}": str(tmp_path / "missing.mkv"), "{junk}": str(junk), "{video}": str(video.path), "{tmp}": str(tmp_path)}
+    subs = {
+        "{missing}": str(tmp_path / "missing.mkv"),
+        "{junk}": str(junk),
+        "{video}": str(video.path),
+        "{tmp}": str(tmp_path),
+    }
     argv = [subs.get(a, a.replace("{tmp}", str(tmp_path))) for a in argv]
     base = ["--markers", NAMES, "--references", "table_left,table_right", "--mm-per-px", "5"]
     full = [argv[0], *base, *argv[1:]]  # later options override
@@ -154,8 +189,24 @@ def test_track_bad_input_is_one_line_exit_2_and_no_table(argv, message, video, t
 def test_track_via_the_module_entry_point_is_silent_about_ffmpeg(tmp_path):
     junk = tmp_path / "junk.mkv"
     junk.write_bytes(np.random.default_rng(1).integers(0, 256, 3000, dtype=np.uint8).tobytes())
-    p = subprocess.run([sys.executable, "-m", "pounding_sweep", "track", str(junk), "--markers", "table_left,b1f1",
-                        "--references", "table_left", "--mm-per-px", "1"], capture_output=True, text=True, cwd=REPO)
+    p = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pounding_sweep",
+            "track",
+            str(junk),
+            "--markers",
+            "table_left,b1f1",
+            "--references",
+            "table_left",
+            "--mm-per-px",
+            "1",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+    )
     assert p.returncode == 2
     assert p.stderr.strip().splitlines() == [f"error: {junk}: not a video OpenCV can decode (3000 bytes)"]
 
@@ -165,12 +216,30 @@ def test_track_via_the_module_entry_point_is_silent_about_ffmpeg(tmp_path):
 
 def test_identify_prints_modes_and_writes_the_update(video, tmp_path, capsys):
     table = tmp_path / "tracked.csv"
-    assert track_main([str(video.path), "--markers", NAMES, "--references", "table_left,table_right",
-                       "--mm-per-px", "5", "--out", str(table), "--quiet"]) == 0
+    assert (
+        track_main(
+            [
+                str(video.path),
+                "--markers",
+                NAMES,
+                "--references",
+                "table_left,table_right",
+                "--mm-per-px",
+                "5",
+                "--out",
+                str(table),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     capsys.readouterr()
     upd = tmp_path / "updated.toml"
-    code, out, err = run_cli(identify_main, [str(table), "--modes", "1", "--scene", str(REPO / "sweeps/paper_6hz.toml"),
-                                             "--out", str(upd)], capsys)
+    code, out, err = run_cli(
+        identify_main,
+        [str(table), "--modes", "1", "--scene", str(REPO / "sweeps/paper_6hz.toml"), "--out", str(upd)],
+        capsys,
+    )
     assert code == 0, err
     assert "building 1" in out and "building 2" in out and "mode 1: 4.2" in out
     text = upd.read_text()
@@ -185,8 +254,12 @@ def test_identify_prints_modes_and_writes_the_update(video, tmp_path, capsys):
 
 # ------------------------------------------------------------------ [experiment.video]
 
-GOOD = {"path": "v.mkv", "markers": {"table_left": [20, 226], "table_right": [300, 226], "b1f3": [140, 24]},
-        "references": ["table_left", "table_right"], "mm_per_px": 5.0}
+GOOD = {
+    "path": "v.mkv",
+    "markers": {"table_left": [20, 226], "table_right": [300, 226], "b1f3": [140, 24]},
+    "references": ["table_left", "table_right"],
+    "mm_per_px": 5.0,
+}
 
 
 def test_video_section_parses_and_resolves_the_path(tmp_path):
@@ -200,21 +273,27 @@ def test_video_section_parses_and_resolves_the_path(tmp_path):
     assert floor_code("b2f1_mm") == "b2f1" and floor_code("table") is None
 
 
-@pytest.mark.parametrize("change, message", [
-    ({"mm_per_pix": 5.0}, "unknown key 'mm_per_pix' in [experiment.video]; did you mean 'mm_per_px'?"),
-    ({"mm_per_px": 0}, "[experiment.video] mm_per_px = 0: must be > 0"),
-    ({"mm_per_px": None, "scale_markers": ["table_left", "table_right"]}, "give the image scale either as mm_per_px"),
-    ({"references": []}, "name at least one marker fixed to the table"),
-    ({"references": ["b9f9"]}, "'b9f9' is not one of the markers"),
-    ({"markers": {"table_left": [1, 2], "b1f3": [3]}}, "markers.b1f3 = [3]: expected [x, y]"),
-    ({"markers": ["table_left", "table_right", "lamp"]}, "automatic layout needs floor names"),
-    ({"roi_px": [10, 10, 5, 50]}, "roi_px = [10, 10, 5, 50]"),
-    ({"method": "fast"}, "method = 'fast': expected 'weighted' or 'paper'"),
-    ({"median_ksize": 4}, "median_ksize = 4: must be odd"),
-    ({"threshold": 1.5}, "threshold = 1.5: must be <= 1.0"),
-    ({"max_gap_frames": 2.5}, "max_gap_frames = 2.5: expected an integer"),
-    ({"path": 3}, "path = 3: expected a file name"),
-])
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        ({"mm_per_pix": 5.0}, "unknown key 'mm_per_pix' in [experiment.video]; did you mean 'mm_per_px'?"),
+        ({"mm_per_px": 0}, "[experiment.video] mm_per_px = 0: must be > 0"),
+        (
+            {"mm_per_px": None, "scale_markers": ["table_left", "table_right"]},
+            "give the image scale either as mm_per_px",
+        ),
+        ({"references": []}, "name at least one marker fixed to the table"),
+        ({"references": ["b9f9"]}, "'b9f9' is not one of the markers"),
+        ({"markers": {"table_left": [1, 2], "b1f3": [3]}}, "markers.b1f3 = [3]: expected [x, y]"),
+        ({"markers": ["table_left", "table_right", "lamp"]}, "automatic layout needs floor names"),
+        ({"roi_px": [10, 10, 5, 50]}, "roi_px = [10, 10, 5, 50]"),
+        ({"method": "fast"}, "method = 'fast': expected 'weighted' or 'paper'"),
+        ({"median_ksize": 4}, "median_ksize = 4: must be odd"),
+        ({"threshold": 1.5}, "threshold = 1.5: must be <= 1.0"),
+        ({"max_gap_frames": 2.5}, "max_gap_frames = 2.5: expected an integer"),
+        ({"path": 3}, "path = 3: expected a file name"),
+    ],
+)
 def test_video_section_bad_values_name_key_and_value(change, message, tmp_path):
     table = {**GOOD, **change}
     table = {k: v for k, v in table.items() if v is not None}
@@ -224,8 +303,9 @@ def test_video_section_bad_values_name_key_and_value(change, message, tmp_path):
 
 
 def test_tracked_table_hook_and_cache(video, tmp_path):
-    spec = VideoSpec(path=str(video.path), markers=tuple(NAMES.split(",")), references=("table_left", "table_right"),
-                     mm_per_px=5.0)
+    spec = VideoSpec(
+        path=str(video.path), markers=tuple(NAMES.split(",")), references=("table_left", "table_right"), mm_per_px=5.0
+    )
     df, prov = tracked_table(spec)
     assert df.columns[0] == "t_s" and set(spec.floor_markers) <= set(df.columns)
     assert prov["frames"] == 80 and prov["transform"] == "similarity"
@@ -238,9 +318,11 @@ def test_tracked_table_hook_and_cache(video, tmp_path):
 
 
 def test_import_and_a_sweep_never_import_opencv():
-    code = ("import sys, pounding_sweep, pounding_sweep.scene, pounding_sweep.sweep.run, pounding_sweep.model.experiment, "
-            "pounding_sweep.cli, pounding_sweep.identify.modes, pounding_sweep.identify.update, pounding_sweep.scene.video; "
-            "print('cv2' in sys.modules)")
+    code = (
+        "import sys, pounding_sweep, pounding_sweep.scene, pounding_sweep.sweep.run, pounding_sweep.model.experiment, "
+        "pounding_sweep.cli, pounding_sweep.identify.modes, pounding_sweep.identify.update, pounding_sweep.scene.video; "
+        "print('cv2' in sys.modules)"
+    )
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO)
     assert p.returncode == 0, p.stderr
     assert p.stdout.strip() == "False"
@@ -248,8 +330,13 @@ def test_import_and_a_sweep_never_import_opencv():
 
 def test_progress_is_called_with_done_and_total_and_fps_can_be_overridden(video):
     calls = []
-    spec = VideoSpec(path=str(video.path), markers=tuple(NAMES.split(",")), references=("table_left", "table_right"),
-                     mm_per_px=5.0, fps=50.0)
+    spec = VideoSpec(
+        path=str(video.path),
+        markers=tuple(NAMES.split(",")),
+        references=("table_left", "table_right"),
+        mm_per_px=5.0,
+        fps=50.0,
+    )
     from pounding_sweep.video.tracker import track_video
 
     res = track_video(spec, progress=lambda done, total: calls.append((done, total)))

@@ -675,20 +675,14 @@ def _lane_factors(W, l, P, k_s, cdash, run, dt, Wm, B, I, A, r_R):
 
 
 @njit_step
-def _lane_step(W, l, src, dst, step, run, model, opts, runs, work):
+def _lane_step(W, l, src, dst, step, run, const, phi, psi, Wm, cdash, work):
     """One lane's whole step in scalar code, from its start state (buffer src) to buffer dst, with
-    its metric and energy rows updated (run: the lane's run; model LaneModel, opts KernelOptions, runs
-    RunArrays, work LaneWork: engine/inputs.py). Returns False when the state is no longer finite."""
-    dt, phi, psi, Wm = model.dt, model.phi, model.psi, model.W
-    scheme, law, max_iter = opts
-    cdash = runs.cdash
-    harmonic = runs.exc_kind[run] == EXC_HARMONIC
-    amp = runs.exc_amp[run]
-    om = runs.exc_omega[run]
+    its metric and energy rows updated. run: the lane's run; const: the step's constants (dt, scheme,
+    law, max_iter, harmonic, amp, omega, N, N1, P: the run's excitation and the model's sizes); phi, psi,
+    Wm: the modal data (LaneModel); cdash: the runs' dashpots; work: LaneWork. Returns False when the
+    state is no longer finite."""
+    dt, scheme, law, max_iter, harmonic, amp, om, N, N1, P = const
     Z, B, I, A, orow, dur, nph = work
-    N = phi.shape[0]
-    N1 = len(model.n1t)
-    P = min(N1, N - N1)
     r_q0, r_q1, r_g, r_f, r_pen, r_act, r_inc, r_cac, r_end, r_cd, r_R, r_s, r_met = _layout(N, P)
     k_s = W[(r_s + S_KS) * LANES + l]
     gap = W[(r_s + S_GAP) * LANES + l]
@@ -1386,12 +1380,82 @@ def integrate_lanes(order, g_start, g_stop, model, opts, runs, excitation, out):
 
     Records (engine/inputs.py): model LaneModel (its nt, n1t are tuples of length N and N1: the floor
     counts, fixed at compile time), opts KernelOptions, runs RunArrays, excitation LaneExcitation
-    (ground acceleration coef[run] * prof[pid[run], step]), out LaneOutputs."""
+    (ground acceleration coef[run] * prof[pid[run], step]), out LaneOutputs. The records are unpacked
+    here and the loop below takes their arrays one by one: taken from a record inside the loop's own
+    function, they cost the scalar event steps 28 % (measured: 2.8 against 2.2 us per step)."""
     dt, nt, n1t, phi, psi, om2, dmp, gam, Wm, Cv = model
     scheme, law, max_iter = opts
     ks, cdash, gap, exc_kind, exc_amp, exc_omega, rec_id, nsteps, status_in = runs
     coef, pid, prof = excitation
     metrics, redo, stats = out
+    _integrate_groups(
+        order,
+        g_start,
+        g_stop,
+        dt,
+        scheme,
+        law,
+        max_iter,
+        nt,
+        n1t,
+        phi,
+        psi,
+        om2,
+        dmp,
+        gam,
+        Wm,
+        Cv,
+        ks,
+        cdash,
+        gap,
+        status_in,
+        nsteps,
+        exc_kind,
+        exc_amp,
+        exc_omega,
+        coef,
+        pid,
+        prof,
+        metrics,
+        redo,
+        stats,
+    )
+
+
+@njit_lanes
+def _integrate_groups(
+    order,
+    g_start,
+    g_stop,
+    dt,
+    scheme,
+    law,
+    max_iter,
+    nt,
+    n1t,
+    phi,
+    psi,
+    om2,
+    dmp,
+    gam,
+    Wm,
+    Cv,
+    ks,
+    cdash,
+    gap,
+    status_in,
+    nsteps,
+    exc_kind,
+    exc_amp,
+    exc_omega,
+    coef,
+    pid,
+    prof,
+    metrics,
+    redo,
+    stats,
+):
+    """integrate_lanes' loop over groups and steps (its arguments are the records' fields, same names)."""
     N = len(nt)
     N1 = len(n1t)
     P = min(N1, N - N1)
@@ -1531,7 +1595,19 @@ def integrate_lanes(order, g_start, g_stop, model, opts, runs, excitation, out):
                         run = lane_run[l]
                         n_act += _count_act(W, l, P, r_act, act_pair, -1)
                         t0_ = _monotonic_ns()
-                        ok = _lane_step(W, l, src, dst, step, run, model, opts, runs, work)
+                        const = (
+                            dt,
+                            scheme,
+                            law,
+                            max_iter,
+                            exc_kind[run] == EXC_HARMONIC,
+                            exc_amp[run],
+                            exc_omega[run],
+                            N,
+                            N1,
+                            P,
+                        )
+                        ok = _lane_step(W, l, src, dst, step, run, const, phi, psi, Wm, cdash, work)
                         stats[ST_FIX_NS] += _monotonic_ns() - t0_
                         stats[ST_FIXUPS] += 1
                         n_act += _count_act(W, l, P, r_act, act_pair, 1)

@@ -1371,7 +1371,6 @@ def _count_act(W, l, P, r_act, act_pair, sign):
     return n
 
 
-@njit_lanes
 def integrate_lanes(order, g_start, g_stop, model, opts, runs, excitation, out):
     """Integrate groups g_start..g_stop-1 of `order` (run indices, LANES at a time: group g is
     order[g * LANES:(g + 1) * LANES]); fill out.metrics[run] (engine/layout.py), or set out.redo[run] = 1
@@ -1380,9 +1379,11 @@ def integrate_lanes(order, g_start, g_stop, model, opts, runs, excitation, out):
 
     Records (engine/inputs.py): model LaneModel (its nt, n1t are tuples of length N and N1: the floor
     counts, fixed at compile time), opts KernelOptions, runs RunArrays, excitation LaneExcitation
-    (ground acceleration coef[run] * prof[pid[run], step]), out LaneOutputs. The records are unpacked
-    here and the loop below takes their arrays one by one: taken from a record inside the loop's own
-    function, they cost the scalar event steps 28 % (measured: 2.8 against 2.2 us per step)."""
+    (ground acceleration coef[run] * prof[pid[run], step]), out LaneOutputs.
+
+    A plain function: the compiled loop takes the records' arrays one by one. Unpacked inside the
+    compiled loop's own function they cost the scalar event steps 28 % (2.8 against 2.2 us per step),
+    and a compiled wrapper would make Numba optimise the whole kernel once more (about 4 s of compile)."""
     dt, nt, n1t, phi, psi, om2, dmp, gam, Wm, Cv = model
     scheme, law, max_iter = opts
     ks, cdash, gap, exc_kind, exc_amp, exc_omega, rec_id, nsteps, status_in = runs

@@ -8,8 +8,8 @@ uneven grids for both lane schemes and both laws, a history-producing scene, a r
 sweep, a dt = "auto" sweep) and runs each through the command line (`python -m pounding_sweep`), so
 the same script drives any version of the package. `compare` reads every Parquet table (metrics,
 best runs, histories), drops the run-time columns (wall clock), and requires every other column
-equal value for value (NaN equal to NaN, 0.0 equal to -0.0). It prints one line per table and
-exits 1 on any difference.
+equal value for value (NaN equal to NaN, 0.0 equal to -0.0); columns B adds (new metrics) are listed,
+columns of A that B lacks are a difference. It prints one line per table and exits 1 on any difference.
 """
 
 from __future__ import annotations
@@ -108,12 +108,18 @@ def compare(a: Path, b: Path) -> int:
             continue
         x = pd.read_parquet(ta[name]).drop(columns=list(WALL_CLOCK), errors="ignore")
         y = pd.read_parquet(tb[name]).drop(columns=list(WALL_CLOCK), errors="ignore")
-        if list(x.columns) != list(y.columns) or len(x) != len(y):
-            print(f"{name}: columns or rows differ ({x.shape} vs {y.shape})")
+        if len(x) != len(y):
+            print(f"{name}: rows differ ({len(x)} vs {len(y)})")
+            bad += 1
+            continue
+        added = [c for c in y.columns if c not in x.columns]
+        gone = [c for c in x.columns if c not in y.columns]
+        if gone:
+            print(f"{name}: columns of A missing in B: {', '.join(gone)}")
             bad += 1
             continue
         diff = []
-        for c in x.columns:
+        for c in x.columns:  # every column of A; B may add new ones (reported)
             u, v = x[c].to_numpy(), y[c].to_numpy()
             if u.dtype.kind == "f" or v.dtype.kind == "f":
                 u, v = u.astype(float), v.astype(float)
@@ -122,9 +128,11 @@ def compare(a: Path, b: Path) -> int:
                 same = (u == v) | (pd.isna(u) & pd.isna(v))
             if not np.all(same):
                 diff.append(f"{c} ({int((~same).sum())} rows)")
+        new = f" (B adds {len(added)}: {', '.join(added[:3])}{', ...' if len(added) > 3 else ''})" if added else ""
         print(
             f"{name}: {len(x)} rows x {len(x.columns)} columns "
             + ("identical" if not diff else "DIFFER: " + ", ".join(diff))
+            + new
         )
         bad += bool(diff)
     print(f"{len(set(ta) | set(tb))} tables, {bad} differing")

@@ -27,7 +27,8 @@ LAYERS = {
     "sweep": 5,  # prepare, run, resume, results, executors, scoring, ranking, autodt, simulate
     "reference": 6,
     "synthetic": 6,  # the slow oracles; demo data (synthetic experiments)
-    "accuracy": 7,  # error against run time (against the oracles), stability of runs
+    "accuracy": 7,
+    "gaps": 7,  # error against run time, stability of runs; seismic-gap studies
     "plots": 8,
     "cli": 9,
     "__main__": 10,

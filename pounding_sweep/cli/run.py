@@ -21,6 +21,7 @@ SUBCOMMANDS = {
     "plot": "pounding_sweep.cli.plot:plot_main",
     "track": "pounding_sweep.cli.track:track_main",
     "identify": "pounding_sweep.cli.identify:identify_main",
+    "gaps": "pounding_sweep.cli.gaps:gaps_main",
 }
 
 

@@ -487,6 +487,9 @@ def _accept(Z, B, orow, dur, nph, l, hs, t_e, ag_s, ag_e, k_s, gap, psi, N, P, p
         act = B[B_ACT, j]
         was = B[B_WAS, j]
         pen, _v = _pair(Z, Z_QE, Z_QDE, j, psi, gap, N)
+        if -pen < orow[pbase + ML.PER_PAIR * j + ML.PAIR_CLOSEST]:  # closest approach, at every accepted piece's end
+            orow[pbase + ML.PER_PAIR * j + ML.PAIR_CLOSEST] = -pen
+            orow[pbase + ML.PER_PAIR * j + ML.PAIR_CLOSEST_TIME] = t_e
         f = Z[rf, j]
         sp = k_s * pen if act else 0.0
         dp = f - sp if act else 0.0
@@ -753,6 +756,7 @@ def _lane_step(W, l, src, dst, step, run, const, phi, psi, Wm, cdash, work):
         return False
     t = step * dt
     _modal_acc(Z, Z_Q, Z_QD, Z_F, psi, N, P)
+    below = 0.0  # the floor below's displacement (0: the table, under a building's first floor)
     for i in range(N):  # per-floor peaks at the step end
         u = 0.0
         a = 0.0
@@ -765,6 +769,12 @@ def _lane_step(W, l, src, dst, step, run, const, phi, psi, Wm, cdash, work):
             orow[base + ML.DOF_PEAK_DISP_TIME] = t
         if abs(a) > orow[base + ML.DOF_PEAK_ABS_ACC]:
             orow[base + ML.DOF_PEAK_ABS_ACC] = abs(a)
+        if i == 0 or i == N1:
+            below = 0.0
+        dr = abs(u - below)
+        if dr > orow[base + ML.DOF_PEAK_DRIFT]:
+            orow[base + ML.DOF_PEAK_DRIFT] = dr
+        below = u
     for k in range(N):
         W[(dst + k) * LANES + l] = Z[Z_Q, k]
         W[(dst + N + k) * LANES + l] = (0.5 * dt) * Z[Z_QD, k]
@@ -922,29 +932,47 @@ def _floor_acc(T, i, N, N1, t_qa, Cv, c_phi):
 
 
 @_inline
-def _floor_peaks(W, c, T, N, N1, t_u, t_qa, r_met, Cv, c_phi, vt, ok_mask):
-    """Per-floor peaks of |u| (and its time) and of |absolute acceleration|. One test for all floors;
-    rows are written only in the rare steps where some peak grows in some lane of `ok_mask`.
-    Returns the lanes that diverged (|u| >= DIVERGED_M or |a| >= 1e300; a NaN never grows a peak
-    and is caught by the energy rows instead)."""
+def _floor_peaks(W, c, T, N, N1, P, t_u, t_qa, r_met, Cv, c_phi, vt, gap, ok_mask):
+    """Per-floor peaks of |u| (and its time), of |absolute acceleration| and of |interstory drift| (the story
+    below the floor), and each pair's closest approach gap - (u1 - u2) (and its time). One test for all
+    floors and pairs; rows are written only in the rare steps where some extreme grows in some lane of
+    `ok_mask`. Returns the lanes that diverged (|u| >= DIVERGED_M or |a| >= 1e300; a NaN never grows a
+    peak and is caught by the energy rows instead)."""
+    pbase = r_met + ML.PER_DOF * N
     grow = mconst(False)
     for i in range(N):
         base = r_met + ML.PER_DOF * i
-        grow = grow | (abs(sget(T, t_u + i)) > _row(W, base + ML.DOF_PEAK_DISP, c))
+        u = sget(T, t_u + i)
+        drift = u if i == 0 or i == N1 else u - sget(T, t_u + i - 1)
+        grow = grow | (abs(u) > _row(W, base + ML.DOF_PEAK_DISP, c))
+        grow = grow | (abs(drift) > _row(W, base + ML.DOF_PEAK_DRIFT, c))
         grow = grow | (abs(_floor_acc(T, i, N, N1, t_qa, Cv, c_phi)) > _row(W, base + ML.DOF_PEAK_ABS_ACC, c))
+    for j in range(P):
+        near = gap - (sget(T, t_u + j) - sget(T, t_u + N1 + j))
+        grow = grow | (near < _row(W, pbase + ML.PER_PAIR * j + ML.PAIR_CLOSEST, c))
     bad = mconst(False)
     if many(grow & ok_mask):
         for i in range(N):
             base = r_met + ML.PER_DOF * i
-            ad = abs(sget(T, t_u + i))
+            u = sget(T, t_u + i)
+            ad = abs(u)
             up = (ad > _row(W, base + ML.DOF_PEAK_DISP, c)) & ok_mask
             _keep(W, base + ML.DOF_PEAK_DISP, c, up, ad)
             _keep(W, base + ML.DOF_PEAK_DISP_TIME, c, up, vt)
             bad = bad | (up & (ad >= ML.DIVERGED_M))
+            dr = abs(u if i == 0 or i == N1 else u - sget(T, t_u + i - 1))
+            up = (dr > _row(W, base + ML.DOF_PEAK_DRIFT, c)) & ok_mask
+            _keep(W, base + ML.DOF_PEAK_DRIFT, c, up, dr)
             aa = abs(_floor_acc(T, i, N, N1, t_qa, Cv, c_phi))
             up = (aa > _row(W, base + ML.DOF_PEAK_ABS_ACC, c)) & ok_mask
             _keep(W, base + ML.DOF_PEAK_ABS_ACC, c, up, aa)
             bad = bad | (up & (aa >= 1e300))
+        for j in range(P):
+            base = pbase + ML.PER_PAIR * j
+            near = gap - (sget(T, t_u + j) - sget(T, t_u + N1 + j))
+            up = (near < _row(W, base + ML.PAIR_CLOSEST, c)) & ok_mask
+            _keep(W, base + ML.PAIR_CLOSEST, c, up, near)
+            _keep(W, base + ML.PAIR_CLOSEST_TIME, c, up, vt)
     return bad
 
 
@@ -1024,7 +1052,7 @@ def _events_energy_peaks(W, c, T, dst, quiet, s, pin, dsum, vt, law, scheme, N, 
             nevt = mcount(evt)
     ok = ~evt
     bad = _energy(W, c, r_s, s, pin, dsum, ok)
-    bad = bad | _floor_peaks(W, c, T, N, N1, t_u, t_qa, r_met, Cv, c_phi, vt, ok)
+    bad = bad | _floor_peaks(W, c, T, N, N1, P, t_u, t_qa, r_met, Cv, c_phi, vt, gap, ok)
     nbad = 0
     if many(bad):
         _keep(W, r_s + S_BAD, c, bad, vsplat(1.0))
@@ -1513,6 +1541,7 @@ def _integrate_groups(
             for j in range(P):
                 W[(r_cd + j) * LANES + l] = cdash[run, j]
                 W[(r_pen + j) * LANES + l] = -gap[run]
+                W[(r_met + ML.PER_DOF * N + ML.PER_PAIR * j + ML.PAIR_CLOSEST) * LANES + l] = gap[run]
             W[(r_s + S_MIT) * LANES + l] = 1.0 if (nsteps[run] >= 1 and scheme != SCHEME_EVENT) else 0.0
         for l in range(nl):
             if lane_nst[l] == 0:

@@ -6,8 +6,10 @@ The kernel fills a float64 row per run; `metric_columns` names each slot with it
 from __future__ import annotations
 
 # per degree of freedom (building b, floor f)
-DOF_PEAK_DISP, DOF_PEAK_DISP_TIME, DOF_PEAK_ABS_ACC = 0, 1, 2
-PER_DOF = 3
+# DOF_PEAK_DRIFT: largest |interstory drift| of the story below the floor (u_i - u_below; the ground
+# story's is u_i itself, displacements being relative to the table)
+DOF_PEAK_DISP, DOF_PEAK_DISP_TIME, DOF_PEAK_ABS_ACC, DOF_PEAK_DRIFT = 0, 1, 2, 3
+PER_DOF = 4
 # per facing floor pair j
 (
     PAIR_PEAK_FORCE,
@@ -19,8 +21,10 @@ PER_DOF = 3
     PAIR_MEDIAN_COMPRESSION,
     PAIR_MAX_PENETRATION,
     PAIR_PEAK_FORCE_TIME,
-) = range(9)
-PER_PAIR = 9
+    PAIR_CLOSEST,  # closest approach: least gap - (u1 - u2) over the run [m] (< 0: the floors overlapped)
+    PAIR_CLOSEST_TIME,
+) = range(11)
+PER_PAIR = 11
 # per run
 RUN_UNSETTLED, RUN_MAX_ITER, RUN_STEPS, RUN_STATUS = range(4)
 # energy balance (relative coordinates): E_in = KE + SE + D_struct + D_contact + E_spring + residual
@@ -70,7 +74,12 @@ def metric_columns(floors: tuple[int, int], n_pairs: int) -> list[str]:
     cols: list[str] = []
     for b, nf in zip((1, 2), floors):
         for f in range(1, nf + 1):
-            cols += [f"peak_disp_b{b}f{f}_m", f"peak_disp_time_b{b}f{f}_s", f"peak_abs_acc_b{b}f{f}_m_s2"]
+            cols += [
+                f"peak_disp_b{b}f{f}_m",
+                f"peak_disp_time_b{b}f{f}_s",
+                f"peak_abs_acc_b{b}f{f}_m_s2",
+                f"peak_drift_b{b}s{f}_m",
+            ]
     for j in range(1, n_pairs + 1):
         cols += [
             f"peak_force_f{j}_N",
@@ -82,6 +91,8 @@ def metric_columns(floors: tuple[int, int], n_pairs: int) -> list[str]:
             f"median_compression_phase_f{j}_s",
             f"max_penetration_f{j}_m",
             f"peak_force_time_f{j}_s",
+            f"closest_approach_f{j}_m",
+            f"closest_approach_time_f{j}_s",
         ]
     cols += ["unsettled_steps", "max_contact_iterations", "steps", "status_code"]
     cols += [

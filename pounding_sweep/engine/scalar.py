@@ -172,6 +172,7 @@ def integrate_batch(start, stop, model, opts, runs, records, histories, experime
         for j in range(npair):
             out[pbase + L.PER_PAIR * j + L.PAIR_MIN_FORCE] = 0.0
             out[pbase + L.PER_PAIR * j + L.PAIR_PEAK_FORCE] = 0.0
+            out[pbase + L.PER_PAIR * j + L.PAIR_CLOSEST] = gap[run]  # at rest the pair is `gap` apart (time 0)
             active[j] = False
             was_active[j] = False
             F[j] = 0.0
@@ -420,6 +421,9 @@ def integrate_batch(start, stop, model, opts, runs, records, histories, experime
                         Dprev[j] = dp
                         pen_prev[j] = pen
                         base = pbase + L.PER_PAIR * j
+                        if -pen < out[base + L.PAIR_CLOSEST]:  # closest approach, at every accepted piece's end
+                            out[base + L.PAIR_CLOSEST] = -pen
+                            out[base + L.PAIR_CLOSEST_TIME] = t_e
                         f = F[j]
                         if active[j]:
                             if not was_active[j]:
@@ -505,6 +509,10 @@ def integrate_batch(start, stop, model, opts, runs, records, histories, experime
                 aa = abs(a[i] + ag)
                 if aa > out[base + L.DOF_PEAK_ABS_ACC]:
                     out[base + L.DOF_PEAK_ABS_ACC] = aa
+                # the story below floor i: the ground story of building 1 (i = 0) and of building 2 (i = i2[0])
+                dr = abs(u[i] - u[i - 1]) if i != 0 and i != i2[0] else abs(u[i])
+                if dr > out[base + L.DOF_PEAK_DRIFT]:
+                    out[base + L.DOF_PEAK_DRIFT] = dr
             if keep_hist and step % decimate == 0:
                 col = step // decimate
                 if col < hist.shape[2]:

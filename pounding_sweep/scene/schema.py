@@ -38,7 +38,11 @@ class BuildingConfig:
         "column flexural stiffness EI [N m^2] (k = n_columns 12 EI / h^3)", None
     )
     n_columns: int | None = _f("columns per story (with column_EI_Nm2)", None)
-    story_height_m: tuple[float, ...] | None = _f("story height h [m] (with column_EI_Nm2)", None)
+    story_height_m: tuple[float, ...] | None = _f(
+        "story height h [m] (one value: every story): with column_EI_Nm2 it sets k = n 12 EI / h^3; with either form "
+        "it gives the drift ratios (peak_drift_ratio_*) and the floors' heights for gap studies",
+        None,
+    )
     damping_ratio: float | None = _f("Rayleigh damping ratio matched at damping_modes (0.0105 = 1.05 %)", None)
     damping_modes: tuple[int, ...] = _f("the two modes (1-based) at which damping_ratio holds", (1, 2))
     rayleigh_a0_per_s: float | None = _f("explicit Rayleigh mass coefficient a0 [1/s] (instead of damping_ratio)", None)

@@ -123,3 +123,18 @@ def history_spec(scene: Scene, floors: tuple[int, int]) -> tuple[HistorySpec, li
         scene.output.history_decimate,
     )
     return spec, [p[2] for p in parsed]
+
+
+def drift_ratio_columns(scene: Scene, metrics: np.ndarray, names: list[str]) -> dict[str, np.ndarray]:
+    """peak_drift_ratio_b<b>s<s>: each story's peak interstory drift over its height, for the buildings whose
+    story heights the scene gives (story_height_m) [-]."""
+    out = {}
+    for b, cfg in ((1, scene.building1), (2, scene.building2)):
+        h = cfg.story_height_m
+        if not h:
+            continue
+        n = len(cfg.masses_kg)
+        heights = h * n if len(h) == 1 else h
+        for s in range(1, n + 1):
+            out[f"peak_drift_ratio_b{b}s{s}"] = metrics[:, names.index(f"peak_drift_b{b}s{s}_m")] / heights[s - 1]
+    return out

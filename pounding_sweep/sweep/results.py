@@ -36,6 +36,8 @@ COLUMN_DOCS = {
     "peak_disp_b*f*_m": "largest |displacement| of building b, floor f relative to the table [m]",
     "peak_disp_time_b*f*_s": "time of that peak [s]",
     "peak_abs_acc_b*f*_m_s2": "largest |absolute acceleration| (relative + table) [m/s^2]",
+    "peak_drift_ratio_b*s*": "that drift over the story's height (story_height_m) [-]",
+    "peak_drift_b*s*_m": "largest |interstory drift| of building b, story s (floor s minus floor s - 1; story 1: floor 1) [m]",
     "peak_force_f*_N": "largest pounding force at floor pair f, positive in compression [N]",
     "min_force_f*_N": "most negative (tensile) contact force of the classic law [N]",
     "impacts_f*": "number of contact phases (penetration > 0) [-]",
@@ -45,6 +47,9 @@ COLUMN_DOCS = {
     "median_compression_phase_f*_s": "median duration of those phases [s], resolution dt",
     "max_penetration_f*_m": "largest penetration u1 - u2 - d [m]",
     "peak_force_time_f*_s": "time of the peak force [s]",
+    "closest_approach_f*_m": "least gap - (u1 - u2) of floor pair f over the run (the gap at rest minus the largest "
+    "relative displacement toward each other); < 0: the floors overlapped by that much [m]",
+    "closest_approach_time_f*_s": "time of the closest approach [s]",
     "unsettled_steps": "steps whose contact active set did not settle (implicit scheme) [-]",
     "max_contact_iterations": "most active-set iterations any step needed [-]",
     "steps": "time steps completed [-]",

@@ -28,7 +28,7 @@ from pounding_sweep.errors import ConfigError, OutputError  # noqa: F401
 from pounding_sweep.model.excitation import Excitation
 from pounding_sweep.model.grid import Grid
 from pounding_sweep.scene import Scene
-from pounding_sweep.sweep.prepare import Prepared, prepare  # noqa: F401
+from pounding_sweep.sweep.prepare import Prepared, drift_ratio_columns, prepare  # noqa: F401
 from pounding_sweep.sweep.ranking import Ranking, Refinement, refine, score_columns, score_table_columns
 from pounding_sweep.sweep.results import (
     MANIFEST,
@@ -136,6 +136,7 @@ def run_scene(
         for res in exe.map(prep, todo):
             columns = {"run_id": res.params["run_id"], **_param_columns(exc, res.params, res.derived)}
             extra = score_table_columns(res.scores, prep.score_codes, how) if res.scores is not None else {}
+            extra.update(drift_ratio_columns(scene, res.metrics, names))
             table = metrics_table(columns, names, res.metrics, res.run_time, extra)
             if not (out_path / MANIFEST).exists():
                 write_manifest(out_path, manifest)

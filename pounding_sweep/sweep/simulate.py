@@ -54,7 +54,7 @@ def with_overrides(scene: Scene, **overrides) -> Scene:
 
 def simulate(scene: Scene, channels: list[str] | None = None, decimate: int = 1, **overrides):
     """Run one point; return (histories DataFrame with t_s first, metrics dict incl. 'status' and scores)."""
-    from pounding_sweep.sweep.prepare import prepare
+    from pounding_sweep.sweep.prepare import drift_ratio_columns, prepare
 
     s = with_overrides(scene, **overrides)
     auto = None
@@ -79,6 +79,7 @@ def simulate(scene: Scene, channels: list[str] | None = None, decimate: int = 1,
     names = L.metric_columns(prep.model.floors, prep.model.n_pairs)
     m = dict(zip(names, metrics[0].tolist()))
     m["status"] = status_words(metrics[:1, names.index("status_code")])[0]
+    m.update({k: float(v[0]) for k, v in drift_ratio_columns(s, metrics[:1], names).items()})
     m["ks_N_per_m"] = float(derived["ks_N_per_m"][0])
     m["run_time_s"] = float(run_time[0])
     if auto is not None:

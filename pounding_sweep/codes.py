@@ -10,10 +10,30 @@ SCHEME_PAPER = 1
 SCHEME_EVENT = 2
 SCHEMES = {"implicit": SCHEME_IMPLICIT, "paper": SCHEME_PAPER, "event": SCHEME_EVENT}
 
-#: contact laws (model/contact.py holds their parameters)
+#: contact laws (model/contact.py and model/laws.py hold their parameters): the linear Kelvin-Voigt laws
+#: (engine/scalar.py, engine/lanes.py) and, from LAW_HERTZ on, the Hertz-type nonlinear ones (engine/nonlinear.py)
 LAW_CLASSIC = 0
 LAW_NO_TENSION = 1
-CONTACT_LAWS = {"classic": LAW_CLASSIC, "no_tension": LAW_NO_TENSION}
+LAW_HERTZ = 2
+LAW_HERTZDAMP = 3
+LAW_JANKOWSKI = 4
+CONTACT_LAWS = {
+    "classic": LAW_CLASSIC,
+    "no_tension": LAW_NO_TENSION,
+    "hertz": LAW_HERTZ,
+    "hertzdamp": LAW_HERTZDAMP,
+    "jankowski": LAW_JANKOWSKI,
+}
+
+#: how r sets a law's damping (model/laws.py): the law's authors' relation, the exact single-impact inverse, or
+#: for hertzdamp the original relation of Muthukumar & DesRoches 2006
+RESTITUTION_RELATIONS = ("authors", "exact", "muthukumar2006")
+
+
+def is_nonlinear(law: int) -> bool:
+    """A Hertz-type law (force ~ penetration^1.5), integrated by engine/nonlinear.py."""
+    return law >= LAW_HERTZ
+
 
 #: excitation kinds: table displacement amp sin(omega t) (ground acceleration -amp omega^2 sin(omega t)),
 #: or a ground acceleration record resampled to dt

@@ -23,6 +23,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from pounding_sweep.codes import is_nonlinear
 from pounding_sweep.engine import layout as L
 from pounding_sweep.engine.inputs import (
     HistorySpec,
@@ -46,6 +47,7 @@ from pounding_sweep.engine.lanes import (
     lanes_ineligible_reason,
     size_tuples,
 )
+from pounding_sweep.engine.nonlinear import integrate_nonlinear
 from pounding_sweep.engine.scalar import integrate_batch
 from pounding_sweep.engine.score import N_SCORES
 from pounding_sweep.model.coupled import SystemArrays
@@ -90,15 +92,52 @@ def run_chunk(
     batch_runs: int = 0,
     score: ScoreSpec | None = None,
     kernel: str = "auto",
+    laws: np.ndarray | None = None,
 ):
     """Integrate every run of the chunk on `kernel` (KERNELS); return (metrics, run_time_s, histories or
-    None, scores or None)."""
+    None, scores or None). `laws` (codes.LAW_* per run), when given, overrides opts.law run by run: the
+    runs of each law go to that law's kernel (a Hertz-type law to engine/nonlinear.py) and the rows come
+    back in the chunk's order."""
     score = score if score is not None else ScoreSpec.none()
+    if laws is not None:
+        codes_in = np.unique(laws)
+        if codes_in.size > 1:
+            return _run_by_law(sys, runs, rec, hist, opts, threads, batch_runs, score, kernel, laws, codes_in)
+        if codes_in.size == 1:
+            opts = opts._replace(law=int(codes_in[0]))
+    if is_nonlinear(opts.law):
+        if kernel == "lanes":
+            raise ValueError("kernel = 'lanes': the lane kernel cannot run this chunk (a Hertz-type contact law)")
+        return run_chunk_scalar(sys, runs, rec, hist, opts, threads, batch_runs, score)
     if kernel_for(sys, hist, opts, score, kernel) == "lanes" and runs.n > 0:
         ma = lane_modes(sys, hist, opts, score)
         metrics, run_time = run_chunk_lanes(sys, runs, rec, opts, threads, ma)
         return metrics, run_time, None, None
     return run_chunk_scalar(sys, runs, rec, hist, opts, threads, batch_runs, score)
+
+
+def _run_by_law(sys, runs, rec, hist, opts, threads, batch_runs, score, kernel, laws, codes_in):
+    """run_chunk for a chunk mixing laws: each law's runs on their kernel, rows put back in order."""
+    n = runs.n
+    metrics = np.zeros((n, L.n_metrics(sys.m.size, sys.i1.size)))
+    run_time = np.zeros(n)
+    hist_all = scores_all = None
+    for code in codes_in:
+        idx = np.flatnonzero(laws == code)
+        part = run_chunk(
+            sys, runs.take(idx), rec, hist, opts._replace(law=int(code)), threads, batch_runs, score, kernel
+        )
+        metrics[idx] = part[0]
+        run_time[idx] = part[1]
+        if part[2] is not None:
+            if hist_all is None:
+                hist_all = np.full((n,) + part[2].shape[1:], np.nan)
+            hist_all[idx, :, : part[2].shape[2]] = part[2]
+        if part[3] is not None:
+            if scores_all is None:
+                scores_all = np.full((n,) + part[3].shape[1:], np.nan)
+            scores_all[idx] = part[3]
+    return metrics, run_time, hist_all, scores_all
 
 
 def run_chunk_scalar(
@@ -111,7 +150,8 @@ def run_chunk_scalar(
     batch_runs: int = 0,
     score: ScoreSpec | None = None,
 ):
-    """run_chunk on the scalar kernel (every option supported)."""
+    """run_chunk on the scalar kernel (every option supported): engine/scalar.py for the linear laws,
+    engine/nonlinear.py for the Hertz-type ones."""
     score = score if score is not None else ScoreSpec.none()
     n = runs.n
     n_metrics = L.n_metrics(sys.m.size, sys.i1.size)
@@ -127,9 +167,10 @@ def run_chunk_scalar(
     model = Structure.of(sys)
     records = Records(*rec)
     out = Outputs(metrics, run_time, hist_arr, scores)
+    kernel_fn = integrate_nonlinear if is_nonlinear(opts.law) else integrate_batch
 
     def work(bounds):
-        integrate_batch(bounds[0], bounds[1], model, opts, runs, records, hist, score, out)
+        kernel_fn(bounds[0], bounds[1], model, opts, runs, records, hist, score, out)
 
     threads = max(1, min(threads, n))
     if batch_runs <= 0:
@@ -208,12 +249,26 @@ def compile_kernel(
     hist: HistorySpec | None = None,
     score: ScoreSpec | None = None,
     kernel: str = "auto",
+    laws=None,
 ) -> float:
     """Compile (or load from cache) the kernel(s) a sweep of this system will use, on one-step runs;
     return the seconds it took. With `hist` and `score` given: the kernel run_chunk picks for them;
     without: the lane kernel where the system and options allow it, and the scalar kernel (which
-    chunks with histories or scoring, and diverged runs, use) in any case."""
+    chunks with histories or scoring, and diverged runs, use) in any case. `laws`: the codes.LAW_* the
+    sweep uses (default opts.law); a Hertz-type one compiles engine/nonlinear.py as well."""
     t0 = time.perf_counter()
+    laws = [opts.law] if laws is None else sorted(set(int(x) for x in laws))
+    nonlinear = [x for x in laws if is_nonlinear(x)]
+    if nonlinear:
+        _compile_one(sys, opts._replace(law=nonlinear[0]), hist, score, kernel)
+    linear = [x for x in laws if not is_nonlinear(x)]
+    if linear:
+        _compile_one(sys, opts._replace(law=linear[0]), hist, score, kernel)
+    return time.perf_counter() - t0
+
+
+def _compile_one(sys, opts, hist, score, kernel):
+    """compile_kernel for one law's kernel(s)."""
     p = sys.i1.size
     runs = RunArrays(
         np.ones(1),
@@ -234,4 +289,3 @@ def compile_kernel(
         run_chunk_lanes(sys, runs, rec, opts, 1, ma)
     if hist is None or not lanes_ok:
         run_chunk_scalar(sys, runs, rec, hist or none, opts, score=score)
-    return time.perf_counter() - t0

@@ -69,11 +69,13 @@ class Records(NamedTuple):
 
 
 class KernelOptions(NamedTuple):
-    """How to integrate: codes.SCHEME_*, codes.LAW_*, and the implicit scheme's active-set iterations per step."""
+    """How to integrate: codes.SCHEME_*, codes.LAW_*, the implicit scheme's active-set iterations per step,
+    and the Hertz-damp law's floor on the approach speed of an impact [m/s] (engine/nonlinear.py)."""
 
     scheme: int
     law: int
     max_iter: int
+    min_impact_speed: float = 0.01
 
 
 class HistorySpec(NamedTuple):

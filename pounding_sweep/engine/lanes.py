@@ -1413,7 +1413,7 @@ def integrate_lanes(order, g_start, g_stop, model, opts, runs, excitation, out):
     compiled loop's own function they cost the scalar event steps 28 % (2.8 against 2.2 us per step),
     and a compiled wrapper would make Numba optimise the whole kernel once more (about 4 s of compile)."""
     dt, nt, n1t, phi, psi, om2, dmp, gam, Wm, Cv = model
-    scheme, law, max_iter = opts
+    scheme, law, max_iter = opts.scheme, opts.law, opts.max_iter
     ks, cdash, gap, exc_kind, exc_amp, exc_omega, rec_id, nsteps, status_in = runs
     coef, pid, prof = excitation
     metrics, redo, stats = out
@@ -1745,7 +1745,7 @@ def lane_modes(sys, hist, opts, score) -> ModalArrays | str:
     if opts.scheme not in (SCHEME_IMPLICIT, SCHEME_EVENT):
         return "scheme is neither 'implicit' nor 'event'"
     if opts.law not in (0, LAW_NO_TENSION):
-        return "unknown contact law"
+        return "a Hertz-type contact law (engine/nonlinear.py)"
     if opts.scheme == SCHEME_IMPLICIT and opts.max_iter < 1:
         return "max_contact_iterations < 1"
     n = sys.m.size

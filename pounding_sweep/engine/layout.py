@@ -33,13 +33,14 @@ PER_RUN = 12
 
 # status bits (the writer turns them into words)
 STATUS_NONFINITE = 1  # NaN/inf or |u| > DIVERGED_M: integration stopped
-STATUS_UNSETTLED = 2  # the contact active set cycled in at least one step
+STATUS_UNSETTLED = 2  # the contact solve did not settle in at least one step (active set cycled, Newton stalled)
 STATUS_UNDERRESOLVED = 4  # dt too coarse for the contact period (set before the run)
 STATUS_MEDIAN_TRUNCATED = 8  # more compressive phases than the median buffer holds
 STATUS_ENERGY = 16  # |energy residual| > ENERGY_TOL of the input work: contact switching made or lost energy
 ENERGY_TOL = 0.01
 STATUS_UNSCORED = 32  # the run ended before the experiment's window did (diverged, or a shorter record)
 STATUS_DT_UNCONVERGED = 64  # dt = "auto": the tolerance was not met at dt_min (the finest result is kept)
+STATUS_GRAZING = 128  # Hertz-damp: an impact's approach speed was below the floor, which was used instead
 STATUS_WORDS = {
     STATUS_NONFINITE: "diverged",
     STATUS_UNSETTLED: "contact_unsettled",
@@ -48,6 +49,7 @@ STATUS_WORDS = {
     STATUS_ENERGY: "energy_residual",
     STATUS_UNSCORED: "unscored",
     STATUS_DT_UNCONVERGED: "dt_tolerance_not_met",
+    STATUS_GRAZING: "grazing_impact",
 }
 DIVERGED_M = 1.0e3  # a displacement beyond a kilometre is a numerical blow-up, not physics
 MEDIAN_BUFFER = 4096  # compressive phases kept per pair for the median duration

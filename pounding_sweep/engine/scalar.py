@@ -34,8 +34,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from pounding_sweep import codes
 from pounding_sweep.codes import EXC_HARMONIC, EXC_RECORD, SCHEME_EVENT, SCHEME_IMPLICIT, SCHEME_PAPER, SCHEMES  # noqa: F401
+from pounding_sweep.engine import bookkeeping as bk
 from pounding_sweep.engine import layout as L
 from pounding_sweep.engine.clock import _clock
 from pounding_sweep.engine.events import (
@@ -50,7 +50,6 @@ from pounding_sweep.engine.events import (
     ground_acceleration,
 )
 from pounding_sweep.engine.jit import njit_kernel
-from pounding_sweep.engine.score import N_SCORES, score_channel
 
 # energy accumulator changed by _switch: the spring energy lost when a no-tension contact lets go while
 # compressed (less what it stores again when it re-engages overlapped)
@@ -106,7 +105,7 @@ def integrate_batch(start, stop, model, opts, runs, records, histories, experime
     Records (engine/inputs.py): model Structure, opts KernelOptions, runs RunArrays, records Records,
     histories HistorySpec, experiment ScoreSpec, out Outputs."""
     dt, m, C, K, Kinv, H, S, i1, i2 = model
-    scheme, law, max_iter = opts
+    scheme, law, max_iter = opts.scheme, opts.law, opts.max_iter
     ks, cdash, gap, exc_kind, exc_amp, exc_omega, rec_id, nsteps, status_in = runs
     rec_flat, rec_off, rec_len = records
     hist_kind, hist_index, decimate = histories
@@ -114,7 +113,6 @@ def integrate_batch(start, stop, model, opts, runs, records, histories, experime
     metrics, run_time, hist, scores = out
     n = m.shape[0]
     npair = i1.shape[0]
-    nch = hist_kind.shape[0]
     keep_hist = hist.shape[0] > 0
     a1 = 4.0 / (dt * dt)
     a2 = 4.0 / dt
@@ -157,22 +155,15 @@ def integrate_batch(start, stop, model, opts, runs, records, histories, experime
     Amat = np.empty((n, n))
     rvec = np.empty(n)
     en = np.zeros(EN_N)  # energy accumulators (EN_*)
-    nm = metrics.shape[1]
-    n_exp = exp_t.size
-    n_exp_ch = exp_dof.size
-    xs = np.empty((n_exp_ch, n_exp))  # the run sampled at the experiment's time stamps
+    xs = np.empty((exp_dof.size, exp_t.size))  # the run sampled at the experiment's time stamps
     pbase = L.PER_DOF * n
     rbase = pbase + L.PER_PAIR * npair
 
     for run in range(start, stop):
         t_start = _clock()
         out = metrics[run]
-        for q in range(nm):
-            out[q] = 0.0
+        bk.start_row(out, npair, pbase, gap[run])
         for j in range(npair):
-            out[pbase + L.PER_PAIR * j + L.PAIR_MIN_FORCE] = 0.0
-            out[pbase + L.PER_PAIR * j + L.PAIR_PEAK_FORCE] = 0.0
-            out[pbase + L.PER_PAIR * j + L.PAIR_CLOSEST] = gap[run]  # at rest the pair is `gap` apart (time 0)
             active[j] = False
             was_active[j] = False
             F[j] = 0.0
@@ -203,14 +194,9 @@ def integrate_batch(start, stop, model, opts, runs, records, histories, experime
             v[i] = 0.0
             a[i] = -ag
         if keep_hist:
-            for c in range(nch):
-                hist[run, c, 0] = _channel(hist_kind[c], hist_index[c], u, v, a, F, ag)
+            bk.keep_history(hist, run, 0, hist_kind, hist_index, u, v, a, F, ag)
         nst = nsteps[run]
-        ke_next = 0  # next experiment sample to fill
-        while ke_next < n_exp and exp_t[ke_next] <= 0.0:
-            for c in range(n_exp_ch):
-                xs[c, ke_next] = 0.0
-            ke_next += 1
+        ke_next = bk.samples_at_rest(exp_t, xs)  # next experiment sample to fill
         unsettled = 0
         e_in = 0.0
         e_in_abs = 0.0
@@ -393,20 +379,10 @@ def integrate_batch(start, stop, model, opts, runs, records, histories, experime
                     # structural damping du.C du / hs, the work of the contact's spring and dashpot
                     # parts on the pair's relative displacement; then the contact metrics
                     t_e = t_s + hs
-                    s_in = 0.0
-                    for i in range(n):
-                        s_in += m[i] * (un[i] - u[i])
-                        s = 0.0
-                        for k in range(n):
-                            s += C[i, k] * (un[k] - u[k])
-                        Cdu[i] = s
-                    de = -0.5 * (ag_s + ag_e) * s_in
+                    de, dd = bk.structure_work(u, un, m, C, Cdu, ag_s, ag_e, hs)
                     e_in += de
                     e_in_abs += abs(de)
-                    s = 0.0
-                    for i in range(n):
-                        s += (un[i] - u[i]) * Cdu[i]
-                    d_struct += s / hs
+                    d_struct += dd
                     for j in range(npair):
                         pen = un[i1[j]] - un[i2[j]] - d
                         sp = k_s * pen if active[j] else 0.0
@@ -420,30 +396,9 @@ def integrate_batch(start, stop, model, opts, runs, records, histories, experime
                         Sprev[j] = sp
                         Dprev[j] = dp
                         pen_prev[j] = pen
-                        base = pbase + L.PER_PAIR * j
-                        if -pen < out[base + L.PAIR_CLOSEST]:  # closest approach, at every accepted piece's end
-                            out[base + L.PAIR_CLOSEST] = -pen
-                            out[base + L.PAIR_CLOSEST_TIME] = t_e
-                        f = F[j]
-                        if active[j]:
-                            if not was_active[j]:
-                                out[base + L.PAIR_IMPACTS] += 1.0
-                            out[base + L.PAIR_CONTACT_TIME] += hs
-                            if pen > out[base + L.PAIR_MAX_PENETRATION]:
-                                out[base + L.PAIR_MAX_PENETRATION] = pen
-                            if f > out[base + L.PAIR_PEAK_FORCE]:
-                                out[base + L.PAIR_PEAK_FORCE] = f
-                                out[base + L.PAIR_PEAK_FORCE_TIME] = t_e
-                            if f < out[base + L.PAIR_MIN_FORCE]:
-                                out[base + L.PAIR_MIN_FORCE] = f
-                        comp = active[j] and f > 0.0
-                        if comp:
-                            out[base + L.PAIR_COMPRESSION_TIME] += hs
-                            comp_acc[j] = comp_acc[j] + hs if in_comp[j] else hs
-                        elif in_comp[j]:
-                            _end_phase(durations, nphase, j, comp_acc[j])
-                        in_comp[j] = comp
-                        was_active[j] = active[j]
+                    bk.pair_pieces(
+                        out, pbase, pen_prev, F, active, was_active, hs, t_e, in_comp, comp_acc, durations, nphase
+                    )
                     for i in range(n):
                         u[i] = un[i]
                         v[i] = vn[i]
@@ -491,82 +446,25 @@ def integrate_batch(start, stop, model, opts, runs, records, histories, experime
                 break
             ag_prev = ag
             t = step * dt
-            # experiment samples inside (t - dt, t]: linear interpolation between the step ends
-            while ke_next < n_exp and exp_t[ke_next] <= t + 1e-12 * dt:
-                theta = (exp_t[ke_next] - (t - dt)) / dt
-                for c in range(n_exp_ch):
-                    q = exp_dof[c]
-                    xs[c, ke_next] = ustep[q] + theta * (u[q] - ustep[q])
-                ke_next += 1
+            if ke_next < exp_t.size:
+                ke_next = bk.sample_experiment(ke_next, exp_t, exp_dof, xs, ustep, u, t, dt)
             steps_done = step
-            # metrics, per floor, at the step ends
-            for i in range(n):
-                base = L.PER_DOF * i
-                ad = abs(u[i])
-                if ad > out[base + L.DOF_PEAK_DISP]:
-                    out[base + L.DOF_PEAK_DISP] = ad
-                    out[base + L.DOF_PEAK_DISP_TIME] = t
-                aa = abs(a[i] + ag)
-                if aa > out[base + L.DOF_PEAK_ABS_ACC]:
-                    out[base + L.DOF_PEAK_ABS_ACC] = aa
-                # the story below floor i: the ground story of building 1 (i = 0) and of building 2 (i = i2[0])
-                dr = abs(u[i] - u[i - 1]) if i != 0 and i != i2[0] else abs(u[i])
-                if dr > out[base + L.DOF_PEAK_DRIFT]:
-                    out[base + L.DOF_PEAK_DRIFT] = dr
+            bk.floor_peaks(out, u, a, ag, t, i2)
             if keep_hist and step % decimate == 0:
-                col = step // decimate
-                if col < hist.shape[2]:
-                    for c in range(nch):
-                        hist[run, c, col] = _channel(hist_kind[c], hist_index[c], u, v, a, F, ag)
-        # close phases still open at the end
-        for j in range(npair):
-            if in_comp[j]:
-                _end_phase(durations, nphase, j, comp_acc[j])
-            base = pbase + L.PER_PAIR * j
-            k = nphase[j]
-            out[base + L.PAIR_COMPRESSION_PHASES] = k
-            if k > L.MEDIAN_BUFFER:
-                status |= L.STATUS_MEDIAN_TRUNCATED
-                k = L.MEDIAN_BUFFER
-            out[base + L.PAIR_MEDIAN_COMPRESSION] = np.median(durations[j, :k]) if k > 0 else 0.0
-        for c in range(n_exp_ch):
-            if ke_next < n_exp:  # the run stopped before the experiment's window ended
-                status |= L.STATUS_UNSCORED
-                for q in range(N_SCORES):
-                    scores[run, c, q] = np.nan
-            else:
-                score_channel(xs[c], exp_x[c], exp_t, max_lag, exp_dt, scores[run, c])
-        if unsettled > 0:
-            status |= L.STATUS_UNSETTLED
+                bk.keep_history(hist, run, step // decimate, hist_kind, hist_index, u, v, a, F, ag)
+        status = bk.close_row(out, pbase, npair, in_comp, comp_acc, durations, nphase, status)
+        status = bk.score_run(scores, run, xs, exp_x, exp_t, ke_next, max_lag, exp_dt, status)
         # energy balance at the end: E_in = KE + SE + D_struct + D_contact + E_spring + residual;
         # the residual is the spring work the discrete contact switching did not store
-        ke_end = 0.0
-        se_end = 0.0
-        for i in range(n):
-            ke_end += 0.5 * m[i] * v[i] * v[i]
-            s = 0.0
-            for k in range(n):
-                s += K[i, k] * u[k]
-            se_end += 0.5 * u[i] * s
         e_spring = 0.0
         for j in range(npair):
             if active[j]:
                 e_spring += 0.5 * k_s * pen_prev[j] * pen_prev[j]
         residual = w_spring - e_spring - en[EN_W_RELEASE]
-        out[rbase + L.RUN_E_IN] = e_in
-        out[rbase + L.RUN_E_IN_ABS] = e_in_abs
-        out[rbase + L.RUN_KE] = ke_end
-        out[rbase + L.RUN_SE] = se_end
-        out[rbase + L.RUN_D_STRUCT] = d_struct
-        out[rbase + L.RUN_D_CONTACT] = w_dash + en[EN_W_RELEASE]
-        out[rbase + L.RUN_E_SPRING] = e_spring
-        out[rbase + L.RUN_E_RESIDUAL] = residual
-        if not (abs(residual) <= L.ENERGY_TOL * e_in_abs):
-            status |= L.STATUS_ENERGY
-        out[rbase + L.RUN_UNSETTLED] = unsettled
-        out[rbase + L.RUN_MAX_ITER] = max_it_seen
-        out[rbase + L.RUN_STEPS] = steps_done
-        out[rbase + L.RUN_STATUS] = status
+        status = bk.energy_row(
+            out, rbase, m, K, u, v, e_in, e_in_abs, d_struct, w_dash + en[EN_W_RELEASE], e_spring, residual, status
+        )
+        bk.run_counts(out, rbase, unsettled, max_it_seen, steps_done, status)
         run_time[run] = _clock() - t_start
 
 
@@ -851,25 +749,3 @@ def _mask(active, npair):
         if active[j]:
             mk |= 1 << j
     return mk
-
-
-@njit_kernel
-def _end_phase(durations, nphase, j, duration):
-    k = nphase[j]
-    if k < durations.shape[1]:
-        durations[j, k] = duration
-    nphase[j] = k + 1
-
-
-@njit_kernel
-def _channel(kind, index, u, v, a, F, ag):
-    """Value of one history channel (see pounding_sweep.codes.H_*)."""
-    if kind == codes.H_DISP:
-        return u[index]
-    if kind == codes.H_VEL:
-        return v[index]
-    if kind == codes.H_ABS_ACC:
-        return a[index] + ag
-    if kind == codes.H_FORCE:
-        return F[index]
-    return ag

@@ -13,6 +13,9 @@ import numpy as np
 from pounding_sweep.scene import SWEEPABLE, Scene
 from pounding_sweep.scene.axes import KS_FORMS, ks_counterpart
 
+#: axes whose values are names, not numbers
+CATEGORICAL = ("record", "law")
+
 
 @dataclass(frozen=True)
 class Grid:
@@ -50,10 +53,10 @@ class Grid:
         if self.axes:
             idx = np.unravel_index(ids, self.shape)
             for (name, values), ix in zip(self.axes, idx):
-                out[name] = np.asarray(values, dtype=object if name == "record" else float)[ix]
+                out[name] = np.asarray(values, dtype=object if name in CATEGORICAL else float)[ix]
         n = ids.size
         for name, value in self.fixed.items():
-            if name == "record":
+            if name in CATEGORICAL:
                 out[name] = np.full(n, value, dtype=object)
             else:
                 out[name] = np.full(n, np.nan if value is None else value, dtype=float)

@@ -338,3 +338,150 @@ def continuous_reference(
     )
     impacts = np.array([sum(1 for ev in events if ev[1] == j and ev[2] == "contact") for j in range(p)])
     return Reference(grid, top, peak_u, peak_F, impacts, events, rtol, time.perf_counter() - t_wall)
+
+
+# ----------------------------------------------------------------------------- the Hertz-type laws
+
+
+def law_ivp_reference(scene, t_end=None, rtol=1e-10, atol=1e-13, max_step=1e-3, dt_out=None, **overrides) -> dict:
+    """The continuous-time problem with a Hertz-type law (reference/nonlinear.py writes the laws out) by
+    solve_ivp (DOP853), one smooth piece at a time. Harmonic excitation only.
+
+    Within a piece every pair keeps its branch: out of contact (F = 0), or in contact with the law's
+    formula fixed (jankowski: approaching, delta_dot > 0, or restituting; hertzdamp: pushing, or clipped
+    at F = 0 where 1 + a delta_dot / v0 <= 0). Each branch change is a terminal event located on the
+    dense output: penetration crossing zero (an impact starts: hertzdamp takes v0 from the state there,
+    floored at min_impact_speed_m_s; or a contact ends), jankowski's delta_dot crossing zero, hertzdamp's
+    1 + a delta_dot / v0 crossing zero. So nothing is integrated across a kink of the right-hand side.
+    Jankowski's dashpot c0 delta^0.25 delta_dot is continuous at an impact's start but not Lipschitz there;
+    DOP853's error control shortens its steps to meet the tolerance.
+
+    Returns t (grid of spacing dt_out, default the scene's dt), u, v, F on it, the events (time, pair,
+    kind), impacts per pair, the peak force per pair (scanned on the dense output), grazing (a v0 was
+    floored) and the LawProblem."""
+    from pounding_sweep.reference.nonlinear import pounding_force, resolve_law
+
+    Q = resolve_law(scene, **overrides)
+    P = Q.base
+    if P.exc_kind != "harmonic":
+        raise NotImplementedError("law_ivp_reference: harmonic excitation only")
+    n, p, d = P.n_dof, P.n_pairs, P.gap
+    t_end = P.nsteps * P.dt if t_end is None else float(t_end)
+    Minv = np.linalg.inv(P.M)
+    drive = np.ones(n) * P.amp * P.omega**2  # -1 ag(t) = 1 A w^2 sin(w t)
+    dt_out = P.dt if dt_out is None else float(dt_out)
+    grid = np.arange(int(math.floor(t_end / dt_out + 1e-9)) + 1) * dt_out
+    Y = np.full((grid.size, 2 * n), np.nan)
+    contact = [False] * p
+    branch = [True] * p  # jankowski: approaching; hertzdamp: pushing (not clipped)
+    v0 = np.full(p, np.inf)
+    grazing = False
+
+    def forces(y):
+        z = P.G.T @ y[:n] - d
+        zd = P.G.T @ y[n:]
+        out = np.zeros(p)
+        for j in range(p):
+            if not contact[j]:
+                continue
+            if Q.law == "jankowski":
+                # the branch's formula, continued past its end so the event can be located
+                el = Q.kh * max(z[j], 0.0) ** 1.5
+                out[j] = el + (2.0 * Q.xi * math.sqrt(Q.kh * math.sqrt(max(z[j], 0.0)) * Q.meff[j]) * zd[j] if branch[j] else 0.0)
+            elif Q.law == "hertzdamp":
+                out[j] = Q.kh * max(z[j], 0.0) ** 1.5 * (1.0 + Q.a * zd[j] / v0[j]) if branch[j] else 0.0
+            else:
+                out[j] = pounding_force(Q, j, z[j], zd[j], v0[j])
+        return out
+
+    def rhs(t, y):
+        acc = Minv @ (-P.C @ y[n:] - P.K @ y[:n] - P.G @ forces(y)) + drive * math.sin(P.omega * t)
+        return np.concatenate([y[n:], acc])
+
+    def events_now():
+        evs = []
+        for j in range(p):
+            g = P.G[:, j]
+
+            def pen(t, y, g=g):
+                return g @ y[:n] - d
+
+            pen.terminal, pen.direction = True, -1.0 if contact[j] else 1.0
+            pen.pair, pen.kind = j, "contact"
+            evs.append(pen)
+            if contact[j] and Q.law == "jankowski":
+
+                def rate(t, y, g=g):
+                    return g @ y[n:]
+
+                rate.terminal, rate.direction = True, -1.0 if branch[j] else 1.0
+                rate.pair, rate.kind = j, "branch"
+                evs.append(rate)
+            if contact[j] and Q.law == "hertzdamp" and Q.a > 0.0:
+
+                def push(t, y, g=g, j=j):
+                    return 1.0 + Q.a * (g @ y[n:]) / v0[j]
+
+                push.terminal, push.direction = True, -1.0 if branch[j] else 1.0
+                push.pair, push.kind = j, "branch"
+                evs.append(push)
+        return evs
+
+    events = []
+    pieces = []
+    y = np.zeros(2 * n)
+    t0, stalls = 0.0, 0
+    peak = np.zeros(p)
+    while True:
+        evs = events_now()
+        sol = solve_ivp(
+            rhs, (t0, t_end), y, method="DOP853", rtol=rtol, atol=atol, max_step=max_step, events=evs, dense_output=True
+        )
+        if sol.status < 0:
+            raise RuntimeError(f"law_ivp_reference: solve_ivp failed at t = {sol.t[-1]}: {sol.message}")
+        t1 = sol.t[-1]
+        sel = (grid >= t0 - 1e-12) & (grid <= t1 + 1e-12)
+        if sel.any():
+            Y[sel] = sol.sol(np.clip(grid[sel], t0, t1)).T
+        ts = np.linspace(t0, t1, max(2, int(math.ceil((t1 - t0) / 2e-5)) + 1))
+        Fs = np.array([forces(yy) for yy in sol.sol(ts).T])
+        peak = np.maximum(peak, Fs.max(axis=0))
+        pieces.append((t0, t1, list(contact), list(branch), v0.copy()))
+        if sol.status == 0:
+            break
+        hits = [(te[0], k) for k, te in enumerate(sol.t_events) if te.size]
+        te, k = min(hits)
+        ev = evs[k]
+        y = sol.y_events[k][0].copy()
+        stalls = stalls + 1 if te - t0 < 1e-12 else 0
+        if stalls > 10:
+            raise RuntimeError(f"law_ivp_reference: the contact state chatters at t = {te}")
+        j = ev.pair
+        if ev.kind == "contact":
+            contact[j] = not contact[j]
+            branch[j] = True
+            if contact[j]:
+                rate_j = float(P.G[:, j] @ y[n:])
+                if Q.law == "jankowski":
+                    branch[j] = rate_j > 0.0
+                if Q.law == "hertzdamp":
+                    v0[j] = max(rate_j, Q.vmin)
+                    grazing |= rate_j < Q.vmin
+            else:
+                v0[j] = np.inf
+            events.append((float(te), j, "contact" if contact[j] else "separation"))
+        else:
+            branch[j] = not branch[j]
+            events.append((float(te), j, "branch"))
+        t0 = te
+
+    u, v = Y[:, :n], Y[:, n:]
+    F = np.zeros((grid.size, p))
+    for i, tt in enumerate(grid):  # forces on the grid with the branch of the piece holding tt
+        for t_a, t_b, c_k, b_k, v0_k in pieces:
+            if t_a - 1e-12 <= tt <= t_b + 1e-12:
+                contact[:], branch[:], v0[:] = c_k, b_k, v0_k
+                F[i] = forces(Y[i])
+                break
+    impacts = np.array([sum(1 for e in events if e[1] == j and e[2] == "contact") for j in range(p)])
+    return dict(t=grid, u=u, v=v, F=F, events=events, impacts=impacts, peak_force=peak, grazing=grazing, problem=Q)

@@ -11,6 +11,8 @@ SWEEPABLE = {
     "ks_ratio": ("contact", "ks_ratio"),
     "ks_N_per_m": ("contact", "ks_N_per_m"),
     "r": ("contact", "r"),
+    "law": ("contact", "law"),
+    "kh_N_per_m1_5": ("contact", "kh_N_per_m1_5"),
     "gap_m": ("contact", "gap_m"),
     "amplitude_m": ("excitation", "amplitude_m"),
     "frequency_Hz": ("excitation", "frequency_Hz"),
@@ -49,7 +51,8 @@ def check_ks(contact, axes: dict) -> None:
     if contact.ks_ratio is not None and contact.ks_N_per_m is not None:
         raise ConfigError("[contact]: give ks_ratio or ks_N_per_m, not both")
     if contact.ks_ratio is None and contact.ks_N_per_m is None and not axes.keys() & set(KS_FORMS):
-        raise ConfigError("[contact]: missing key 'ks_ratio' (or 'ks_N_per_m'): the contact stiffness")
+        if not _all_hertz_with_kh(contact, axes):
+            raise ConfigError("[contact]: missing key 'ks_ratio' (or 'ks_N_per_m'): the contact stiffness")
     # the resolved contact stiffness enters ke = k_s + 2 c / dt and the contact matrix: it must stay finite
     k_ref = contact.k_ref_N_per_m
     for key, ratio in [("[contact] ks_ratio", contact.ks_ratio)] + [
@@ -65,3 +68,12 @@ def check_ks(contact, axes: dict) -> None:
     ]:
         if ks is not None and not math.isfinite(4.0 * ks):
             raise ConfigError(f"{key} = {ks!r}: too large (the contact terms overflow)")
+
+
+def _all_hertz_with_kh(contact, axes: dict) -> bool:
+    """Every law of the scene is a Hertz-type one and k_h is given: no k_s is needed."""
+    from pounding_sweep.codes import CONTACT_LAWS, is_nonlinear
+
+    laws = axes.get("law", (contact.law,))
+    has_kh = contact.kh_N_per_m1_5 is not None or "kh_N_per_m1_5" in axes
+    return has_kh and all(is_nonlinear(CONTACT_LAWS.get(x, 0)) for x in laws)

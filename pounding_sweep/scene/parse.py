@@ -181,6 +181,11 @@ def _parse_sweep(table, base_dir: Path) -> tuple[Axis, ...]:
             if not vals:
                 raise ConfigError(f"{key} = []: an axis needs at least one value")
             vals = tuple(str((base_dir / _typed(v, str, key)).resolve()) for v in vals)
+        elif name == "law":
+            vals = spec if isinstance(spec, list) else [spec]
+            if not vals:
+                raise ConfigError(f"{key} = []: an axis needs at least one value")
+            vals = tuple(_typed(v, str, key) for v in vals)
         elif isinstance(spec, dict):
             vals = _range_values(spec, key)
         else:

@@ -51,14 +51,39 @@ class BuildingConfig:
 
 @dataclass(frozen=True)
 class ContactConfig:
-    """Kelvin-Voigt element at each facing floor pair (eqs. 8-10)."""
+    """Pounding element at each facing floor pair: Kelvin-Voigt (eqs. 8-10) or a Hertz-type law."""
 
-    r: float = _f("coefficient of restitution r in [0, 1] (eq. 10)")
+    r: float = _f("coefficient of restitution r in [0, 1] (eq. 10; each law's own relation: restitution_relation)")
     gap_m: float = _f("seismic gap d [m] between facing floors at rest", 0.0)
     ks_ratio: float | None = _f("contact stiffness as a ratio k_s / k_ref", None)
     ks_N_per_m: float | None = _f("contact stiffness k_s [N/m] (instead of ks_ratio)", None)
     k_ref_N_per_m: float = _f("reference story stiffness k for ks_ratio [N/m] (paper: 6830)", 6830.0)
-    law: str = _f("'classic' (eq. 8, may pull briefly before separation) or 'no_tension' (force >= 0)", "classic")
+    law: str = _f(
+        "'classic' (eq. 8, may pull briefly before separation), 'no_tension' (force >= 0), 'hertz' "
+        "(k_h delta^1.5), 'hertzdamp' (Muthukumar & DesRoches 2006) or 'jankowski' (Jankowski 2005)",
+        "classic",
+    )
+    kh_N_per_m1_5: float | None = _f(
+        "Hertz-type laws: k_h [N/m^1.5] (default: k_s / sqrt(reference_penetration_m), the same force as k_s "
+        "at that penetration)",
+        None,
+    )
+    reference_penetration_m: float = _f(
+        "Hertz-type laws: the penetration at which k_h delta^1.5 equals k_s delta, so k_s (or k_s/k) means "
+        "the same for every law [m]",
+        1e-3,
+    )
+    restitution_relation: str = _f(
+        "how r sets each law's damping: 'authors' (eq. 10; hertzdamp: Ye et al. 2009; jankowski: Jankowski "
+        "2006), 'exact' (a single free impact returns exactly r, for every law) or 'muthukumar2006' "
+        "(hertzdamp: the original Lankarani-Nikravesh relation)",
+        "authors",
+    )
+    min_impact_speed_m_s: float = _f(
+        "hertzdamp: floor on an impact's approach speed v0 (its damping scales as 1 / v0); runs where the "
+        "floor acts are flagged grazing_impact [m/s]",
+        0.01,
+    )
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,14 @@ from __future__ import annotations
 
 import math
 
-from pounding_sweep.codes import ACCEPTED_UNITS, CONTACT_LAWS, SCHEMES, canonical_unit
+from pounding_sweep.codes import (
+    ACCEPTED_UNITS,
+    CONTACT_LAWS,
+    RESTITUTION_RELATIONS,
+    SCHEMES,
+    canonical_unit,
+    is_nonlinear,
+)
 from pounding_sweep.errors import ConfigError
 from pounding_sweep.scene.axes import check_ks
 from pounding_sweep.scene.channels import floor_dof, parse_channel
@@ -67,6 +74,7 @@ def validate(s: Scene) -> None:
     _check_r(c.r, "[contact] r")
     for v in axes.get("r", ()):
         _check_r(v, "[sweep] r")
+    _check_laws(c, axes)
     check_ks(c, axes)
     _positive(c.ks_ratio, "[contact] ks_ratio")
     _positive(c.ks_N_per_m, "[contact] ks_N_per_m")
@@ -79,8 +87,6 @@ def validate(s: Scene) -> None:
     for v in axes.get("gap_m", ()):
         if v < 0:
             raise ConfigError(f"[sweep] gap_m = {v!r}: must be >= 0")
-    if c.law not in CONTACT_LAWS:
-        raise ConfigError(f"[contact] law = {c.law!r}: expected one of {sorted(CONTACT_LAWS)}")
     e = s.excitation
     if e.type not in ("harmonic", "record"):
         raise ConfigError(f"[excitation] type = {e.type!r}: expected 'harmonic' or 'record'")
@@ -216,6 +222,43 @@ def _validate_experiment(s: Scene) -> None:
         if target in seen:
             raise ConfigError(f"[experiment] channels: '{seen[target]}' and '{col}' both map to floor '{target}'")
         seen[target] = col
+
+
+def _check_laws(c, axes: dict) -> None:
+    """Known laws and relation; the Hertz-type laws' keys only where such a law runs; r = 0 refused where a
+    law's damping would be infinite (hertzdamp, jankowski: a perfectly plastic impact)."""
+    for law, key in [(c.law, "[contact] law")] + [(v, "[sweep] law") for v in axes.get("law", ())]:
+        if law not in CONTACT_LAWS:
+            raise ConfigError(f"{key} = {law!r}: expected one of {list(CONTACT_LAWS)}")
+    if c.restitution_relation not in RESTITUTION_RELATIONS:
+        raise ConfigError(
+            f"[contact] restitution_relation = {c.restitution_relation!r}: expected one of {list(RESTITUTION_RELATIONS)}"
+        )
+    _positive(c.reference_penetration_m, "[contact] reference_penetration_m")
+    _positive(c.min_impact_speed_m_s, "[contact] min_impact_speed_m_s")
+    _positive(c.kh_N_per_m1_5, "[contact] kh_N_per_m1_5")
+    for v in axes.get("kh_N_per_m1_5", ()):
+        _positive(v, "[sweep] kh_N_per_m1_5")
+    laws = set(axes.get("law", (c.law,)))
+    hertz = {x for x in laws if is_nonlinear(CONTACT_LAWS[x])}
+    has_kh = c.kh_N_per_m1_5 is not None or "kh_N_per_m1_5" in axes
+    if has_kh and not hertz:
+        raise ConfigError(
+            f"[contact] kh_N_per_m1_5: only the Hertz-type laws use it (law = {sorted(laws)}); "
+            "the linear laws take ks_ratio or ks_N_per_m"
+        )
+    if has_kh and not laws - hertz and (axes.keys() & {"ks_ratio", "ks_N_per_m"}):
+        raise ConfigError(
+            "[sweep]: ks_ratio / ks_N_per_m would not be used: every law here takes kh_N_per_m1_5 (drop one of the two)"
+        )
+    plastic = hertz & {"hertzdamp", "jankowski"}
+    r_values = axes.get("r", (c.r,))
+    if plastic and 0.0 in r_values:
+        key = "[sweep] r" if "r" in axes else "[contact] r"
+        raise ConfigError(
+            f"{key} = 0.0 with law {sorted(plastic)[0]!r}: its damping is infinite at r = 0 (a perfectly "
+            "plastic impact); use a small r such as 0.01"
+        )
 
 
 def _check_r(r, key):

@@ -8,16 +8,27 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pounding_sweep.codes import CONTACT_LAWS, SCHEMES
+from pounding_sweep.codes import (
+    CONTACT_LAWS,
+    LAW_CLASSIC,
+    LAW_HERTZ,
+    LAW_HERTZDAMP,
+    LAW_JANKOWSKI,
+    LAW_NO_TENSION,
+    SCHEMES,
+)
 from pounding_sweep.engine import layout as L
 from pounding_sweep.engine.driver import run_chunk
 from pounding_sweep.engine.inputs import HistorySpec, KernelOptions, Records, RunArrays, ScoreSpec
-from pounding_sweep.model.contact import contact_period, damping_ratio_from_restitution, dashpot_coefficient
+from pounding_sweep.model.contact import contact_period
 from pounding_sweep.model.coupled import CoupledModel, SystemArrays
 from pounding_sweep.model.excitation import Excitation
 from pounding_sweep.model.grid import Grid
+from pounding_sweep.model.laws import hertz_stiffness, law_arrays
 from pounding_sweep.scene import Scene, contact_stiffness
 from pounding_sweep.scene.channels import parse_channel
+
+LAW_NAMES = {code: name for name, code in CONTACT_LAWS.items()}
 
 
 @dataclass(frozen=True)
@@ -47,20 +58,34 @@ class Prepared:
             return self.auto.run(params, threads, batch_runs)
         runs, rec, derived = self.kernel_inputs(params)
         metrics, run_time, hist, scores = run_chunk(
-            self.sysarr, runs, rec, self.hist, self.opts, threads, batch_runs, self.score, self.kernel
+            self.sysarr,
+            runs,
+            rec,
+            self.hist,
+            self.opts,
+            threads,
+            batch_runs,
+            self.score,
+            self.kernel,
+            law_codes(params),
         )
         return metrics, run_time, hist, scores, derived
 
     def kernel_inputs(self, params: dict[str, np.ndarray]):
         """The kernel's inputs for `params` at the scene's dt: (RunArrays, record arrays, the derived
-        contact columns)."""
-        ks, c, xi, spp, status = contact_arrays(self.model, self.scene, params, self.dt)
+        contact columns). Each run's law: law_codes(params)."""
+        k, c, derived, status = contact_arrays(self.model, self.scene, params, self.dt)
         ex = self.excitation.run_arrays(params)
         runs = RunArrays(
-            ks, c, params["gap_m"], ex["exc_kind"], ex["exc_amp"], ex["exc_omega"], ex["rec_id"], ex["nsteps"], status
+            k, c, params["gap_m"], ex["exc_kind"], ex["exc_amp"], ex["exc_omega"], ex["rec_id"], ex["nsteps"], status
         )
         rec = Records(self.excitation.rec_flat, self.excitation.rec_off, self.excitation.rec_len)
-        return runs, rec, {"ks_N_per_m": ks, "contact_damping_ratio": xi, "steps_per_contact_period": spp}
+        return runs, rec, derived
+
+    @property
+    def law_codes_used(self) -> list[int]:
+        """The codes.LAW_* of every law the grid runs (what compile_kernel compiles for)."""
+        return sorted({CONTACT_LAWS[x] for x in self.scene.axis_values("law") or (self.scene.contact.law,)})
 
 
 def prepare(scene: Scene, kernel: str = "auto") -> Prepared:
@@ -71,7 +96,10 @@ def prepare(scene: Scene, kernel: str = "auto") -> Prepared:
     model = CoupledModel.from_scene(scene)
     exc = Excitation.from_scene(scene, dt)
     opts = KernelOptions(
-        SCHEMES[scene.integration.scheme], CONTACT_LAWS[scene.contact.law], scene.integration.max_contact_iterations
+        SCHEMES[scene.integration.scheme],
+        CONTACT_LAWS[scene.contact.law],
+        scene.integration.max_contact_iterations,
+        scene.contact.min_impact_speed_m_s,
     )
     hspec, hcols = history_spec(scene, model.floors)
     score, codes = ScoreSpec.none(), []
@@ -102,15 +130,46 @@ def prepare(scene: Scene, kernel: str = "auto") -> Prepared:
     )
 
 
+def law_codes(params: dict[str, np.ndarray]) -> np.ndarray:
+    """codes.LAW_* of each run (params["law"] holds the laws' names)."""
+    names = params["law"]
+    out = np.empty(names.size, np.int64)
+    for name in set(names):
+        out[names == name] = CONTACT_LAWS[name]
+    return out
+
+
 def contact_arrays(model: CoupledModel, scene: Scene, params: dict[str, np.ndarray], dt: float):
-    """k_s, dashpot c_j (eq. 9) per run and pair, xi_s (eq. 10), steps per contact period, flags."""
-    ks = contact_stiffness(params["ks_ratio"], params["ks_N_per_m"], scene.contact.k_ref_N_per_m)
+    """Per run: the kernels' stiffness (k_s [N/m] for the linear laws, k_h [N/m^1.5] for the Hertz-type ones),
+    the law coefficient per pair (model/laws.py: the dashpot c_j of eq. 9 for the linear laws), the derived
+    contact columns, and the status bits known before the run (too few steps per contact period)."""
+    c = scene.contact
+    codes_ = law_codes(params)
+    hertz = codes_ >= LAW_HERTZ
+    ks = contact_stiffness(params["ks_ratio"], params["ks_N_per_m"], c.k_ref_N_per_m)
+    kh = np.where(
+        np.isnan(params["kh_N_per_m1_5"]), hertz_stiffness(ks, c.reference_penetration_m), params["kh_N_per_m1_5"]
+    )
+    k = np.where(hertz, kh, ks)
     m1, m2 = model.pair_masses()
-    xi = np.atleast_1d(damping_ratio_from_restitution(params["r"]))
-    c = dashpot_coefficient(ks[:, None], params["r"][:, None], m1[None, :], m2[None, :])
-    steps_per_period = contact_period(ks[:, None], m1[None, :], m2[None, :]).min(axis=1) / dt
+    coef, param, produced = law_arrays(codes_, k, params["r"], c.restitution_relation, m1, m2, LAW_NAMES)
+    # a contact's period: 2 pi sqrt(m_eff / k) with the linear k_s, or the Hertz law's tangent stiffness
+    # 1.5 k_h sqrt(delta_ref) at the reference penetration (an impact's duration depends on its speed)
+    k_lin = np.where(hertz, 1.5 * kh * np.sqrt(c.reference_penetration_m), ks)
+    steps_per_period = contact_period(k_lin[:, None], m1[None, :], m2[None, :]).min(axis=1) / dt
     status = np.where(steps_per_period < scene.integration.min_steps_per_contact_period, L.STATUS_UNDERRESOLVED, 0)
-    return ks, np.ascontiguousarray(c), xi, steps_per_period, status.astype(np.int64)
+    kv_damped = np.isin(codes_, (LAW_CLASSIC, LAW_NO_TENSION, LAW_JANKOWSKI))
+    derived = {
+        "ks_N_per_m": ks,
+        "contact_damping_ratio": np.where(kv_damped, param, np.nan),
+        "steps_per_contact_period": steps_per_period,
+        "r_single_impact": produced,
+    }
+    if hertz.any():
+        derived["kh_N_per_m1_5"] = np.where(hertz, kh, np.nan)
+    if (codes_ == LAW_HERTZDAMP).any():
+        derived["hertzdamp_a"] = np.where(codes_ == LAW_HERTZDAMP, param, np.nan)
+    return k, np.ascontiguousarray(coef), derived, status.astype(np.int64)
 
 
 def history_spec(scene: Scene, floors: tuple[int, int]) -> tuple[HistorySpec, list[str]]:

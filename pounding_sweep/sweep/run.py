@@ -130,7 +130,7 @@ def run_scene(
     exe = executor or make_executor(
         ex.executor, threads if threads is not None else ex.threads, ex.dask_address, ex.dask_workers
     )
-    compile_s = compile_kernel(prep.sysarr, prep.opts, prep.hist, prep.score, kernel)  # the kernel this sweep uses
+    compile_s = compile_kernel(prep.sysarr, prep.opts, prep.hist, prep.score, kernel, prep.law_codes_used)
     t_run = time.perf_counter()
     try:
         for res in exe.map(prep, todo):
@@ -299,7 +299,10 @@ def _param_columns(exc: Excitation, params: dict, derived: dict) -> dict:
     else:
         cols["record"] = np.array([exc.record_name(p) for p in params["record"]], dtype=object)
     cols["scale"] = params["scale"]
-    cols["contact_damping_ratio"] = derived["contact_damping_ratio"]
+    cols["contact_law"] = np.asarray(params["law"], dtype=object)
+    for key in ("kh_N_per_m1_5", "contact_damping_ratio", "hertzdamp_a", "r_single_impact"):
+        if key in derived:
+            cols[key] = derived[key]
     cols["steps_per_contact_period"] = derived["steps_per_contact_period"]
     for key in ("dt_s", "dt_error_estimate"):  # dt = 'auto'
         if key in derived:

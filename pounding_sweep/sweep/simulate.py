@@ -31,15 +31,16 @@ def all_channels(floors: tuple[int, int]) -> list[str]:
 
 
 def with_overrides(scene: Scene, **overrides) -> Scene:
-    """The scene with sweepable parameters (ks_ratio, r, gap_m, ...) or dt_s/scheme/law replaced, no sweep."""
+    """The scene with sweepable parameters (ks_ratio, r, gap_m, law, ...), dt_s/scheme or a contact law's settings
+    (restitution_relation, min_impact_speed_m_s, reference_penetration_m) replaced, no sweep."""
     sections = {}
     for key, value in overrides.items():
         if key in SWEEPABLE:
             section, field = SWEEPABLE[key]
         elif key in ("dt_s", "scheme", "max_contact_iterations"):
             section, field = "integration", key
-        elif key == "law":
-            section, field = "contact", "law"
+        elif key in ("restitution_relation", "min_impact_speed_m_s", "reference_penetration_m"):
+            section, field = "contact", key
         else:
             raise ConfigError(f"simulate: unknown parameter '{key}'")
         sections.setdefault(section, {})[field] = value

@@ -1,0 +1,218 @@
+"""The per-run book-keeping the two floor-coordinate kernels share (engine/scalar.py for the linear laws,
+engine/nonlinear.py for the Hertz-type laws): the metric row's reset, per-floor peaks, per-pair contact
+metrics of an accepted piece, the experiment samples, history columns, and the run's closing rows
+(compression phases, scores, energy balance). One home, so both kernels report a run the same way.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pounding_sweep import codes
+from pounding_sweep.engine import layout as L
+from pounding_sweep.engine.jit import inline_kernel, njit_inner, njit_kernel
+from pounding_sweep.engine.score import N_SCORES, score_channel
+
+
+@njit_inner
+def start_row(out, npair, pbase, gap):
+    """Zero the run's metric row; each pair's closest approach starts at the gap (at rest, time 0)."""
+    for q in range(out.shape[0]):
+        out[q] = 0.0
+    for j in range(npair):
+        out[pbase + L.PER_PAIR * j + L.PAIR_CLOSEST] = gap
+
+
+@njit_inner
+def samples_at_rest(exp_t, xs):
+    """Experiment samples at t <= 0 see the structure at rest; returns the next sample to fill."""
+    k = 0
+    while k < exp_t.size and exp_t[k] <= 0.0:
+        for c in range(xs.shape[0]):
+            xs[c, k] = 0.0
+        k += 1
+    return k
+
+
+@njit_inner
+def sample_experiment(k, exp_t, exp_dof, xs, ustep, u, t, dt):
+    """Fill the experiment samples inside (t - dt, t] by linear interpolation between the step's ends
+    (ustep, u); returns the next sample to fill."""
+    while k < exp_t.size and exp_t[k] <= t + 1e-12 * dt:
+        theta = (exp_t[k] - (t - dt)) / dt
+        for c in range(exp_dof.size):
+            q = exp_dof[c]
+            xs[c, k] = ustep[q] + theta * (u[q] - ustep[q])
+        k += 1
+    return k
+
+
+@njit_inner
+def floor_peaks(out, u, a, ag, t, i2):
+    """Per floor, at a step's end: peak |u| (and its time), peak |absolute acceleration|, peak |drift|
+    of the story below (building 1's ground story is DOF 0, building 2's DOF i2[0])."""
+    for i in range(u.shape[0]):
+        base = L.PER_DOF * i
+        ad = abs(u[i])
+        if ad > out[base + L.DOF_PEAK_DISP]:
+            out[base + L.DOF_PEAK_DISP] = ad
+            out[base + L.DOF_PEAK_DISP_TIME] = t
+        aa = abs(a[i] + ag)
+        if aa > out[base + L.DOF_PEAK_ABS_ACC]:
+            out[base + L.DOF_PEAK_ABS_ACC] = aa
+        dr = abs(u[i] - u[i - 1]) if i != 0 and i != i2[0] else abs(u[i])
+        if dr > out[base + L.DOF_PEAK_DRIFT]:
+            out[base + L.DOF_PEAK_DRIFT] = dr
+
+
+@njit_inner
+def channel(kind, index, u, v, a, F, ag):
+    """Value of one history channel (see pounding_sweep.codes.H_*)."""
+    if kind == codes.H_DISP:
+        return u[index]
+    if kind == codes.H_VEL:
+        return v[index]
+    if kind == codes.H_ABS_ACC:
+        return a[index] + ag
+    if kind == codes.H_FORCE:
+        return F[index]
+    return ag
+
+
+@njit_inner
+def keep_history(hist, run, col, kinds, index, u, v, a, F, ag):
+    """Store every history channel's value in column `col` (dropped past the array's end)."""
+    if col < hist.shape[2]:
+        for c in range(kinds.shape[0]):
+            hist[run, c, col] = channel(kinds[c], index[c], u, v, a, F, ag)
+
+
+@inline_kernel
+def structure_work(u, un, m, C, Cdu, ag_s, ag_e, hs):
+    """(input work, structural damping work) of an accepted Newmark piece of length hs from u to un:
+    -du.M 1 (ag_s + ag_e) / 2 and du.C du / hs, exact for average acceleration (du = hs (v + vn) / 2)."""
+    n = u.shape[0]
+    s_in = 0.0
+    for i in range(n):
+        s_in += m[i] * (un[i] - u[i])
+        s = 0.0
+        for k in range(n):
+            s += C[i, k] * (un[k] - u[k])
+        Cdu[i] = s
+    de = -0.5 * (ag_s + ag_e) * s_in
+    s = 0.0
+    for i in range(n):
+        s += (un[i] - u[i]) * Cdu[i]
+    return de, s / hs
+
+
+@njit_inner
+def end_phase(durations, nphase, j, duration):
+    """Close a compressive phase of pair j (its duration kept for the median while the buffer lasts)."""
+    k = nphase[j]
+    if k < durations.shape[1]:
+        durations[j, k] = duration
+    nphase[j] = k + 1
+
+
+@njit_inner
+def pair_pieces(out, pbase, pen, F, active, was_active, hs, t_e, in_comp, comp_acc, durations, nphase):
+    """Contact metrics of every pair over an accepted piece of length hs ending at t_e, with penetration
+    pen[j] and force F[j] there: closest approach, impacts (a pair that entered contact), contact time,
+    penetration and force extremes, compressive time and phases (F > 0); then was_active = active."""
+    for j in range(pen.shape[0]):
+        base = pbase + L.PER_PAIR * j
+        p = pen[j]
+        f = F[j]
+        act = active[j]
+        if -p < out[base + L.PAIR_CLOSEST]:  # closest approach, at every accepted piece's end
+            out[base + L.PAIR_CLOSEST] = -p
+            out[base + L.PAIR_CLOSEST_TIME] = t_e
+        if act:
+            if not was_active[j]:
+                out[base + L.PAIR_IMPACTS] += 1.0
+            out[base + L.PAIR_CONTACT_TIME] += hs
+            if p > out[base + L.PAIR_MAX_PENETRATION]:
+                out[base + L.PAIR_MAX_PENETRATION] = p
+            if f > out[base + L.PAIR_PEAK_FORCE]:
+                out[base + L.PAIR_PEAK_FORCE] = f
+                out[base + L.PAIR_PEAK_FORCE_TIME] = t_e
+            if f < out[base + L.PAIR_MIN_FORCE]:
+                out[base + L.PAIR_MIN_FORCE] = f
+        comp = act and f > 0.0
+        if comp:
+            out[base + L.PAIR_COMPRESSION_TIME] += hs
+            comp_acc[j] = comp_acc[j] + hs if in_comp[j] else hs
+        elif in_comp[j]:
+            end_phase(durations, nphase, j, comp_acc[j])
+        in_comp[j] = comp
+        was_active[j] = act
+
+
+@njit_kernel
+def close_row(out, pbase, npair, in_comp, comp_acc, durations, nphase, status):
+    """Close the phases still open at the run's end; per pair the phase count and median duration.
+    Returns the status with STATUS_MEDIAN_TRUNCATED where the buffer overflowed."""
+    for j in range(npair):
+        if in_comp[j]:
+            end_phase(durations, nphase, j, comp_acc[j])
+        base = pbase + L.PER_PAIR * j
+        k = nphase[j]
+        out[base + L.PAIR_COMPRESSION_PHASES] = k
+        if k > L.MEDIAN_BUFFER:
+            status |= L.STATUS_MEDIAN_TRUNCATED
+            k = L.MEDIAN_BUFFER
+        out[base + L.PAIR_MEDIAN_COMPRESSION] = np.median(durations[j, :k]) if k > 0 else 0.0
+    return status
+
+
+@njit_kernel
+def score_run(scores, run, xs, exp_x, exp_t, k_filled, max_lag, exp_dt, status):
+    """Score the run's samples against every experiment channel (engine/score.py); a run that stopped
+    before the experiment's window ended is unscored (NaN, STATUS_UNSCORED). Returns the status."""
+    for c in range(exp_x.shape[0]):
+        if k_filled < exp_t.size:
+            status |= L.STATUS_UNSCORED
+            for q in range(N_SCORES):
+                scores[run, c, q] = np.nan
+        else:
+            score_channel(xs[c], exp_x[c], exp_t, max_lag, exp_dt, scores[run, c])
+    return status
+
+
+@njit_inner
+def energy_row(out, rbase, m, K, u, v, e_in, e_in_abs, d_struct, d_contact, e_spring, residual, status):
+    """The energy balance E_in = KE + SE + D_struct + D_contact + E_spring + residual at the run's end
+    (kinetic and strain energy from the end state); STATUS_ENERGY when |residual| > ENERGY_TOL of the
+    input work. Returns the status."""
+    n = u.shape[0]
+    ke_end = 0.0
+    se_end = 0.0
+    for i in range(n):
+        ke_end += 0.5 * m[i] * v[i] * v[i]
+        s = 0.0
+        for k in range(n):
+            s += K[i, k] * u[k]
+        se_end += 0.5 * u[i] * s
+    out[rbase + L.RUN_E_IN] = e_in
+    out[rbase + L.RUN_E_IN_ABS] = e_in_abs
+    out[rbase + L.RUN_KE] = ke_end
+    out[rbase + L.RUN_SE] = se_end
+    out[rbase + L.RUN_D_STRUCT] = d_struct
+    out[rbase + L.RUN_D_CONTACT] = d_contact
+    out[rbase + L.RUN_E_SPRING] = e_spring
+    out[rbase + L.RUN_E_RESIDUAL] = residual
+    if not (abs(residual) <= L.ENERGY_TOL * e_in_abs):
+        status |= L.STATUS_ENERGY
+    return status
+
+
+@njit_inner
+def run_counts(out, rbase, unsettled, max_it, steps, status):
+    """The run's solver counts and status at the end of its row."""
+    if unsettled > 0:
+        status |= L.STATUS_UNSETTLED
+    out[rbase + L.RUN_UNSETTLED] = unsettled
+    out[rbase + L.RUN_MAX_ITER] = max_it
+    out[rbase + L.RUN_STEPS] = steps
+    out[rbase + L.RUN_STATUS] = status

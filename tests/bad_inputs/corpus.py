@@ -960,7 +960,7 @@ CASES: list[Case] = [
         "record",
         "a pickle with format = 'csv'",
         ["rec.pkl"],
-        "found 0",
+        "binary data",
         record_scene("rec.pkl", 'format = "csv"\n'),
         files={"rec.pkl": PICKLE},
     ),

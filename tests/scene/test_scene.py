@@ -89,7 +89,7 @@ BAD = {
         edit(r"^ks_ratio = 1.0$", "ks_ratio = 1.0\nks_N_per_m = 6830.0"),
         r"give ks_ratio or ks_N_per_m, not both",
     ),
-    "bad_channel": (BASE + '\nhistories = ["disp_b3f1"]\n', r"channel 'disp_b3f1'.*b<building>f<floor>"),
+    "bad_channel": (BASE + '\nhistories = ["disp_b3f1"]\n', r"channel 'disp_b3f1'.*there is no building 3"),
     "floor_out_of_range": (BASE + '\nhistories = ["disp_b1f4"]\n', r"building 1 has floors 1..3"),
     "missing_record": (
         BASE.replace('type = "harmonic"', 'type = "record"\nrecord = "nowhere.AT2"')

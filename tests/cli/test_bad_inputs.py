@@ -239,6 +239,7 @@ ALLOWED_READERS = {
     "pd.read_parquet": {"plots.py"},  # result files the sweep wrote
     "pq.read_table": {"model/experiment.py", "sweep/run.py", "video/tracker.py"},  # tables; our own parts; track cache
     "pq.read_schema": {"sweep/results.py"},
+    "pq.read_metadata": {"sweep/results.py", "sweep/resume.py"},  # footers: parts, and the best-runs file, as ours
     "cv2.VideoCapture": {"video/io.py"},
 }
 FORBIDDEN = (

@@ -60,7 +60,7 @@ def open_regular(path, what: str, limit: int, error: type[Exception]):
         if not stat.S_ISREG(st.st_mode):
             raise error(f"{p}: cannot read {what}: {kind_of(st.st_mode)}, not a regular file")
         if st.st_size > limit:
-            raise error(f"{p}: {size_words(st.st_size)}, larger than the {size_words(limit)} a {what} may be")
+            raise error(f"{p}: {size_words(st.st_size)}, larger than the {size_words(limit)} {_a(what)} may be")
         if hasattr(os, "set_blocking"):
             os.set_blocking(fd, True)
         return os.fdopen(fd, "rb")
@@ -78,7 +78,7 @@ def read_regular(path, what: str, limit: int, error: type[Exception]) -> bytes:
         except OSError as e:
             raise error(f"{path}: cannot read {what} ({_strerror(e)})") from None
     if len(data) > limit:
-        raise error(f"{path}: larger than the {size_words(limit)} a {what} may be")
+        raise error(f"{path}: larger than the {size_words(limit)} {_a(what)} may be")
     return data
 
 
@@ -121,6 +121,10 @@ def resolve(path: Path) -> Path:
         return path.resolve()
     except (RuntimeError, OSError):
         return Path(os.path.abspath(path))
+
+
+def _a(noun: str) -> str:
+    return ("an " if noun[:1] in "aeiou" else "a ") + noun
 
 
 def _strerror(e: OSError) -> str:

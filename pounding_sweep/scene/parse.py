@@ -36,8 +36,10 @@ def load_scene(path: str | Path) -> Scene:
         raise ConfigError(f"{path}: TOML syntax error: {e}{_toml_line(text, str(e))}") from None
     except RecursionError:  # tomllib recurses once per level of nested arrays and inline tables
         raise ConfigError(f"{path}: TOML nested too deeply (arrays or inline tables inside each other)") from None
-    if (depth := _depth(raw)) > MAX_NESTING:
-        raise ConfigError(f"{path}: TOML nested {depth} levels deep; a scene needs at most {MAX_NESTING}")
+    if _depth(raw) > MAX_NESTING:
+        raise ConfigError(
+            f"{path}: TOML nested more than {MAX_NESTING} levels deep (arrays or tables inside each other)"
+        )
     try:
         return scene_from_dict(raw, base_dir=resolve(path).parent, source=str(path), toml_text=text)
     except ConfigError as e:

@@ -82,7 +82,9 @@ class DaskExecutor:
         try:
             from dask.distributed import Client, LocalCluster
         except ImportError as e:  # the optional extra is missing
-            raise RuntimeError("the Dask executor needs the 'dask' extra: python -m pip install '.[dask]'") from e
+            raise ClusterError(
+                "[execution] executor = 'dask' needs the 'dask' extra: python -m pip install '.[dask]'"
+            ) from e
         self.cluster = None
         self.address = address
         self.timeout_s = timeout_s
@@ -97,8 +99,7 @@ class DaskExecutor:
                 self.client = Client(address, timeout=f"{timeout_s}s")
             except Exception as e:  # noqa: BLE001 - a timeout, or something else listening (a garbled handshake)
                 raise ClusterError(
-                    f"--dask-address {address}: no Dask scheduler answered there within {timeout_s:g} s "
-                    f"({type(e).__name__}: {_reason(e)})"
+                    f"no Dask scheduler answered at {address} within {timeout_s:g} s ({type(e).__name__}: {_reason(e)})"
                 ) from None
         else:
             n = workers or resolve_threads(0)
@@ -234,7 +235,7 @@ def _probe(address: str, timeout_s: float) -> None:
     try:
         socket.create_connection((host.strip("[]"), int(port)), timeout=min(timeout_s, 5.0)).close()
     except (OSError, ValueError) as e:
-        raise ClusterError(f"--dask-address {address}: cannot reach a Dask scheduler there ({_reason(e)})") from None
+        raise ClusterError(f"cannot reach a Dask scheduler at {address} ({_reason(e)})") from None
 
 
 def _reason(e: BaseException) -> str:

@@ -288,8 +288,8 @@ def read_manifest(folder: Path) -> dict | None:
         raise ManifestError("it is empty")
     try:
         m = json.loads(raw)
-    except (UnicodeDecodeError, ValueError) as e:
-        raise ManifestError(f"it is cut short or not JSON ({e})") from None
+    except (UnicodeDecodeError, ValueError):
+        raise ManifestError("it is cut short or not JSON") from None
     if not isinstance(m, dict) or any(k not in m for k in MANIFEST_KEYS):
         raise ManifestError("it is not a pounding_sweep manifest (no " + ", ".join(MANIFEST_KEYS) + ")")
     return m

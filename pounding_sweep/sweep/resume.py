@@ -100,6 +100,9 @@ class OutputFolder:
         """Indexes of the parts already finished for this very sweep; refuse anything else in the folders.
         `manifest` is the new one (with the canonical config under "config")."""
         out = self.out
+        for f in (out, self.hpath):  # what killed sweeps left half-written (none runs now: the lock is ours)
+            if f is not None:
+                remove_stale_temporaries(f)
         try:
             old = read_manifest(out)
         except ManifestError as e:
@@ -126,9 +129,6 @@ class OutputFolder:
                 f"{out} holds results of a different sweep ({'; '.join(reasons)}); resuming would mix them: "
                 "give another --out, or --overwrite to replace them"
             )
-        for f in (out, self.hpath):
-            if f is not None:
-                remove_stale_temporaries(f)
         done = self._check_parts(out, manifest, rows=True)
         if self.hpath is not None:
             done &= self._check_parts(self.hpath, manifest, rows=False)  # a history part missing: run again
@@ -148,8 +148,8 @@ class OutputFolder:
                 h, count = part_config_hash(p)
             except Exception:  # noqa: BLE001 - pyarrow's errors for a file that is not whole Parquet vary
                 raise OutputError(
-                    f"{p}: cannot be read as Parquet ({_size(p)}: cut short or damaged); delete it and run the "
-                    "same command again to recompute it"
+                    f"{p}: cannot be read as Parquet (cut short or damaged); delete it and run the same command "
+                    "again to recompute it"
                 ) from None
             if h is None:
                 raise OutputError(
@@ -189,9 +189,6 @@ class OutputFolder:
                         "parts: move it away, or give another --out"
                     )
                 doomed.append(p)
-        for f in (self.out, self.hpath):
-            if f is not None:
-                remove_stale_temporaries(f)
         for p in doomed + [self.out / MANIFEST]:
             p.unlink(missing_ok=True)
         if self.best is not None and self.best.is_file():
@@ -237,20 +234,31 @@ class OutputFolder:
 
 def _refuse_non_folder(path: Path) -> None:
     """A file (or a FIFO, a device) at the output path is the user's: refused, never replaced."""
-    if path.is_dir() or not (path.exists() or path.is_symlink()):
+    import errno
+    import stat
+
+    from pounding_sweep.scene.files import kind_of
+
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        if path.is_symlink():
+            raise OutputError(f"{path}: a symbolic link to nothing: give another --out") from None
+        return  # to be made
+    except NotADirectoryError:
+        return  # a file on the way: creating the folder says so
+    except OSError as e:  # a name too long, a symlink loop, no permission to look
+        if e.errno == errno.ENAMETOOLONG:
+            raise OutputError(f"{path}: cannot create the results folder here ({_why(e)})") from None
+        raise OutputError(f"{path}: cannot use this path for results ({_why(e)})") from None
+    if stat.S_ISDIR(mode):
         return
-    if path.is_file():
+    if stat.S_ISREG(mode):
         raise OutputError(
             f"{path} is a file, not a results folder (a sweep writes a folder of Parquet parts there): give "
             "another --out, or move the file away"
         )
-    from pounding_sweep.scene.files import kind_of
-
-    try:
-        kind = kind_of(path.stat().st_mode)
-    except OSError as e:
-        kind = e.strerror or str(e)
-    raise OutputError(f"{path}: not a folder ({kind}): give another --out")
+    raise OutputError(f"{path}: not a folder ({kind_of(mode)}): give another --out")
 
 
 def _refuse_foreign_file(path: Path, what: str) -> None:
@@ -348,13 +356,6 @@ def _manifest_differences(old: dict, new: dict) -> list[str]:
             f"{new['chunk_runs']} now ({new['parts']} parts)"
         )
     return reasons
-
-
-def _size(p: Path) -> str:
-    try:
-        return f"{p.stat().st_size:,} bytes"
-    except OSError:
-        return "unreadable"
 
 
 def _why(e: OSError) -> str:

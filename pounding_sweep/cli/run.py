@@ -7,13 +7,17 @@ and value, exit status 2, and no output file.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import signal
 import sys
+import threading
 
 from pounding_sweep.cli.common import EXIT_BAD_INPUT
-from pounding_sweep.errors import ConfigError, ExperimentError, RecordError
+from pounding_sweep.errors import InputError
 from pounding_sweep.progress import Progress
 from pounding_sweep.scene import describe, load_scene
+from pounding_sweep.scene.validate import check_dask_address, check_workers
 
 # subcommands: `python -m pounding_sweep NAME ...` -> module:function(argv) -> exit code (imported lazily,
 # so a sweep never imports OpenCV or matplotlib)
@@ -123,36 +127,68 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_BAD_INPUT
     scene = None
     try:
-        scene = load_scene(args.scene)
-        from pounding_sweep.sweep.run import (
-            run_scene,
-        )  # Numba and pyarrow: after the scene is read, so bad input fails fast
+        with _terminated_as_interrupt():
+            if args.threads is not None:
+                check_workers(args.threads, "--threads")
+            if args.workers is not None:
+                check_workers(args.workers, "--workers")
+            if args.dask_address:
+                check_dask_address(args.dask_address, "--dask-address")
+            scene = load_scene(args.scene)
+            from pounding_sweep.sweep.run import (
+                run_scene,
+            )  # Numba and pyarrow: after the scene is read, so bad input fails fast
 
-        if args.threads is not None and args.threads < 0:
-            raise ConfigError(f"--threads {args.threads}: must be >= 0")
-        if args.workers is not None and args.workers < 0:
-            raise ConfigError(f"--workers {args.workers}: must be >= 0")
-        scene = _with_execution(scene, args)
-        summary = run_scene(
-            scene,
-            out_path=args.out,
-            threads=args.threads,
-            progress=Progress(not args.quiet),
-            overwrite=args.overwrite,
-            confirmed=args.yes,
-        )
-    except (ConfigError, RecordError, ExperimentError) as e:
+            scene = _with_execution(scene, args)
+            summary = run_scene(
+                scene,
+                out_path=args.out,
+                threads=args.threads,
+                progress=Progress(not args.quiet),
+                overwrite=args.overwrite,
+                confirmed=args.yes,
+            )
+    except InputError as e:  # the scene, its files, the output folder, the cluster: one line each
         msg = str(e)
         if scene is not None and msg.startswith("["):  # a key of the scene, found after loading: name the file too
             msg = f"{args.scene}: {msg}"
         print(f"error: {msg}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    except OSError as e:  # e.g. --out names a folder or an unwritable place
-        print(f"error: cannot write results: {e}", file=sys.stderr)
+    except OSError as e:  # an unwritable place not caught by name (the output checks name theirs)
+        where = f" ({e.filename})" if getattr(e, "filename", None) and str(e.filename) not in str(e) else ""
+        print(f"error: cannot write results: {e}{where}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except Terminated:
+        print(
+            "terminated (SIGTERM): the finished parts are kept; run the same command again to resume",
+            file=sys.stderr,
+        )
+        return 128 + signal.SIGTERM
     except KeyboardInterrupt:
         print("interrupted: the finished parts are kept; run the same command again to resume", file=sys.stderr)
         return 130
     if not args.quiet:
         _print_summary(summary)
     return 0
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (what batch schedulers send before they kill a job), raised where Ctrl-C would be."""
+
+
+@contextlib.contextmanager
+def _terminated_as_interrupt():
+    """While a sweep runs, SIGTERM unwinds it like Ctrl-C: the finished parts stay, the output folder is
+    released, the executor closed, and one line says so (the previous handler is restored after)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum, frame):
+        raise Terminated()
+
+    previous = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)

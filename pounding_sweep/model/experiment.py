@@ -21,6 +21,7 @@ if TYPE_CHECKING:  # pandas costs 0.3 s to import: only where a table is built
 from pounding_sweep.errors import ExperimentError
 from pounding_sweep.scene import ExperimentConfig
 from pounding_sweep.scene.channels import floor_dof
+from pounding_sweep.scene.files import MAX_TABLE_BYTES, open_regular, text_problem
 
 
 @dataclass(frozen=True)
@@ -46,26 +47,34 @@ def read_table(path: str | Path) -> tuple[pd.DataFrame, dict]:
     path = Path(path)
     if path.is_dir():
         raise ExperimentError(f"{path}: a folder, not an experiment table (.csv or .parquet)")
-    if not path.is_file():
+    if not path.exists() and not path.is_symlink():
         raise ExperimentError(f"{path}: experiment table not found")
     if path.suffix.lower() not in TABLE_SUFFIXES:
         raise ExperimentError(
             f"{path}: an experiment table is .csv or .parquet, not {path.suffix or 'a file without suffix'!r}"
         )
-    try:
-        if path.suffix.lower() == ".parquet":
-            import pyarrow.parquet as pq
+    # a FIFO, a device or a file over MAX_TABLE_BYTES is refused before it is read
+    with open_regular(path, "experiment table", MAX_TABLE_BYTES, ExperimentError) as fh:
+        try:
+            if path.suffix.lower() == ".parquet":
+                import pyarrow.parquet as pq
 
-            t = pq.read_table(path)
-            md = {k.decode(errors="replace"): v.decode(errors="replace") for k, v in (t.schema.metadata or {}).items()}
-            return t.to_pandas(), md
-        import pandas as pd
+                t = pq.read_table(path)  # by name, so its errors name the file (checked just above)
+                md = {
+                    k.decode(errors="replace"): v.decode(errors="replace") for k, v in (t.schema.metadata or {}).items()
+                }
+                return t.to_pandas(), md
+            head = fh.read(4096)
+            if (why := text_problem(path, "experiment table", head)) is not None:
+                raise ExperimentError(why)
+            fh.seek(0)
+            import pandas as pd
 
-        return pd.read_csv(path), {}
-    except ExperimentError:
-        raise
-    except Exception as e:  # pandas/pyarrow raise many types for unreadable files
-        raise ExperimentError(f"{path}: cannot read the experiment table ({type(e).__name__}: {e})") from None
+            return pd.read_csv(fh), {}
+        except ExperimentError:
+            raise
+        except Exception as e:  # pandas/pyarrow raise many types for unreadable files
+            raise ExperimentError(f"{path}: cannot read the experiment table ({type(e).__name__}: {e})") from None
 
 
 def load_experiment(cfg: ExperimentConfig, floors: tuple[int, int]) -> Experiment:

@@ -14,6 +14,7 @@ import numpy as np
 
 from pounding_sweep.codes import ACCEPTED_UNITS, UNIT_ALIASES
 from pounding_sweep.errors import RecordError
+from pounding_sweep.scene.files import MAX_RECORD_BYTES, read_regular, text_problem
 
 G_STANDARD = 9.80665  # m/s^2
 
@@ -121,11 +122,12 @@ def _unit_factor(units: object, path: str) -> tuple[str, float]:
 
 
 def _read_lines(path: Path) -> list[str]:
-    """Whole file as lines (any line ending); UTF-8 with a Latin-1 fallback for accented station names."""
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise RecordError(f"{path}: cannot read file ({exc.strerror or exc})") from None
+    """Whole file as lines (any line ending); UTF-8 with a Latin-1 fallback for accented station names.
+    A FIFO, a device or a file over MAX_RECORD_BYTES is refused unread; UTF-16 and binary files are
+    refused by what they are (never echoed as Latin-1 characters)."""
+    raw = read_regular(path, "record file", MAX_RECORD_BYTES, RecordError)
+    if (why := text_problem(path, "record file", raw)) is not None:
+        raise RecordError(why)
     try:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError:

@@ -21,6 +21,11 @@ EXECUTORS = ("local", "dask")
 MAX_AXIS_VALUES = 10_000_000  # a range longer than this is a typo, not a sweep
 MAX_STEPS = 100_000_000  # steps of one harmonic run (records: the same limit on resampling, records._MAX_SAMPLES)
 MAX_GRID = 50_000_000
+#: floors of one building: the model's matrices are (floors of both)^2, a run's cost about floors^3.5 on the
+#: scalar kernel (the engine's limits: scene/describe.py LIMITS); a longer list is a mistake, not a building
+MAX_FLOORS = 1000
+#: threads of the local executor, and processes of a Dask LocalCluster: more than any machine has cores
+MAX_THREADS = 1024
 
 # ----------------------------------------------------------------------------- sections
 

@@ -28,22 +28,21 @@ from pounding_sweep.errors import ConfigError, OutputError  # noqa: F401
 from pounding_sweep.model.excitation import Excitation
 from pounding_sweep.model.grid import Grid
 from pounding_sweep.scene import Scene
+from pounding_sweep.scene.hashing import hash_of
 from pounding_sweep.sweep.prepare import Prepared, drift_ratio_columns, prepare  # noqa: F401
 from pounding_sweep.sweep.ranking import Ranking, Refinement, refine, score_columns, score_table_columns
 from pounding_sweep.sweep.results import (
-    MANIFEST,
     PART_NAME,
-    AtomicParquetWriter,
     file_metadata,
     histories_path,
     histories_table,
     metrics_table,
     numpy_column,
     sidecar_path,
-    write_manifest,
     write_part,
+    write_table_atomic,
 )
-from pounding_sweep.sweep.resume import claim_output
+from pounding_sweep.sweep.resume import OutputFolder
 
 HISTORY_CHUNK_BYTES = 256 * 2**20
 
@@ -86,7 +85,6 @@ def run_scene(
     hash and package version) are kept and skipped; other results there are refused unless
     `overwrite`. `executor`: one from executors.make_executor (default: the scene's [execution]);
     `kernel`: engine.driver.KERNELS ("scalar": every chunk on the scalar kernel)."""
-    from pounding_sweep.sweep.executors import make_executor
 
     out_path = Path(out_path or scene.output.path)
     ex = scene.execution
@@ -96,6 +94,24 @@ def run_scene(
             f"[sweep] gives {size:,} runs, more than [execution] max_runs = {ex.max_runs:,}: "
             "confirm with --yes (or raise max_runs) if that many is meant"
         )
+    hpath = histories_path(out_path) if scene.output.histories else None
+    best_path = sidecar_path(out_path, "best") if scene.experiment is not None else None
+    # the output is claimed (locked, shown writable) before anything is read or computed, and released
+    # as found when the sweep fails before its first part
+    folder = OutputFolder(out_path, hpath, overwrite, best_path).claim()
+    ok = False
+    try:
+        summary = _run_claimed(scene, folder, threads, progress, executor, kernel, size)
+        ok = True
+    finally:
+        folder.release(ok)
+    return summary
+
+
+def _run_claimed(scene, folder, threads, progress, executor, kernel, size) -> SweepSummary:
+    from pounding_sweep.sweep.executors import make_executor
+
+    out_path, hpath, ex = folder.out, folder.hpath, scene.execution
     prep = prepare(scene, kernel)
     grid, model, exc = prep.grid, prep.model, prep.excitation
     chunk_runs = ex.chunk_runs
@@ -103,16 +119,17 @@ def run_scene(
         per_run = prep.hist.kinds.size * (int(exc.max_steps) // prep.hist.decimate + 1) * 8
         chunk_runs = max(1, min(chunk_runs, HISTORY_CHUNK_BYTES // per_run))
     chunks = [(i, s, e) for i, (s, e) in enumerate(grid.chunks(chunk_runs))]
+    config = scene.canonical()
     manifest = {
-        "config_hash": scene.config_hash(),
+        "config_hash": hash_of(config),
         "version": __version__,
         "scene": scene.name,
         "grid_size": grid.size,
         "chunk_runs": chunk_runs,
         "parts": len(chunks),
+        "config": config,  # the canonical scene: a refused resume names the key that differs
     }
-    hpath = histories_path(out_path) if prep.hist.active else None
-    done = claim_output(out_path, hpath, manifest, overwrite)
+    done = folder.resume(manifest)
     todo = [c for c in chunks if c[0] not in done]
 
     how = scene.experiment.combine if scene.experiment else "mean"
@@ -123,23 +140,22 @@ def run_scene(
     )
     tally = _Tally(ranking)
     for i in sorted(done):
-        tally.add(pq.read_table(out_path / PART_NAME.format(i)))
+        tally.add(_read_part(out_path / PART_NAME.format(i)))
     if progress is not None and done:
         progress(tally.runs, grid.size)
 
     exe = executor or make_executor(
         ex.executor, threads if threads is not None else ex.threads, ex.dask_address, ex.dask_workers
     )
-    compile_s = compile_kernel(prep.sysarr, prep.opts, prep.hist, prep.score, kernel)  # the kernel this sweep uses
-    t_run = time.perf_counter()
     try:
+        compile_s = compile_kernel(prep.sysarr, prep.opts, prep.hist, prep.score, kernel)  # the kernel this sweep uses
+        t_run = time.perf_counter()
         for res in exe.map(prep, todo):
             columns = {"run_id": res.params["run_id"], **_param_columns(exc, res.params, res.derived)}
             extra = score_table_columns(res.scores, prep.score_codes, how) if res.scores is not None else {}
             extra.update(drift_ratio_columns(scene, res.metrics, names))
             table = metrics_table(columns, names, res.metrics, res.run_time, extra)
-            if not (out_path / MANIFEST).exists():
-                write_manifest(out_path, manifest)
+            folder.write_manifest(manifest)
             if hpath is not None:  # histories first: a finished main part implies its histories exist
                 write_part(
                     hpath,
@@ -148,6 +164,7 @@ def run_scene(
                     meta,
                 )
             write_part(out_path, res.index, table, meta)
+            folder.wrote_part()
             tally.add(table)
             if progress is not None:
                 progress(tally.runs, grid.size)
@@ -187,12 +204,23 @@ def run_scene(
                 )
         best["run_id"] = best["run_id"].astype("Int64")
         summary.best = best
-        summary.best_path = sidecar_path(out_path, "best")
+        summary.best_path = folder.best
         import pyarrow as pa
 
-        with AtomicParquetWriter(summary.best_path, file_metadata(scene, {"kind": "best"})) as w:
-            w.write(pa.Table.from_pandas(best, preserve_index=False))
+        write_table_atomic(
+            summary.best_path, pa.Table.from_pandas(best, preserve_index=False), file_metadata(scene, {"kind": "best"})
+        )
     return summary
+
+
+def _read_part(path: Path):
+    """A finished part, read whole for the tally of a resumed sweep (its footer was checked by resume)."""
+    try:
+        return pq.read_table(path)
+    except Exception:  # noqa: BLE001 - pyarrow's errors for damaged data pages vary
+        raise OutputError(
+            f"{path}: cannot be read as Parquet (damaged); delete it and run the same command again to recompute it"
+        ) from None
 
 
 class _Tally:

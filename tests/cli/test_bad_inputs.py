@@ -55,7 +55,19 @@ def test_corpus_covers_the_issue():
     for c in CASES:
         assert c.where and c.value, f"{c.id}: a case names both where (file/key/line) and the value"
     counts = Counter(c.category for c in CASES)
-    assert set(counts) == {"toml", "keys", "types", "values", "grid", "record", "table", "video"}
+    assert set(counts) == {
+        "toml",
+        "keys",
+        "types",
+        "values",
+        "grid",
+        "record",
+        "table",
+        "video",
+        "output",  # issue 17: where results go,
+        "resume",  # what an existing result folder holds,
+        "execution",  # and how the sweep runs
+    }
     assert min(counts.values()) >= 5, counts
     assert 10 <= sum(c.subprocess for c in CASES) <= 16  # the real-process dozen
     assert {c.category for c in CASES if c.subprocess} == set(counts)  # one of each kind at least
@@ -239,6 +251,7 @@ ALLOWED_READERS = {
     "pd.read_parquet": {"plots.py"},  # result files the sweep wrote
     "pq.read_table": {"model/experiment.py", "sweep/run.py", "video/tracker.py"},  # tables; our own parts; track cache
     "pq.read_schema": {"sweep/results.py"},
+    "pq.read_metadata": {"sweep/results.py", "sweep/resume.py"},  # footers: parts, and the best-runs file, as ours
     "cv2.VideoCapture": {"video/io.py"},
 }
 FORBIDDEN = (

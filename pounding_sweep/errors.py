@@ -25,6 +25,11 @@ class ExperimentError(InputError):
     """A tracked-displacement table that cannot be scored against: names the file and column."""
 
 
+class ResultError(InputError):
+    """A file given as a sweep's result that is not one (a scene, a histories dataset, a best table):
+    the message names the file, what it is, and what to give instead."""
+
+
 class VideoError(InputError):
     """A video, or a tracking request, that cannot give a trustworthy displacement table.
 

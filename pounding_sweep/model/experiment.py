@@ -59,18 +59,34 @@ def read_table(path: str | Path) -> tuple[pd.DataFrame, dict]:
             if path.suffix.lower() == ".parquet":
                 import pyarrow.parquet as pq
 
+                try:
+                    names = pq.read_schema(path).names
+                except Exception:  # noqa: BLE001 - unreadable: read_table below says why, as it always has
+                    names = []
+                if len(set(names)) < len(names):  # pyarrow cannot read such a table: say why
+                    raise ExperimentError(f"{path}: {_repeated(sorted({n for n in names if names.count(n) > 1})[0])}")
                 t = pq.read_table(path)  # by name, so its errors name the file (checked just above)
                 md = {
                     k.decode(errors="replace"): v.decode(errors="replace") for k, v in (t.schema.metadata or {}).items()
                 }
-                return t.to_pandas(), md
-            head = fh.read(4096)
-            if (why := text_problem(path, "experiment table", head)) is not None:
-                raise ExperimentError(why)
-            fh.seek(0)
-            import pandas as pd
+                names = t.schema.names
+                df = t.to_pandas()
+            else:
+                import csv
+                import io
 
-            return pd.read_csv(fh), {}
+                head = fh.read(4096)
+                if (why := text_problem(path, "experiment table", head)) is not None:
+                    raise ExperimentError(why)
+                fh.seek(0)
+                import pandas as pd
+
+                raw = fh.read()
+                df, md = pd.read_csv(io.BytesIO(raw)), {}
+                text = raw.decode("utf-8", errors="replace")
+                names = next(csv.reader(io.StringIO(text)), [])  # as written: pandas renames a repeated 'x' to 'x.1'
+            df.attrs["repeated_columns"] = sorted({str(n) for n in names if names.count(n) > 1})
+            return df, md
         except ExperimentError:
             raise
         except Exception as e:  # pandas/pyarrow raise many types for unreadable files
@@ -90,7 +106,11 @@ def experiment_from_table(
     df: pd.DataFrame, md: dict, where: str, cfg: ExperimentConfig, floors: tuple[int, int]
 ) -> Experiment:
     """Read the table and check it: time column present, numeric, finite, strictly increasing;
-    every mapped column present, numeric and finite; every channel a model floor."""
+    every mapped column present, named once, numeric, finite and not constant; every channel a model floor."""
+    repeated = set(df.attrs.get("repeated_columns", ()))
+    for col in [cfg.time_column, *cfg.channels]:
+        if col in repeated:
+            raise ExperimentError(f"{where}: {_repeated(col)}")
     if cfg.time_column not in df.columns:
         raise ExperimentError(
             f"{where}: no time column '{cfg.time_column}' (columns: {', '.join(map(str, df.columns))})"
@@ -121,9 +141,24 @@ def experiment_from_table(
                 f"{where}: no column '{col}' (mapped to floor {code}); columns: {', '.join(map(str, df.columns))}"
             )
         floor_dof(code, floors, f"[experiment] channels.{col}")
-        chans[code] = _numeric(df[col], where, col) * factor
+    for col, code in cfg.channels.items():
+        x = _numeric(df[col], where, col)
+        if np.all(x == x[0]):
+            what = "zero throughout" if x[0] == 0 else f"constant ({float(x[0])!r} {cfg.units} throughout)"
+            raise ExperimentError(
+                f"{where}: column '{col}' (floor {code}) is {what}: a floor that never moves relative to the "
+                "table gives nothing to score against (a marker not tracked, or the wrong column?)"
+            )
+        chans[code] = x * factor
         cols[code] = col
     return Experiment(str(where), t, chans, cols, md)
+
+
+def _repeated(col: str) -> str:
+    return (
+        f"column name '{col}' appears more than once in the table's header: which one is meant cannot be told; "
+        "give each column its own name"
+    )
 
 
 def _numeric(series: pd.Series, where: str, col: str) -> np.ndarray:

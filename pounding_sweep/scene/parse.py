@@ -15,8 +15,16 @@ from pounding_sweep.errors import ConfigError, shown
 from pounding_sweep.scene.axes import SWEEPABLE
 from pounding_sweep.scene.files import MAX_SCENE_BYTES, read_regular, resolve, text_problem
 from pounding_sweep.scene.keys import check_keys
-from pounding_sweep.scene.schema import MAX_AXIS_VALUES, SECTIONS, TOP_KEYS, Axis, ExperimentConfig, Scene
-from pounding_sweep.scene.validate import validate
+from pounding_sweep.scene.schema import (
+    MAX_AXIS_VALUES,
+    SECTIONS,
+    TOP_KEYS,
+    Axis,
+    BuildingConfig,
+    ExperimentConfig,
+    Scene,
+)
+from pounding_sweep.scene.validate import one_storey_damping_modes, validate
 
 
 def load_scene(path: str | Path) -> Scene:
@@ -96,6 +104,8 @@ def scene_from_dict(raw: dict, base_dir: Path, source: str = "<dict>", toml_text
         if not isinstance(table, dict):
             raise ConfigError(f"'{name}' must be a table [{name}], got {type(table).__name__} {shown(table)}")
         sections[name] = _build(cls, table, name)
+        if cls is BuildingConfig and len(sections[name].masses_kg) == 1 and "damping_modes" in table:
+            raise ConfigError(one_storey_damping_modes(name, sections[name].damping_modes))  # given, even as [1, 2]
     name = _typed(raw.get("name", Path(source).stem), str, "name")
     if not name or any(c in name for c in "/\\\x00") or name in (".", ".."):
         raise ConfigError(

@@ -26,6 +26,17 @@ def _positive(value, key):
         raise ConfigError(f"{key} = {value!r}: must be > 0")
 
 
+DEFAULT_DAMPING_MODES = (1, 2)
+
+
+def one_storey_damping_modes(bname: str, modes) -> str:
+    """The message for damping_modes on a one-storey building (which has mode 1 only)."""
+    return (
+        f"[{bname}] damping_modes = {list(modes)}: a one-storey building has only mode 1, where damping_ratio "
+        "is met by stiffness-proportional damping alone; remove damping_modes"
+    )
+
+
 def validate(s: Scene) -> None:
     """Physical and logical checks that the type coercion cannot make."""
     for bname in ("building1", "building2"):
@@ -70,6 +81,8 @@ def validate(s: Scene) -> None:
                 raise ConfigError(f"[{bname}] {k} = {v!r}: must be >= 0")
         if b.damping_ratio is not None and not 0 <= b.damping_ratio < 1:
             raise ConfigError(f"[{bname}] damping_ratio = {b.damping_ratio!r}: must lie in [0, 1)")
+        if n == 1 and tuple(b.damping_modes) != DEFAULT_DAMPING_MODES:
+            raise ConfigError(one_storey_damping_modes(bname, b.damping_modes))
         if len(b.damping_modes) != 2 or len(set(b.damping_modes)) != 2 or not all(1 <= m <= n for m in b.damping_modes):
             if n > 1:
                 raise ConfigError(
@@ -222,6 +235,11 @@ def _validate_experiment(s: Scene) -> None:
     if x.max_lag_s < 0:
         raise ConfigError(f"[experiment] max_lag_s = {x.max_lag_s!r}: must be >= 0")
     _positive(x.refine_max_evals, "[experiment] refine_max_evals")
+    if x.time_column in x.channels:
+        raise ConfigError(
+            f"[experiment] channels.{x.time_column} = {x.channels[x.time_column]!r}: '{x.time_column}' is the "
+            "time column (time_column), not a displacement; map the floor's displacement column instead"
+        )
     floors = (len(s.building1.masses_kg), len(s.building2.masses_kg))
     seen = {}
     for col, target in x.channels.items():

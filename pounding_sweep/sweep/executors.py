@@ -37,10 +37,11 @@ class PartResult:
     derived: dict
 
 
-def run_part(prep, index: int, start: int, stop: int, threads: int = 1, batch_runs: int = 0) -> PartResult:
-    """Integrate runs [start, stop) of the prepared scene (the unit of work of every executor)."""
+def run_part(prep, index: int, start: int, stop: int, threads: int = 1, batch_runs: int = 0, done=None) -> PartResult:
+    """Integrate runs [start, stop) of the prepared scene (the unit of work of every executor); `done(n)`:
+    called as groups of n runs finish (engine.driver.run_chunk)."""
     params = prep.grid.chunk(start, stop)
-    metrics, run_time, hist, scores, derived = prep.run(params, threads, batch_runs)
+    metrics, run_time, hist, scores, derived = prep.run(params, threads, batch_runs, done)
     return PartResult(index, start, stop, params, metrics, run_time, hist, scores, derived)
 
 
@@ -53,9 +54,10 @@ class LocalExecutor:
         self.threads = resolve_threads(threads)
         self.workers = self.threads
 
-    def map(self, prep, chunks: Iterable[tuple[int, int, int]]) -> Iterator[PartResult]:
+    def map(self, prep, chunks: Iterable[tuple[int, int, int]], done=None) -> Iterator[PartResult]:
+        """The chunks' results in order; `done(n)` is called from the threads as groups of n runs finish."""
         for index, start, stop in chunks:
-            yield run_part(prep, index, start, stop, self.threads, prep.scene.execution.batch_runs)
+            yield run_part(prep, index, start, stop, self.threads, prep.scene.execution.batch_runs, done)
 
     def close(self) -> None:
         pass
@@ -115,7 +117,9 @@ class DaskExecutor:
         self.workers = max(1, len(self.client.scheduler_info().get("workers", {})) or workers or 1)
         self.window = window_per_worker * self.workers
 
-    def map(self, prep, chunks: Iterable[tuple[int, int, int]]) -> Iterator[PartResult]:
+    def map(self, prep, chunks: Iterable[tuple[int, int, int]], done=None) -> Iterator[PartResult]:
+        """The chunks' results as they complete. `done` is not called: the runs finish in other processes,
+        and progress counts whole parts."""
         from dask.distributed import as_completed
 
         try:

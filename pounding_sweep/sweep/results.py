@@ -174,6 +174,30 @@ def read_metadata(path: str | Path) -> dict:
     return json.loads(read_schema(path).metadata[META_KEY])
 
 
+def meta_warnings(metadata: dict[bytes, bytes]) -> list[str]:
+    """The warnings stored in metadata made by file_metadata."""
+    return list(json.loads(metadata[META_KEY]).get("warnings", []))
+
+
+def store_warnings(folder: Path, messages: list[str]) -> None:
+    """Put a sweep's warnings into the metadata of its first part (the one read_metadata reads): the
+    parts carry the warnings known before the runs; those found from the results (no run made contact)
+    come after every part is written. The part is rewritten under a temporary name and renamed."""
+    parts = part_files(folder)
+    if not parts or part_index(parts[0]) != 0:
+        return
+    table = pq.read_table(parts[0])
+    md = dict(table.schema.metadata or {})
+    if META_KEY not in md:
+        return
+    info = json.loads(md[META_KEY])
+    if info.get("warnings") == list(messages):
+        return
+    info["warnings"] = list(messages)
+    md[META_KEY] = json.dumps(info, default=str).encode()
+    write_part(folder, 0, table, md)
+
+
 def read_schema(path: str | Path) -> pa.Schema:
     """Schema (with the key-value metadata) of a result file, or of a dataset folder's first part."""
     p = Path(path)

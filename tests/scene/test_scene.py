@@ -202,3 +202,27 @@ def test_describe_states_the_engine_limits():
         "1,000 per building",
     ):
         assert words in d, words
+
+
+def test_describe_lists_the_top_level_keys_and_marks_what_is_required():
+    """Issue 16: name and description were missing, and a required key read 'default None'."""
+    import dataclasses
+
+    from pounding_sweep.scene.schema import SECTIONS, ExperimentConfig
+
+    lines = describe().splitlines()
+    assert lines[1].startswith("  name: ") and lines[2].startswith("  description: ")
+    assert "None" not in describe()
+    keyed = {line.split(":")[0].strip(): line for line in lines if line.startswith("  ")}
+    for key in ("masses_kg", "r", "type"):
+        assert keyed[key].endswith("(required)"), keyed[key]
+    assert keyed["ks_ratio"].endswith("(required unless ks_N_per_m is given, or either swept)")
+    assert keyed["amplitude_m"].endswith("(required for type = 'harmonic')")
+    assert keyed["gap_m"].endswith("(default 0.0)")
+    for name in ("building1", "building2", "contact", "excitation"):
+        assert f"[{name}] (required section)" in describe()
+    # every key of every section is listed, once per section
+    for name, cls in {**SECTIONS, "experiment": ExperimentConfig}.items():
+        section = describe().split(f"[{name}]", 1)[1].split("\n[", 1)[0]
+        for f in dataclasses.fields(cls):
+            assert f"\n  {f.name}: " in section, (name, f.name)

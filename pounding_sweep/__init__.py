@@ -2,7 +2,7 @@
 
 Layers, each a subpackage that imports only those below it (tests/test_layers.py checks it):
 
-    errors, codes, progress   shared bottom modules (import nothing of the package)
+    errors, codes, progress, warn   shared bottom modules (import nothing of the package)
     scene      TOML -> validated, frozen dataclasses; --describe; the config hash
     model      scene -> arrays: structure, contact parameters, records, excitation, grid, experiment tables
     engine     the Numba kernels and their driver (arrays in, metric rows out)

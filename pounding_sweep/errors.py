@@ -25,6 +25,11 @@ class ExperimentError(InputError):
     """A tracked-displacement table that cannot be scored against: names the file and column."""
 
 
+class ResultError(InputError):
+    """A file given as a sweep's result that is not one (a scene, a histories dataset, a best table):
+    the message names the file, what it is, and what to give instead."""
+
+
 class VideoError(InputError):
     """A video, or a tracking request, that cannot give a trustworthy displacement table.
 
@@ -34,3 +39,25 @@ class VideoError(InputError):
     def __init__(self, path, what: str, value=None):
         self.path, self.what, self.value = str(path), what, value
         super().__init__(f"{path}: {what}" + ("" if value is None else f" ({value})"))
+
+
+class ClusterError(InputError):
+    """A Dask scheduler that cannot be reached or was lost: one line naming the address; the parts
+    written so far are kept, and the same command resumes."""
+
+
+def shown(value, width: int = 80) -> str:
+    """repr(value) for a one-line message, cut to about `width` characters: a list of a million values
+    or a string of a megabyte is shown by its start and its length, never whole."""
+    import reprlib
+
+    r = reprlib.Repr()
+    r.maxlist = r.maxtuple = r.maxdict = r.maxset = 8
+    r.maxlevel = 3
+    r.maxstring = r.maxother = r.maxlong = width
+    text = r.repr(value)
+    if isinstance(value, str) and len(value) > width:
+        text += f" ({len(value):,} characters)"
+    elif isinstance(value, list | tuple | dict) and len(value) > 8:
+        text += f" ({len(value):,} values)"
+    return text

@@ -23,8 +23,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from pounding_sweep.errors import ResultError
 from pounding_sweep.scene import scene_from_dict, validate
-from pounding_sweep.sweep.results import read_metadata, read_schema, sidecar_path
+from pounding_sweep.sweep.results import META_KEY, read_metadata, read_schema, sidecar_path
 
 DPI = 120
 #: columns an error-against-run-time table needs (one row per scheme and dt); `accuracy_ladder` writes them
@@ -64,6 +65,86 @@ def scene_of(results: str | Path):
     return scene_from_dict(tomllib.loads(toml), base_dir=src.resolve().parent, source=str(src), toml_text=toml)
 
 
+def check_results(results: str | Path) -> dict:
+    """The metadata of a sweep's result (its dataset folder, or one part), or a ResultError saying
+    what the file is instead (a scene, a histories dataset, a best table, not ours) and what to give."""
+    p = Path(results)
+    if not p.exists():
+        raise ResultError(f"{p}: no such file or folder (give a sweep's result, e.g. results/<scene>.parquet)")
+    if p.suffix.lower() == ".toml":
+        raise ResultError(
+            f"{p}: a scene file, not a result: run it first (python -m pounding_sweep {p}), "
+            "then plot the result folder it writes"
+        )
+    try:
+        schema = read_schema(p)
+    except (OSError, ValueError, KeyError) as e:  # pyarrow's errors are OSError or ValueError (ArrowInvalid)
+        msg = str(e.args[0] if isinstance(e, KeyError) and e.args else e).splitlines()[0] or type(e).__name__
+        for prefix in (f"{p}: ", f"{p.resolve()}: "):
+            msg = msg.removeprefix(prefix)
+        msg = msg.removeprefix("not a pounding_sweep result (").removesuffix(")") if "(" in msg else msg
+        raise ResultError(f"{p}: not a pounding_sweep result ({msg})") from None
+    md = read_metadata(p) if META_KEY in (schema.metadata or {}) else {}
+    stem = p.name.removesuffix(".parquet").rsplit(".", 1)[0] + ".parquet"
+    if md.get("kind") == "best":
+        raise ResultError(
+            f"{p}: the best-runs table of a sweep, not its result: plot {p.with_name(stem)} (the table is read from beside it)"
+        )
+    if "t_s" in schema.names and "status" not in schema.names:
+        raise ResultError(
+            f"{p}: the time histories of a sweep, not its result: plot {p.with_name(stem)} "
+            "(the histories are re-simulated from it)"
+        )
+    if md.get("kind") != "runs" or "run_id" not in schema.names:
+        raise ResultError(f"{p}: not the result of a sweep (metadata kind {md.get('kind')!r})")
+    return md
+
+
+#: how each sweep axis is labelled, and the factor its values are shown with
+AXES = {
+    "ks_ratio": ("contact stiffness ratio $k_s/k$ [-]", "k_s/k", 1.0),
+    "ks_N_per_m": ("contact stiffness $k_s$ [N/m]", "k_s [N/m]", 1.0),
+    "r": ("coefficient of restitution r [-]", "r", 1.0),
+    "gap_m": ("gap d [mm]", "gap [mm]", 1e3),
+    "amplitude_m": ("table amplitude [mm]", "amplitude [mm]", 1e3),
+    "frequency_Hz": ("table frequency [Hz]", "f [Hz]", 1.0),
+    "scale": ("record scale [-]", "scale", 1.0),
+    "record": ("record", "record", None),
+}
+
+
+def swept_axes(df: pd.DataFrame, md: dict) -> list[str]:
+    """The axes of the sweep that take more than one value among the runs, in the grid's order."""
+    return [k for k in md.get("grid_axes", {}) if k in df.columns and df[k].nunique() > 1]
+
+
+def map_axes(df: pd.DataFrame, md: dict) -> tuple[str, str] | None:
+    """(rows, columns) of the grid maps: (k_s/k, r) when both are swept (the paper's), else the first two
+    swept axes; None when fewer than two are swept."""
+    axes = swept_axes(df, md)
+    if {"ks_ratio", "r"} <= set(axes):
+        return "ks_ratio", "r"
+    return (axes[0], axes[1]) if len(axes) >= 2 else None
+
+
+def _value_text(axis: str, v) -> str:
+    factor = AXES.get(axis, ("", "", 1.0))[2]
+    return str(v) if factor is None else f"{float(v) * factor:g}"
+
+
+def values_text(axis: str, values) -> str:
+    """'k_s/k = 0.1, 1, 5, 10' (long axes shortened to their ends and count)."""
+    vals = sorted(set(values), key=lambda v: str(v) if AXES.get(axis, ("", "", 1.0))[2] is None else float(v))
+    shown = [_value_text(axis, v) for v in vals]
+    text = ", ".join(shown) if len(shown) <= 8 else f"{shown[0]} .. {shown[-1]} ({len(shown)} values)"
+    return f"{AXES.get(axis, (axis, axis, 1.0))[1]} = {text}"
+
+
+def run_text(row, axes) -> str:
+    """The run's value on each of `axes`: 'gap [mm] = 1, k_s/k = 10'."""
+    return ", ".join(f"{AXES.get(a, (a, a, 1.0))[1]} = {_value_text(a, row[a])}" for a in axes if a in row)
+
+
 def channel_label(code: str, md: dict) -> str:
     """'b1f3' -> 'Model-1, floor 3' (the building's name from the result file's metadata)."""
     b, f = int(code[1]), int(code.split("f")[1])
@@ -83,19 +164,19 @@ def score_codes(df: pd.DataFrame) -> list[str]:
 # ----------------------------------------------------------------------------- grid maps and tables
 
 
-def _grid_pivot(df: pd.DataFrame, value: str, aggfunc="min") -> pd.DataFrame:
-    """Rows k_s/k, columns r (the lowest value over any other swept axis)."""
-    return df.pivot_table(index="ks_ratio", columns="r", values=value, aggfunc=aggfunc, dropna=False)
+def _grid_pivot(df: pd.DataFrame, value: str, aggfunc="min", axes=("ks_ratio", "r")) -> pd.DataFrame:
+    """Rows axes[0], columns axes[1] (the lowest value over any other swept axis)."""
+    return df.pivot_table(index=axes[0], columns=axes[1], values=value, aggfunc=aggfunc, dropna=False)
 
 
-def _other_axes(md: dict) -> list[str]:
-    return [k for k, v in md.get("grid_axes", {}).items() if k not in ("ks_ratio", "r") and len(v) > 1]
+def _other_axes(md: dict, shown=("ks_ratio", "r")) -> list[str]:
+    return [k for k, v in md.get("grid_axes", {}).items() if k not in shown and len(v) > 1]
 
 
-def error_table(df: pd.DataFrame, code: str) -> pd.DataFrame:
+def error_table(df: pd.DataFrame, code: str, axes=("ks_ratio", "r")) -> pd.DataFrame:
     """Relative RMS error (eq. 20) [%] of channel `code` over the grid: rows k_s/k, columns r (Tables 2-3)."""
-    t = _grid_pivot(df, f"rel_rms_{code}_pct")
-    t.index.name, t.columns.name = "k_s/k", "r"
+    t = _grid_pivot(df, f"rel_rms_{code}_pct", axes=axes)
+    t.index.name, t.columns.name = (AXES.get(a, (a, a, 1.0))[1] for a in axes)
     return t
 
 
@@ -110,26 +191,28 @@ def heatmap(
     cmap="viridis_r",
     mark_best: bool = False,
     flag_cells: bool = True,
+    axes=("ks_ratio", "r"),
 ):
-    """Value over the (k_s/k, r) grid, annotated like the paper's tables (up to 150 cells).
+    """Value over two swept axes (rows axes[0], columns axes[1]; default the paper's (k_s/k, r)),
+    annotated like the paper's tables (up to 150 cells).
 
     The annotation's colour follows the cell's brightness; `mark_best` outlines the lowest cell;
     a cell holding a run whose status is not 'ok' gets a '*'.
     """
-    t = _grid_pivot(df, value)
+    t = _grid_pivot(df, value, axes=axes)
     v = t.to_numpy(dtype=float)
     im = ax.imshow(np.ma.masked_invalid(v), origin="lower", aspect="auto", cmap=cmap, norm=norm)
     sx, sy = max(1, math.ceil(t.shape[1] / 12)), max(1, math.ceil(t.shape[0] / 12))
-    ax.set_xticks(range(0, t.shape[1], sx), [f"{c:g}" for c in t.columns[::sx]])
-    ax.set_yticks(range(0, t.shape[0], sy), [f"{i:g}" for i in t.index[::sy]])
-    ax.set_xlabel("coefficient of restitution r [-]")
-    ax.set_ylabel("contact stiffness ratio $k_s/k$ [-]")
+    ax.set_xticks(range(0, t.shape[1], sx), [_value_text(axes[1], c) for c in t.columns[::sx]])
+    ax.set_yticks(range(0, t.shape[0], sy), [_value_text(axes[0], i) for i in t.index[::sy]])
+    ax.set_xlabel(AXES.get(axes[1], (axes[1],))[0])
+    ax.set_ylabel(AXES.get(axes[0], (axes[0],))[0])
     ax.set_title(title)
     if v.size <= 150:
         flagged = np.zeros(v.shape, bool)
         if flag_cells and "status" in df:
             flags = df.assign(_flag=(df["status"] != "ok").astype(float))
-            flagged = _grid_pivot(flags, "_flag", "max").to_numpy() > 0
+            flagged = _grid_pivot(flags, "_flag", "max", axes).to_numpy() > 0
         for (i, j), x in np.ndenumerate(v):
             if np.isfinite(x):
                 red, green, blue, _ = im.cmap(im.norm(x))
@@ -146,8 +229,10 @@ def heatmap(
     return im
 
 
-def has_grid(df: pd.DataFrame) -> bool:
-    """Whether the runs span more than one k_s/k and more than one r (a map can be drawn)."""
+def has_grid(df: pd.DataFrame, md: dict | None = None) -> bool:
+    """Whether the runs span two swept axes (a map can be drawn); without `md`, k_s/k and r."""
+    if md is not None:
+        return map_axes(df, md) is not None
     return {"ks_ratio", "r"} <= set(df.columns) and df.ks_ratio.nunique() > 1 and df.r.nunique() > 1
 
 
@@ -159,15 +244,22 @@ def _flag_note(df: pd.DataFrame) -> str:
     return "* cell holds a flagged run (" + ", ".join(f"{w}: {n}" for w, n in words.items()) + ")"
 
 
+def _force_columns(df: pd.DataFrame) -> list[str]:
+    return [c for c in df.columns if c.startswith("peak_force_f")]
+
+
 def heatmap_figure(df: pd.DataFrame, md: dict, best: pd.DataFrame | None = None):
-    """Eq. 20 error of each scored channel over (k_s/k, r) on one shared log colour scale, the
-    lowest cell outlined (Tables 2-3); without an experiment, the first building's top-floor
-    peak displacement and the top pair's peak pounding force."""
+    """Eq. 20 error of each scored channel over two swept axes ((k_s/k, r) when both are swept, like
+    Tables 2-3; else the first two) on one shared log colour scale, the lowest cell outlined; without an
+    experiment, the first building's top-floor peak displacement and, where any run made contact, the
+    top pair's peak pounding force. The swept values are listed in the title."""
     from matplotlib.colors import LogNorm, Normalize
 
+    axes = map_axes(df, md) or ("ks_ratio", "r")
     codes = score_codes(df)
-    other = _other_axes(md)
+    other = _other_axes(md, axes)
     over = f" (lowest over {', '.join(other)})" if other else ""
+    notes = [_flag_note(df)]
     if codes:
         vals = np.concatenate([df[f"rel_rms_{c}_pct"].to_numpy(float) for c in codes])
         vals = vals[np.isfinite(vals) & (vals > 0)]
@@ -178,34 +270,35 @@ def heatmap_figure(df: pd.DataFrame, md: dict, best: pd.DataFrame | None = None)
         what = f"relative RMS error of the displacement against the experiment (eq. 20){over}"
     else:
         nf1 = len(md["buildings"][0]["masses_kg"])
-        top = [c for c in df.columns if c.startswith("peak_force_f")][-1]
+        top = _force_columns(df)[-1]
         j = top.removeprefix("peak_force_f").removesuffix("_N")
         df = df.assign(**{f"peak_disp_b1f{nf1}_mm": df[f"peak_disp_b1f{nf1}_m"] * 1e3})
-        maps = [
-            (f"peak_disp_b1f{nf1}_mm", f"{channel_label(f'b1f{nf1}', md)}: peak displacement [mm]", None, False),
-            (top, f"floor {j}: peak pounding force [N]", None, False),
-        ]
+        maps = [(f"peak_disp_b1f{nf1}_mm", f"{channel_label(f'b1f{nf1}', md)}: peak displacement [mm]", None, False)]
+        if np.nanmax(df[_force_columns(df)].to_numpy(float), initial=0.0) > 0:
+            maps.append((top, f"floor {j}: peak pounding force [N]", None, False))
+        else:
+            notes.append("no run made contact: no pounding-force map")
         unit = None
         what = f"peak response over the grid{over}"
-    fig = _figure(figsize=(5.6 * len(maps), 4.6))
-    axes = fig.subplots(1, len(maps), squeeze=False)[0]
-    for ax, (col, title, norm, is_err) in zip(axes, maps):
-        im = heatmap(ax, df, col, title, "{:.3g}", norm=norm, mark_best=is_err)
+    fig = _figure(figsize=(5.6 * len(maps), 4.8))
+    panels = fig.subplots(1, len(maps), squeeze=False)[0]
+    for ax, (col, title, norm, is_err) in zip(panels, maps):
+        im = heatmap(ax, df, col, title, "{:.3g}", norm=norm, mark_best=is_err, axes=axes)
         cb = fig.colorbar(im, ax=ax, label=unit or title.rsplit(": ", 1)[-1])
         if isinstance(norm, LogNorm):
             _plain_log(cb.ax.yaxis, _nice_log_ticks(norm.vmin, norm.vmax))
-    lines = [f"{md['scene_name']}: {what}; {len(df)} runs"]
-    notes = [_flag_note(df)]
+    swept = "; ".join(values_text(a, df[a]) for a in swept_axes(df, md))
+    lines = [f"{md['scene_name']}: {what}; {len(df)} runs", f"swept: {swept}" if swept else "nothing swept"]
     if codes:
         notes.insert(0, "red box: lowest error")
         ref = best[best.criterion == "refined_combined"] if best is not None and "criterion" in best else ()
         if len(ref):
             r0 = ref.iloc[0]
+            opt = ", ".join(f"{AXES[k][1]} = {r0[k]:.3g}" for k in ("ks_ratio", "r") if k in r0 and pd.notna(r0[k]))
             notes.append(
-                f"refined optimum k_s/k = {r0.ks_ratio:.3g}, r = {r0.r:.3g}: "
-                f"{md.get('experiment', {}).get('combine', 'combined')} error {r0.error_pct:.2f} %"
+                f"refined optimum {opt}: {md.get('experiment', {}).get('combine', 'combined')} error {r0.error_pct:.2f} %"
             )
-    fig.suptitle("\n".join(lines))
+    fig.suptitle("\n".join(lines), fontsize=11)
     fig.supxlabel("; ".join(notes), fontsize=9)
     return fig
 
@@ -282,21 +375,28 @@ def _params_text(pick: dict) -> str:
 
 
 def best_run(results: str | Path, df: pd.DataFrame) -> tuple[dict, str, pd.Series]:
-    """(parameters to re-simulate, a label, its result row): the best grid run against the experiment
-    (lowest combined eq. 20 error), or without one the run with the largest pounding force."""
+    """(parameters to re-simulate, a label naming its value on every swept axis, its result row): the best
+    grid run against the experiment (lowest combined eq. 20 error), or without one the run with the
+    largest pounding force (run 0 when no run made contact)."""
+    md = read_metadata(results)
     best_file = sidecar_path(results, "best")
     best = pd.read_parquet(best_file) if best_file.exists() else None
     rows = best[best.criterion == "rel_rms_combined_pct"] if best is not None and "criterion" in best else ()
-    named = len(rows) > 0
-    if named:
+    swept = swept_axes(df, md)
+    if len(rows) > 0:
         b = rows.iloc[0]
         row = df[df.run_id == int(b.run_id)].iloc[0]
-        how = read_metadata(results).get("experiment", {}).get("combine", "combined")
-        label = f"best grid run k_s/k = {b.ks_ratio:g}, r = {b.r:g} ({how} eq. 20 error {b.error_pct:.1f} %)"
+        how = md.get("experiment", {}).get("combine", "combined")
+        label = f"best grid run, {run_text(row, swept)} ({how} eq. 20 error {b.error_pct:.1f} %)"
     else:
-        top = [c for c in df.columns if c.startswith("peak_force_f")][-1]
-        row = df.iloc[int(np.nanargmax(df[top].to_numpy()))]
-        label = "run with the largest pounding force"
+        forces = df[_force_columns(df)].to_numpy(float).max(axis=1)
+        if np.nanmax(forces, initial=0.0) > 0:
+            row = df.iloc[int(np.nanargmax(forces))]
+            label = "run with the largest pounding force"
+        else:
+            row = df.iloc[0]
+            label = f"run {int(row.run_id)}; no run made contact"
+        label += f": {run_text(row, swept)}" if swept else ""
     pick = {
         k: float(row[k])
         for k in ("ks_ratio", "r", "gap_m", "amplitude_m", "frequency_Hz", "scale")
@@ -304,18 +404,19 @@ def best_run(results: str | Path, df: pd.DataFrame) -> tuple[dict, str, pd.Serie
     }
     if "ks_ratio" not in pick and "ks_N_per_m" in row:
         pick["ks_N_per_m"] = float(row["ks_N_per_m"])
-    records = read_metadata(results).get("grid_axes", {}).get("record", [])
+    records = md.get("grid_axes", {}).get("record", [])
     if len(records) > 1:  # a swept record: re-simulate the row's own
         pick["record"] = next(p for p in records if Path(p).stem == row["record"])
-        label += f", record {row['record']}"
-    if not named:
-        label += ": " + _params_text(pick)
     return pick, label, row
+
+
+def _time_text(t: float) -> str:
+    return f"{t:.2f}".rstrip("0").rstrip(".")
 
 
 def zoom_window(scene, t_end: float, exp=None, x=None, width_s: float = 0.5) -> tuple[float, float]:
     """The zoomed interval: 2-2.5 s for harmonic motion (the paper's), else `width_s` around the
-    largest experimental (or, without one, numerical `x`) displacement."""
+    largest experimental (or, without one, numerical `x`) displacement; its ends at 0.01 s."""
     if t_end <= width_s:
         return 0.0, t_end
     if scene.excitation.type == "harmonic" and t_end >= 2.0 + width_s:
@@ -327,12 +428,42 @@ def zoom_window(scene, t_end: float, exp=None, x=None, width_s: float = 0.5) -> 
         tp = float(te[keep][np.argmax(np.abs(xe[keep]))])
     else:
         tp = float(np.argmax(np.abs(x)) / max(len(x) - 1, 1) * t_end) if x is not None else t_end / 2
-    lo = min(max(0.0, tp - width_s / 2), t_end - width_s)
+    return around(tp, t_end, width_s)
+
+
+def around(tp: float, t_end: float, width_s: float = 0.5) -> tuple[float, float]:
+    """A `width_s` window holding time tp, centred on it where the run allows, its ends on 0.01 s."""
+    lo = min(max(0.0, round(tp - width_s / 2, 2)), t_end - width_s)
     return lo, lo + width_s
 
 
-def history_figures(scene, pick: dict, label: str, md: dict | None = None) -> dict:
-    """Re-simulate one run and draw {'displacement_history', 'pounding_force'[, 'ssp']} figures."""
+def force_zoom(zoom: tuple[float, float], t_peak: float, t_end: float) -> tuple[float, float]:
+    """The force figure's zoom: the displacement's where it holds the peak force, else around the peak."""
+    if zoom[0] <= t_peak <= zoom[1] and zoom[1] - zoom[0] < t_end:
+        return zoom
+    return around(t_peak, t_end, zoom[1] - zoom[0]) if t_end > zoom[1] - zoom[0] else (0.0, t_end)
+
+
+def force_caption(m: dict, top: int, law: str) -> str:
+    """The force figure's facts: peak, phases, and the pull where the law has one (the classic law's
+    dashpot pulls just before separation; 'no_tension' never pulls). A negative least force smaller
+    than 1e-6 of the peak is the event scheme's switch residue, not a pull."""
+    facts = (
+        f"floor {top}: peak {m[f'peak_force_f{top}_N']:.1f} N at {m[f'peak_force_time_f{top}_s']:.2f} s, "
+        f"{int(m[f'compression_phases_f{top}'])} compression phases, median "
+        f"{m[f'median_compression_phase_f{top}_s'] * 1e3:.1f} ms"
+    )
+    least = m[f"min_force_f{top}_N"]
+    if law == "no_tension":
+        return facts + "; no_tension law: the force never pulls"
+    if least < -1e-6 * m[f"peak_force_f{top}_N"]:
+        facts += f"; least {least:.3g} N (the classic law's pull before separation)"
+    return facts
+
+
+def history_figures(scene, pick: dict, label: str, md: dict | None = None, skipped: dict | None = None) -> dict:
+    """Re-simulate one run and draw {'displacement_history', 'pounding_force'[, 'ssp']} figures. A run
+    without contact gets no force figure: `skipped` (a dict, when given) is told why."""
     from pounding_sweep.sweep.scoring import load_experiment
     from pounding_sweep.sweep.simulate import simulate
 
@@ -349,6 +480,7 @@ def history_figures(scene, pick: dict, label: str, md: dict | None = None) -> di
     t = hist.t_s.to_numpy()
     te = exp.time_s - scene.experiment.time_offset_s if exp is not None else None
     zoom = zoom_window(scene, t[-1], exp, hist[f"disp_{shown[0]}_m"].to_numpy())
+    zoom_text = f"zoom {_time_text(zoom[0])}-{_time_text(zoom[1])} s"
     out = {}
 
     # displacement, whole and zoomed (Figs. 13, 21)
@@ -371,7 +503,7 @@ def history_figures(scene, pick: dict, label: str, md: dict | None = None) -> di
             ax.set_xlabel("time [s]")
             ax.set_ylabel("displacement [mm]")
             ax.grid(alpha=0.3)
-        axes[i, 0].axvspan(*zoom, color="0.85", zorder=0, label=f"zoom {zoom[0]:g}-{zoom[1]:g} s")
+        axes[i, 0].axvspan(*zoom, color="0.85", zorder=0, label=zoom_text)
         title = channel_label(code, md)
         if code in codes:
             pn, diff = m[f"peak_num_{code}_m"] * 1e3, m[f"peak_diff_{code}_pct"]
@@ -380,35 +512,37 @@ def history_figures(scene, pick: dict, label: str, md: dict | None = None) -> di
                 f"{pn / (1 - diff / 100):.2f} mm (Table 4 difference {diff:+.1f} %)"
             )
         axes[i, 0].set_title(title, loc="left", fontsize=10)
-        axes[i, 1].set_title(f"zoom {zoom[0]:g}-{zoom[1]:g} s", fontsize=10)
+        axes[i, 1].set_title(zoom_text, fontsize=10)
     handles, labels = axes[0, 0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="outside lower center", ncols=3, fontsize=9)
     fig.suptitle(f"{scene.name}: displacement relative to the table; {label}", x=0.01, ha="left")
     out["displacement_history"] = fig
 
     # pounding force (Fig. 19)
-    fig = _figure(figsize=(12, 4.0))
-    axes = fig.subplots(1, 2, gridspec_kw={"width_ratios": [3, 1]})
     f = hist[f"force_f{top}_N"].to_numpy()
-    for ax, lim in ((axes[0], None), (axes[1], zoom)):
-        ax.plot(t, f, lw=0.9, color="C3")
-        ax.axhline(0, color="k", lw=0.5)
-        ax.set_xlim(*(lim or (t[0], t[-1])))
-        ax.set_xlabel("time [s]")
-        ax.set_ylabel(f"pounding force $F_{{1{top}}} = F_{{2{top}}}$ [N]")
-        ax.grid(alpha=0.3)
-    axes[0].axvspan(*zoom, color="0.85", zorder=0)
-    axes[1].set_title(f"zoom {zoom[0]:g}-{zoom[1]:g} s", fontsize=10)
-    facts = (
-        f"floor {top}: peak {m[f'peak_force_f{top}_N']:.1f} N at {m[f'peak_force_time_f{top}_s']:.2f} s, "
-        f"{int(m[f'compression_phases_f{top}'])} compression phases, median "
-        f"{m[f'median_compression_phase_f{top}_s'] * 1e3:.1f} ms"
-    )
-    if m[f"min_force_f{top}_N"] < 0:
-        facts += f"; least {m[f'min_force_f{top}_N']:.1f} N (the classic law's pull before separation)"
-    axes[0].set_title(facts, loc="left", fontsize=9)
-    fig.suptitle(f"{scene.name}: Kelvin-Voigt pounding force (compression > 0); {label}", x=0.01, ha="left")
-    out["pounding_force"] = fig
+    if not np.any(f != 0.0):
+        if skipped is not None:
+            skipped["pounding_force"] = f"no contact at floor {top} in the run shown, so no force to draw ({label})"
+    else:
+        fzoom = force_zoom(zoom, m[f"peak_force_time_f{top}_s"], t[-1])
+        fig = _figure(figsize=(12, 4.0))
+        axes = fig.subplots(1, 2, gridspec_kw={"width_ratios": [3, 1]})
+        for ax, lim in ((axes[0], None), (axes[1], fzoom)):
+            ax.plot(t, f, lw=0.9, color="C3")
+            ax.axhline(0, color="k", lw=0.5)
+            ax.set_xlim(*(lim or (t[0], t[-1])))
+            ax.set_xlabel("time [s]")
+            ax.set_ylabel(f"pounding force $F_{{1{top}}} = F_{{2{top}}}$ [N]")
+            ax.grid(alpha=0.3)
+        axes[0].axvspan(*fzoom, color="0.85", zorder=0)
+        axes[1].set_title(f"zoom {_time_text(fzoom[0])}-{_time_text(fzoom[1])} s", fontsize=10)
+        axes[0].set_title(force_caption(m, top, scene.contact.law), loc="left", fontsize=9)
+        fig.suptitle(
+            f"{scene.name}: Kelvin-Voigt pounding force (compression > 0, {scene.contact.law} law); {label}",
+            x=0.01,
+            ha="left",
+        )
+        out["pounding_force"] = fig
 
     # numerical against experimental (SSP)
     if codes:
@@ -532,39 +666,49 @@ def read_accuracy_table(path: str | Path) -> pd.DataFrame:
     return df
 
 
+#: a marker per time step in the error-against-run-time figure (labels beside the points overlapped where
+#: the schemes' points lie close, as they do at fine steps)
+DT_MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*", "h", "<", ">", "p")
+
+
 def error_vs_runtime_figure(table: pd.DataFrame, title: str = ""):
-    """Two log-log panels per scheme: error against dt, and error against run time (each point labelled by dt)."""
-    fig = _figure(figsize=(11, 4.4))
+    """Two log-log panels per scheme: error against dt, and error against run time. A scheme has one
+    colour; a time step one marker shape (the legend lists both), so no label can cover another."""
+    from matplotlib.lines import Line2D
+
+    fig = _figure(figsize=(11, 4.6))
     ax_dt, ax_t = fig.subplots(1, 2)
     bad = []
+    dts = sorted(table.dt_s.unique())
+    marker = {d: DT_MARKERS[i % len(DT_MARKERS)] for i, d in enumerate(dts)}
+    schemes = []
     for k, (scheme, g) in enumerate(table.groupby("scheme", sort=False)):
         g = g.sort_values("dt_s")
         ok = np.isfinite(g.rel_rms_pct) & (g.rel_rms_pct > 0)
         bad += [f"{scheme} dt = {d:g} s" for d in g.dt_s[~ok]]
         g = g[ok]
-        style = {"marker": "o", "color": f"C{k}", "label": f"scheme '{scheme}'"}
-        ax_dt.loglog(g.dt_s, g.rel_rms_pct, **style)
-        ax_t.loglog(g.run_time_s * 1e3, g.rel_rms_pct, **style)
-        every = max(1, math.ceil(len(g) / 6))  # at most about 6 labels per scheme
-        for _, row in g.iloc[::-1].iloc[::every].iterrows():
-            ax_t.annotate(
-                f"{row.dt_s:.3g} s",
-                (row.run_time_s * 1e3, row.rel_rms_pct),
-                textcoords="offset points",
-                xytext=(4, 4 if k % 2 == 0 else -11),
-                fontsize=7,
-                color=f"C{k}",
-            )
-    dts = sorted(table.dt_s.unique())
+        color = f"C{k}"
+        schemes.append(Line2D([], [], color=color, label=f"scheme '{scheme}'"))
+        ax_dt.loglog(g.dt_s, g.rel_rms_pct, color=color, label=f"scheme '{scheme}'")
+        ax_t.loglog(g.run_time_s * 1e3, g.rel_rms_pct, color=color, label=f"scheme '{scheme}'")
+        for d, x_ms, e in zip(g.dt_s, g.run_time_s * 1e3, g.rel_rms_pct):
+            for ax, x in ((ax_dt, d), (ax_t, x_ms)):
+                ax.plot(x, e, marker[d], color=color, ms=6, mec="k", mew=0.4, ls="none")
+    steps = [
+        Line2D([], [], marker=marker[d], color="0.5", mec="k", mew=0.4, ls="none", label=f"dt = {d:g} s") for d in dts
+    ]
     _plain_log(ax_dt.xaxis, dts if len(dts) <= 6 else None)
-    _plain_log(ax_t.xaxis)
+    ms = table.run_time_s.to_numpy(float) * 1e3
+    ms = ms[np.isfinite(ms) & (ms > 0)]
+    _plain_log(ax_t.xaxis, _nice_log_ticks(ms.min(), ms.max()) if ms.size else None)
     ax_dt.set_xlabel("time step dt [s]")
     ax_t.set_xlabel("run time of one run in the kernel [ms]")
     for ax in (ax_dt, ax_t):
         ax.set_ylabel("relative RMS error, eq. 20 [%]")
         _plain_log(ax.yaxis)
         ax.grid(alpha=0.3, which="both")
-        ax.legend(fontsize=9)
+    ax_dt.legend(handles=schemes, fontsize=9, loc="upper left")
+    ax_t.legend(handles=steps, fontsize=8, loc="upper right", ncols=2 if len(steps) > 6 else 1)
     ref = ""
     if {"ref_dt_s", "channel"} <= set(table.columns):
         scheme = f"'{table.ref_scheme.iloc[0]}' scheme" if "ref_scheme" in table else "reference"
@@ -578,25 +722,36 @@ def error_vs_runtime_figure(table: pd.DataFrame, title: str = ""):
 # ----------------------------------------------------------------------------- all of it, as PNGs
 
 
-def figures(results: str | Path, accuracy: str | Path | pd.DataFrame | None = None) -> dict:
+def figures(
+    results: str | Path, accuracy: str | Path | pd.DataFrame | None = None, skipped: dict | None = None
+) -> dict:
     """Every figure of a result file, by name. `accuracy`: an error-against-run-time table (or its
-    CSV/Parquet file); None computes a small `accuracy_ladder` of the best run."""
+    CSV/Parquet file); None computes a small `accuracy_ladder` of the best run. A figure with nothing to
+    show is left out, and `skipped` (a dict, when given) is told why. A file that is no sweep's result
+    is a ResultError (check_results)."""
     results = Path(results)
+    md = check_results(results)
     df = pd.read_parquet(results)
-    md = read_metadata(results)
     best_file = sidecar_path(results, "best")
     best = pd.read_parquet(best_file) if best_file.exists() else None
     out = {}
-    if has_grid(df):
+    if has_grid(df, md):
         out["heatmaps"] = heatmap_figure(df, md, best)
+    elif skipped is not None:
+        swept = swept_axes(df, md)
+        skipped["heatmaps"] = (
+            f"no map: the sweep varies {' and '.join(swept) if swept else 'nothing'}, a map needs two axes"
+        )
     scene = scene_of(results)
     pick, label, _ = best_run(results, df)
-    out.update(history_figures(scene, pick, label, md))
+    out.update(history_figures(scene, pick, label, md, skipped))
     if accuracy is None:
         table = accuracy_ladder(scene, **pick)
     else:
         table = accuracy if isinstance(accuracy, pd.DataFrame) else read_accuracy_table(accuracy)
-    what = _params_text(pick)
+    swept = swept_axes(df, md)
+    shown = [a for a in ("gap_m", "ks_ratio", "ks_N_per_m", "r") if a in pick and (a in swept or a != "gap_m")]
+    what = run_text(pd.Series(pick), shown + [a for a in swept if a in pick and a not in shown])
     dur = table.duration_s.iloc[0] if "duration_s" in table and np.isfinite(table.duration_s.iloc[0]) else None
     out["error_vs_runtime"] = error_vs_runtime_figure(
         table, f"{scene.name}: error against run time ({what}" + (f", first {dur:g} s)" if dur else ")")
@@ -605,12 +760,16 @@ def figures(results: str | Path, accuracy: str | Path | pd.DataFrame | None = No
 
 
 def plot_results(
-    results: str | Path, out_dir: str | Path | None = None, accuracy: str | Path | pd.DataFrame | None = None
+    results: str | Path,
+    out_dir: str | Path | None = None,
+    accuracy: str | Path | pd.DataFrame | None = None,
+    skipped: dict | None = None,
 ) -> list[Path]:
-    """Write the figures of one result file as PNGs; return their paths."""
+    """Write the figures of one result file as PNGs; return their paths (`skipped`: as in `figures`)."""
     results = Path(results)
+    check_results(results)
     out_dir = Path(out_dir) if out_dir else results.with_suffix("").with_name(results.stem + "_plots")
-    figs = figures(results, accuracy)
+    figs = figures(results, accuracy, skipped)
     out_dir.mkdir(parents=True, exist_ok=True)
     written = []
     for name, fig in figs.items():

@@ -18,6 +18,7 @@ LAYERS = {
     "errors": 0,
     "codes": 0,
     "progress": 0,
+    "warn": 0,
     "": 0,  # shared bottom modules (and the package's version)
     "scene": 1,  # TOML -> validated dataclasses
     "model": 2,  # scene -> arrays: structure, contact parameters, records, excitation, grid, experiment tables

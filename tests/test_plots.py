@@ -152,7 +152,16 @@ def test_error_vs_runtime_from_a_csv(tmp_path):
     t = plots.read_accuracy_table(csv)
     fig = plots.error_vs_runtime_figure(t, "test")
     ax_dt, ax_t = fig.axes
-    assert [len(line.get_xdata()) for line in ax_t.lines] == [3, 2]  # the NaN error is left out, and said so
+    curves = [line for line in ax_t.lines if line.get_linestyle() == "-"]  # one per scheme; markers are separate
+    assert [len(line.get_xdata()) for line in curves] == [3, 2]  # the NaN error is left out, and said so
+    # a time step is a marker shape, named in the legend: no dt label beside a point can overlap another
+    assert not ax_t.texts and [t.get_text() for t in ax_t.get_legend().get_texts()] == [
+        "dt = 0.0001 s",
+        "dt = 0.0002 s",
+        "dt = 0.0004 s",
+    ]
+    shapes = {line.get_marker() for line in ax_t.lines if line.get_linestyle() == "None"}
+    assert len(shapes) == 3
     assert "paper dt = 0.0001 s" in fig.get_supxlabel()
     assert ax_dt.get_xscale() == ax_t.get_yscale() == "log"
     assert "[s]" in ax_dt.get_xlabel() and "[ms]" in ax_t.get_xlabel() and "[%]" in ax_t.get_ylabel()
@@ -186,3 +195,132 @@ def test_figures_carry_units_and_legends(scored):
         "experiment (tracked, 100 samples/s)",
     ]
     assert "eq. 20 error" in disp.axes[0].get_title(loc="left")
+
+
+# ------------------------------------------------------------------ issue 16: wrong files, any two axes, captions
+
+
+def plot_cli(*argv) -> tuple[int, str, str]:
+    import contextlib
+    import io
+
+    from pounding_sweep.cli.plot import plot_main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = plot_main([str(a) for a in argv])
+    return code, out.getvalue(), err.getvalue()
+
+
+def test_plot_of_the_wrong_file_is_one_error_line(scored, tmp_path):
+    from pounding_sweep.sweep.run import run_scene
+
+    s = load_scene(SWEEPS / "paper_6hz.toml")
+    import dataclasses
+
+    s = dataclasses.replace(
+        s,
+        excitation=dataclasses.replace(s.excitation, duration_s=0.2),
+        output=dataclasses.replace(s.output, histories=("disp_b1f3",)),
+    )
+    run_scene(s, out_path=tmp_path / "h.parquet")
+    (tmp_path / "notes.parquet").write_text("not parquet")
+    cases = {
+        SWEEPS / "paper_6hz.toml": "a scene file, not a result: run it first",
+        tmp_path
+        / "h.histories.parquet": f"the time histories of a sweep, not its result: plot {tmp_path / 'h.parquet'}",
+        scored.with_name("scored.best.parquet"): f"the best-runs table of a sweep, not its result: plot {scored}",
+        tmp_path / "notes.parquet": "not a pounding_sweep result (",
+        tmp_path / "nope.parquet": "no such file or folder",
+        tmp_path: "not a pounding_sweep result (no result parts",
+    }
+    for path, what in cases.items():
+        code, out, err = plot_cli(path, "--out", tmp_path / "png")
+        assert code == 2 and out == "", (path, err)
+        assert err.splitlines() == [err.strip()] and err.startswith(f"error: {path}: {what}"), err
+    assert not (tmp_path / "png").exists()
+
+
+def _run(tmp_path, name, scene, **changes):
+    import dataclasses
+
+    from pounding_sweep.sweep.run import run_scene
+
+    s = load_scene(SWEEPS / scene)
+    sections = {k: dataclasses.replace(getattr(s, k), **v) for k, v in changes.items() if isinstance(v, dict)}
+    extra = {k: v for k, v in changes.items() if not isinstance(v, dict)}
+    s = dataclasses.replace(s, **sections, **extra)
+    out = tmp_path / f"{name}.parquet"
+    run_scene(s, out_path=out)
+    return out
+
+
+ACCURACY = pd.DataFrame(
+    {"scheme": ["event"] * 2, "dt_s": [2e-4, 1e-4], "run_time_s": [1e-3, 2e-3], "rel_rms_pct": [0.3, 0.1]}
+)
+
+
+def test_heatmaps_for_a_gap_by_stiffness_grid(tmp_path):
+    from pounding_sweep.scene import Axis
+
+    out = _run(
+        tmp_path,
+        "gapks",
+        "paper_6hz.toml",
+        excitation={"duration_s": 1.0},
+        sweep=(Axis("gap_m", (0.0, 0.001, 0.002)), Axis("ks_ratio", (0.1, 1.0, 10.0))),
+    )
+    skipped = {}
+    figs = plots.figures(out, accuracy=ACCURACY, skipped=skipped)
+    assert "heatmaps" in figs and not skipped
+    fig = figs["heatmaps"]
+    maps = [ax for ax in fig.axes if ax.get_label() != "<colorbar>"]
+    assert len(maps) == 2
+    for ax in maps:
+        assert ax.get_ylabel() == "gap d [mm]" and ax.get_xlabel().startswith("contact stiffness ratio")
+        assert [t.get_text() for t in ax.get_yticklabels()] == ["0", "1", "2"]
+        assert len(ax.texts) == 9
+    assert "swept: gap [mm] = 0, 1, 2; k_s/k = 0.1, 1, 10" in fig.get_suptitle()
+    # the run shown is named by its value on every swept axis
+    assert "gap [mm] = " in figs["displacement_history"].get_suptitle()
+    assert "k_s/k = " in figs["pounding_force"].get_suptitle()
+
+
+def test_force_zoom_holds_the_peak_force_and_captions_follow_the_law(tmp_path):
+    """On Duzce the zoom was 1.54-2.04 s around the largest displacement while the peak force is at 1.47 s."""
+    out = _run(tmp_path, "duzce", "paper_duzce.toml")
+    figs = plots.figures(out, accuracy=ACCURACY)
+    df = pd.read_parquet(out)
+    row = df.loc[df.peak_force_f3_N.idxmax()]
+    whole, zoomed = figs["pounding_force"].axes
+    lo, hi = zoomed.get_xlim()
+    assert lo <= row.peak_force_time_f3_s <= hi and hi - lo == pytest.approx(0.5)
+    assert f"zoom {lo:.2f}".rstrip("0").rstrip(".") in zoomed.get_title()
+    # r = 1: no dashpot, no pull; a least force of -1e-10 N is the switch residue, not 'the classic law's pull'
+    assert row.r == 1.0 and "pull" not in whole.get_title(loc="left")
+    m = {
+        "peak_force_f3_N": 30.0,
+        "peak_force_time_f3_s": 1.0,
+        "compression_phases_f3": 3,
+        "median_compression_phase_f3_s": 0.02,
+    }
+    assert "the classic law's pull" in plots.force_caption({**m, "min_force_f3_N": -2.0}, 3, "classic")
+    assert "pull" not in plots.force_caption({**m, "min_force_f3_N": -1e-9}, 3, "classic")
+    nt = plots.force_caption({**m, "min_force_f3_N": -1e-9}, 3, "no_tension")
+    assert "classic" not in nt and nt.endswith("no_tension law: the force never pulls")
+
+
+def test_a_separated_scene_gets_no_empty_force_plot(tmp_path):
+    out = _run(tmp_path, "sep", "paper_duzce_separated.toml")
+    skipped = {}
+    figs = plots.figures(out, accuracy=ACCURACY, skipped=skipped)
+    assert "pounding_force" not in figs and "no contact at floor 3 in the run shown" in skipped["pounding_force"]
+    maps = [ax for ax in figs["heatmaps"].axes if ax.get_label() != "<colorbar>"]
+    assert len(maps) == 1 and "no run made contact" in figs["heatmaps"].get_supxlabel()
+    code, stdout, _ = plot_cli(out, "--out", tmp_path / "png")
+    assert code == 0 and "pounding_force.png not drawn: no contact at floor 3" in stdout
+    assert sorted(p.name for p in (tmp_path / "png").iterdir()) == [
+        "displacement_history.png",
+        "error_vs_runtime.png",
+        "heatmaps.png",
+    ]

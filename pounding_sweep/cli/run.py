@@ -7,13 +7,18 @@ and value, exit status 2, and no output file.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import signal
 import sys
+import threading
 
 from pounding_sweep.cli.common import EXIT_BAD_INPUT
-from pounding_sweep.errors import ConfigError, ExperimentError, RecordError
+from pounding_sweep.errors import InputError
 from pounding_sweep.progress import Progress
 from pounding_sweep.scene import describe, load_scene
+from pounding_sweep.scene.validate import check_dask_address, check_workers
+from pounding_sweep.warn import collecting
 
 # subcommands: `python -m pounding_sweep NAME ...` -> module:function(argv) -> exit code (imported lazily,
 # so a sweep never imports OpenCV or matplotlib)
@@ -23,16 +28,26 @@ SUBCOMMANDS = {
     "identify": "pounding_sweep.cli.identify:identify_main",
     "gaps": "pounding_sweep.cli.gaps:gaps_main",
 }
+#: one line per subcommand for --help (each has its own: python -m pounding_sweep NAME --help)
+SUBCOMMAND_HELP = {
+    "track": "track VIDEO --out TABLE: LED markers of a shake-table video -> a tracked-displacement table",
+    "identify": "identify TABLE [--scene S --out T]: frequencies, damping and mode shapes; the model update",
+    "plot": "plot RESULTS: PNG figures of a result file (heatmaps, best run's histories, error vs run time)",
+    "gaps": "gaps SCENE [--out T]: the seismic gap each floor pair needs, by rule and from the histories",
+}
 
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="python -m pounding_sweep",
+        usage="%(prog)s [options] SCENE.toml\n       %(prog)s {track,identify,plot,gaps} ... (see below)",
         description="Run a pounding scene: every grid point of its [sweep] through the Newmark/Kelvin-Voigt "
         "kernel, one Parquet row per run (metrics with units in the column names; the scene, its hash and "
         "the package versions in the file metadata).",
-        epilog="Scene keys: python -m pounding_sweep --describe. Shipped scenes: sweeps/*.toml. "
-        "Figures of a result file: python -m pounding_sweep plot RESULTS.parquet",
+        epilog="subcommands (python -m pounding_sweep NAME --help for each):\n"
+        + "\n".join(f"  {line}" for line in SUBCOMMAND_HELP.values())
+        + "\n\nScene keys: python -m pounding_sweep --describe. Shipped scenes: sweeps/*.toml.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("scene", nargs="?", help="scene file (TOML), e.g. sweeps/paper_6hz.toml")
     p.add_argument("--out", help="result file (default: the scene's [output] path)")
@@ -54,19 +69,27 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def _run_text(s) -> str:
+    """The summary's run line: wall time and rate over the runs this call ran (not the resumed ones)."""
+    if s.new_runs == 0:
+        return f"nothing to run: all {s.runs:,} runs kept from an earlier run"
+    rate = s.new_steps / s.new_kernel_s if s.new_kernel_s > 0 else float("nan")
+    who = "thread" if s.executor == "local" else "Dask worker"
+    kept = f"; {s.runs - s.new_runs:,} kept from an earlier run" if s.new_runs < s.runs else ""
+    return (
+        f"{s.run_s:.2f} s wall on {s.threads} {who}(s) for {s.new_runs:,} runs{kept}; "
+        f"{s.new_steps:,} steps, {rate / 1e6:.1f} M steps/s per core"
+    )
+
+
 def _print_summary(s) -> None:
-    rate = s.steps / s.kernel_s if s.kernel_s > 0 else float("nan")
     rows = [
         ("scene", s.scene),
         ("runs", f"{s.runs}"),
         ("status", ", ".join(f"{k}: {v}" for k, v in sorted(s.statuses.items()))),
         ("largest pounding force", f"{s.extremes['peak_force_N']:.3f} N"),
-        ("compile (or cache load)", f"{s.compile_s:.2f} s"),
-        (
-            "run",
-            f"{s.run_s:.2f} s wall on {s.threads} {'thread' if s.executor == 'local' else 'Dask worker'}(s); "
-            f"{s.steps:,} steps, {rate / 1e6:.1f} M steps/s per core",
-        ),
+        ("compile (or cache load)", f"{s.compile_s:.2f} s" if s.compile_s > 0 else "none needed"),
+        ("run", _run_text(s)),
         (
             "results",
             f"{s.path} (Parquet dataset, {s.parts} part(s)"
@@ -75,8 +98,12 @@ def _print_summary(s) -> None:
     ]
     if s.histories_path:
         rows.append(("histories", str(s.histories_path)))
+    if s.warnings:
+        rows.append(("warnings", f"{len(s.warnings)} (below; also in the result metadata)"))
     w = max(len(k) for k, _ in rows)
     print("\n".join(f"{k:<{w}}  {v}" for k, v in rows))
+    for msg in s.warnings:
+        print(f"  warning: {msg}")
     if s.best is not None and s.best.empty:
         print("\nno run could be scored against the experiment (all diverged or ended before its window)")
     elif s.best is not None:
@@ -88,10 +115,15 @@ def _print_summary(s) -> None:
         if s.refinement is not None:
             rf = s.refinement
             opt = ", ".join(f"{k} = {v:.4g}" for k, v in rf.optimum.items())
+            how = "kept from the earlier run; " if s.refinement_reused else ""
             print(
-                f"refined from the best cell ({rf.evaluations} runs): {opt}, combined error {rf.error_pct:.3f} % "
+                f"refined from the best cell ({how}{rf.evaluations} runs): {opt}, combined error {rf.error_pct:.3f} % "
                 f"(grid best {rf.start_error_pct:.3f} %)"
             )
+
+
+def _print_warning(w) -> None:
+    print(f"warning: {w.message}", file=sys.stderr, flush=True)
 
 
 def _with_execution(scene, args):
@@ -123,36 +155,69 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_BAD_INPUT
     scene = None
     try:
-        scene = load_scene(args.scene)
-        from pounding_sweep.sweep.run import (
-            run_scene,
-        )  # Numba and pyarrow: after the scene is read, so bad input fails fast
+        with _terminated_as_interrupt():
+            if args.threads is not None:
+                check_workers(args.threads, "--threads")
+            if args.workers is not None:
+                check_workers(args.workers, "--workers")
+            if args.dask_address:
+                check_dask_address(args.dask_address, "--dask-address")
+            scene = load_scene(args.scene)
+            from pounding_sweep.sweep.run import (
+                run_scene,
+            )  # Numba and pyarrow: after the scene is read, so bad input fails fast
 
-        if args.threads is not None and args.threads < 0:
-            raise ConfigError(f"--threads {args.threads}: must be >= 0")
-        if args.workers is not None and args.workers < 0:
-            raise ConfigError(f"--workers {args.workers}: must be >= 0")
-        scene = _with_execution(scene, args)
-        summary = run_scene(
-            scene,
-            out_path=args.out,
-            threads=args.threads,
-            progress=Progress(not args.quiet),
-            overwrite=args.overwrite,
-            confirmed=args.yes,
-        )
-    except (ConfigError, RecordError, ExperimentError) as e:
+            scene = _with_execution(scene, args)
+            with collecting(echo=_print_warning):  # printed as they happen, before the long part of a run
+                summary = run_scene(
+                    scene,
+                    out_path=args.out,
+                    threads=args.threads,
+                    progress=Progress(not args.quiet),
+                    overwrite=args.overwrite,
+                    confirmed=args.yes,
+                )
+    except InputError as e:  # the scene, its files, the output folder, the cluster: one line each
         msg = str(e)
         if scene is not None and msg.startswith("["):  # a key of the scene, found after loading: name the file too
             msg = f"{args.scene}: {msg}"
         print(f"error: {msg}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    except OSError as e:  # e.g. --out names a folder or an unwritable place
-        print(f"error: cannot write results: {e}", file=sys.stderr)
+    except OSError as e:  # an unwritable place not caught by name (the output checks name theirs)
+        where = f" ({e.filename})" if getattr(e, "filename", None) and str(e.filename) not in str(e) else ""
+        print(f"error: cannot write results: {e}{where}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except Terminated:
+        print(
+            "terminated (SIGTERM): the finished parts are kept; run the same command again to resume",
+            file=sys.stderr,
+        )
+        return 128 + signal.SIGTERM
     except KeyboardInterrupt:
         print("interrupted: the finished parts are kept; run the same command again to resume", file=sys.stderr)
         return 130
     if not args.quiet:
         _print_summary(summary)
     return 0
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (what batch schedulers send before they kill a job), raised where Ctrl-C would be."""
+
+
+@contextlib.contextmanager
+def _terminated_as_interrupt():
+    """While a sweep runs, SIGTERM unwinds it like Ctrl-C: the finished parts stay, the output folder is
+    released, the executor closed, and one line says so (the previous handler is restored after)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum, frame):
+        raise Terminated()
+
+    previous = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)

@@ -17,8 +17,10 @@ count, lane or group a run lands in.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import time
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -93,30 +95,32 @@ def run_chunk(
     score: ScoreSpec | None = None,
     kernel: str = "auto",
     laws: np.ndarray | None = None,
+    done: Callable[[int], None] | None = None,
 ):
     """Integrate every run of the chunk on `kernel` (KERNELS); return (metrics, run_time_s, histories or
     None, scores or None). `laws` (codes.LAW_* per run), when given, overrides opts.law run by run: the
     runs of each law go to that law's kernel (a Hertz-type law to engine/nonlinear.py) and the rows come
-    back in the chunk's order."""
+    back in the chunk's order. `done(n)`, when given, is called from the worker threads as each group or
+    batch of n runs finishes (progress within a chunk; it must be thread-safe and quick)."""
     score = score if score is not None else ScoreSpec.none()
     if laws is not None:
         codes_in = np.unique(laws)
         if codes_in.size > 1:
-            return _run_by_law(sys, runs, rec, hist, opts, threads, batch_runs, score, kernel, laws, codes_in)
+            return _run_by_law(sys, runs, rec, hist, opts, threads, batch_runs, score, kernel, laws, codes_in, done)
         if codes_in.size == 1:
             opts = opts._replace(law=int(codes_in[0]))
     if is_nonlinear(opts.law):
         if kernel == "lanes":
             raise ValueError("kernel = 'lanes': the lane kernel cannot run this chunk (a Hertz-type contact law)")
-        return run_chunk_scalar(sys, runs, rec, hist, opts, threads, batch_runs, score)
+        return run_chunk_scalar(sys, runs, rec, hist, opts, threads, batch_runs, score, done)
     if kernel_for(sys, hist, opts, score, kernel) == "lanes" and runs.n > 0:
         ma = lane_modes(sys, hist, opts, score)
-        metrics, run_time = run_chunk_lanes(sys, runs, rec, opts, threads, ma)
+        metrics, run_time = run_chunk_lanes(sys, runs, rec, opts, threads, ma, done=done)
         return metrics, run_time, None, None
-    return run_chunk_scalar(sys, runs, rec, hist, opts, threads, batch_runs, score)
+    return run_chunk_scalar(sys, runs, rec, hist, opts, threads, batch_runs, score, done)
 
 
-def _run_by_law(sys, runs, rec, hist, opts, threads, batch_runs, score, kernel, laws, codes_in):
+def _run_by_law(sys, runs, rec, hist, opts, threads, batch_runs, score, kernel, laws, codes_in, done):
     """run_chunk for a chunk mixing laws: each law's runs on their kernel, rows put back in order."""
     n = runs.n
     metrics = np.zeros((n, L.n_metrics(sys.m.size, sys.i1.size)))
@@ -125,7 +129,7 @@ def _run_by_law(sys, runs, rec, hist, opts, threads, batch_runs, score, kernel, 
     for code in codes_in:
         idx = np.flatnonzero(laws == code)
         part = run_chunk(
-            sys, runs.take(idx), rec, hist, opts._replace(law=int(code)), threads, batch_runs, score, kernel
+            sys, runs.take(idx), rec, hist, opts._replace(law=int(code)), threads, batch_runs, score, kernel, done=done
         )
         metrics[idx] = part[0]
         run_time[idx] = part[1]
@@ -149,6 +153,7 @@ def run_chunk_scalar(
     threads: int = 1,
     batch_runs: int = 0,
     score: ScoreSpec | None = None,
+    done: Callable[[int], None] | None = None,
 ):
     """run_chunk on the scalar kernel (every option supported): engine/scalar.py for the linear laws,
     engine/nonlinear.py for the Hertz-type ones."""
@@ -171,6 +176,8 @@ def run_chunk_scalar(
 
     def work(bounds):
         kernel_fn(bounds[0], bounds[1], model, opts, runs, records, hist, score, out)
+        if done is not None:
+            done(bounds[1] - bounds[0])
 
     threads = max(1, min(threads, n))
     if batch_runs <= 0:
@@ -193,10 +200,11 @@ def run_chunk_lanes(
     threads: int = 1,
     ma: ModalArrays | None = None,
     stats: np.ndarray | None = None,
+    done: Callable[[int], None] | None = None,
 ):
     """run_chunk on the lane kernel (the caller checked eligibility; `ma`: the system's modal data
     when the caller has them, from lanes.lane_modes): (metrics, run_time_s). `stats` (int64[lanes.ST_N]),
-    when given, is added the kernel's work counters (the benchmarks' profile).
+    when given, is added the kernel's work counters (the benchmarks' profile); `done(n)`: as run_chunk's.
 
     Runs are grouped by length, then by excitation profile, then by gap, so a group's lanes end
     together, share their ground motion and tend to be in contact at the same time (a group pays
@@ -225,6 +233,8 @@ def run_chunk_lanes(
         integrate_lanes(order, g, g + 1, model, opts, runs, excitation, LaneOutputs(metrics, redo, stats_g[g]))
         members = order[g * LANES : (g + 1) * LANES]
         run_time[members] = (time.perf_counter() - t0) / members.size
+        if done is not None:
+            done(members.size)
 
     threads = max(1, min(threads, n_groups))
     if threads == 1:
@@ -243,6 +253,44 @@ def run_chunk_lanes(
     return metrics, run_time
 
 
+#: announce(kernel, label, estimate_s, measured_here) -> end(seconds): told when Numba starts compiling a kernel
+#: (not when it loads one from the cache), so a caller can say so and show the time passing
+Announce = Callable[[str, str, float, bool], Callable[[float], None]]
+
+
+@contextlib.contextmanager
+def _announced(kernel: str, label: str, announce: Announce | None):
+    """Call `announce` when Numba starts compiling inside (a cache miss: Numba's 'numba:compile' event
+    fires only then), its return value when done; remember how long the compile took here."""
+    from numba.core import event
+
+    from pounding_sweep.engine.jit import compile_estimate, record_compile
+
+    started: list = []
+
+    class _Listener(event.Listener):
+        def on_start(self, ev):
+            if not started:
+                started.append(time.perf_counter())
+                est, here = compile_estimate(kernel)
+                started.append(announce(kernel, label, est, here) if announce is not None else None)
+
+        def on_end(self, ev):
+            pass
+
+    listener = _Listener()
+    event.register("numba:compile", listener)
+    try:
+        yield
+    finally:
+        event.unregister("numba:compile", listener)
+        if started:
+            took = time.perf_counter() - started[0]
+            record_compile(kernel, took)
+            if started[1] is not None:
+                started[1](took)
+
+
 def compile_kernel(
     sys: SystemArrays,
     opts: KernelOptions,
@@ -250,24 +298,26 @@ def compile_kernel(
     score: ScoreSpec | None = None,
     kernel: str = "auto",
     laws=None,
+    announce: Announce | None = None,
 ) -> float:
     """Compile (or load from cache) the kernel(s) a sweep of this system will use, on one-step runs;
     return the seconds it took. With `hist` and `score` given: the kernel run_chunk picks for them;
     without: the lane kernel where the system and options allow it, and the scalar kernel (which
     chunks with histories or scoring, and diverged runs, use) in any case. `laws`: the codes.LAW_* the
-    sweep uses (default opts.law); a Hertz-type one compiles engine/nonlinear.py as well."""
+    sweep uses (default opts.law); a Hertz-type one compiles engine/nonlinear.py as well. `announce`
+    (Announce) is told when a kernel is really compiled, not loaded from the cache."""
     t0 = time.perf_counter()
     laws = [opts.law] if laws is None else sorted(set(int(x) for x in laws))
     nonlinear = [x for x in laws if is_nonlinear(x)]
     if nonlinear:
-        _compile_one(sys, opts._replace(law=nonlinear[0]), hist, score, kernel)
+        _compile_one(sys, opts._replace(law=nonlinear[0]), hist, score, kernel, announce)
     linear = [x for x in laws if not is_nonlinear(x)]
     if linear:
-        _compile_one(sys, opts._replace(law=linear[0]), hist, score, kernel)
+        _compile_one(sys, opts._replace(law=linear[0]), hist, score, kernel, announce)
     return time.perf_counter() - t0
 
 
-def _compile_one(sys, opts, hist, score, kernel):
+def _compile_one(sys, opts, hist, score, kernel, announce):
     """compile_kernel for one law's kernel(s)."""
     p = sys.i1.size
     runs = RunArrays(
@@ -286,6 +336,15 @@ def _compile_one(sys, opts, hist, score, kernel):
     ma = lane_modes(sys, hist or none, opts, score)
     lanes_ok = isinstance(ma, ModalArrays) and kernel != "scalar"
     if lanes_ok:
-        run_chunk_lanes(sys, runs, rec, opts, 1, ma)
+        with _announced("lanes", "the lane kernel", announce):
+            run_chunk_lanes(sys, runs, rec, opts, 1, ma)
     if hist is None or not lanes_ok:
-        run_chunk_scalar(sys, runs, rec, hist or none, opts, score=score)
+        name, label = (
+            ("nonlinear", "the Hertz-type contact kernel")
+            if is_nonlinear(opts.law)
+            else ("scalar", "the scalar kernel")
+        )
+        if score is not None and score.active:
+            name, label = f"{name}_scored", f"{label} with scoring"
+        with _announced(name, label, announce):
+            run_chunk_scalar(sys, runs, rec, hist or none, opts, score=score)

@@ -6,8 +6,8 @@ arithmetic.
 The cache cannot go stale: Numba keys a cached function by its own source file only, so an edit to a
 function it calls in another file (the event pieces both kernels share, a flag here) would leave an
 old compiled kernel in use. Every engine function is therefore cached in a folder named by a hash of
-all the engine's sources (this folder's .py files and pounding_sweep/codes.py): any edit there means
-a new folder and a fresh compile, never a stale kernel. The folder lies under $NUMBA_CACHE_DIR when it
+all the engine's sources (this folder's .py files but the plain-Python driver, and
+pounding_sweep/codes.py): any edit there means a new folder and a fresh compile, never a stale kernel. The folder lies under $NUMBA_CACHE_DIR when it
 is set, else under the user's cache ($XDG_CACHE_HOME or ~/.cache)/pounding_sweep; the newest
 KEEP_CACHES engine folders are kept, older ones (ours, by their name) removed. Where no such folder
 can be written, Numba's own cache beside the sources is used.
@@ -16,6 +16,7 @@ can be written, Numba's own cache beside the sources is used.
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 import re
 import shutil
@@ -24,8 +25,12 @@ from pathlib import Path
 import numba
 
 HERE = Path(__file__).resolve().parent
+#: engine modules that compile nothing (plain Python driving the kernels): an edit there changes no
+#: compiled code, so it must not cost every user a fresh compile of every kernel (tests/engine/test_jit.py
+#: checks that no module listed here holds compiled code)
+NOT_COMPILED = ("driver.py",)
 #: the sources whose compiled code the cache holds
-SOURCES = sorted(HERE.glob("*.py")) + [HERE.parent / "codes.py"]
+SOURCES = sorted(p for p in HERE.glob("*.py") if p.name not in NOT_COMPILED) + [HERE.parent / "codes.py"]
 KEEP_CACHES = 3
 _CACHE_NAME = re.compile(r"engine-[0-9a-f]{16}")
 
@@ -75,6 +80,40 @@ def _cache_dir() -> Path | None:
 
 
 CACHE_DIR = _cache_dir()
+
+#: how long compiling a kernel took on a 2-core x86-64 machine (benchmarks/bench_compile.py), for the
+#: first compile on a machine; later ones say how long the last one took here (COMPILE_TIMES)
+TYPICAL_COMPILE_S = {"lanes": 30.0, "scalar": 15.0, "scalar_scored": 16.0, "nonlinear": 25.0, "nonlinear_scored": 26.0}
+COMPILE_TIMES = "compile_times.json"
+
+
+def compile_estimate(kernel: str) -> tuple[float, bool]:
+    """(seconds, measured here): how long compiling `kernel` ('lanes', 'scalar', 'scalar_scored', 'nonlinear', ...) took on
+    this machine the last time, else the typical time on a 2-core machine."""
+    try:
+        last = json.loads((_root() / COMPILE_TIMES).read_text())[kernel]
+        if isinstance(last, (int, float)) and last > 0:
+            return float(last), True
+    except (OSError, ValueError, KeyError, TypeError):
+        pass
+    return TYPICAL_COMPILE_S.get(kernel, 20.0), False
+
+
+def record_compile(kernel: str, seconds: float) -> None:
+    """Remember how long compiling `kernel` took here (best effort: a cache that cannot be written is fine)."""
+    path = _root() / COMPILE_TIMES
+    try:
+        try:
+            times = json.loads(path.read_text())
+            times = times if isinstance(times, dict) else {}
+        except (OSError, ValueError):
+            times = {}
+        times[kernel] = round(float(seconds), 2)
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+        tmp.write_text(json.dumps(times, sort_keys=True))
+        os.replace(tmp, path)
+    except OSError:
+        pass
 
 
 def _cached(decorate):

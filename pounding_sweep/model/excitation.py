@@ -14,8 +14,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from pounding_sweep.codes import EXC_HARMONIC, EXC_RECORD
-from pounding_sweep.model.records import GroundRecord, read_record, resample, similitude_scale
+from pounding_sweep.model.records import GroundRecord, implausible_timing, read_record, resample, similitude_scale
 from pounding_sweep.scene import Scene
+from pounding_sweep.warn import warn
 
 
 @dataclass(frozen=True)
@@ -45,10 +46,14 @@ class Excitation:
         recs, arrays = [], []
         for p in paths:
             rec = read_record(p, format=e.format, units=e.units)
+            odd = implausible_timing(rec)
             if e.length_scale != 1.0:
                 rec = similitude_scale(rec, e.length_scale)
             recs.append(rec)
             arrays.append(resample(rec, dt, e.duration_s))
+            if odd is not None:
+                steps = "" if scene.integration.auto else f" A run takes {arrays[-1].size - 1:,} steps of {dt:g} s."
+                warn("record_timing", odd + steps)
         lens = np.array([a.size for a in arrays], dtype=np.int64)
         if lens.min() < 2:
             from pounding_sweep.scene import ConfigError

@@ -21,6 +21,7 @@ if TYPE_CHECKING:  # pandas costs 0.3 s to import: only where a table is built
 from pounding_sweep.errors import ExperimentError
 from pounding_sweep.scene import ExperimentConfig
 from pounding_sweep.scene.channels import floor_dof
+from pounding_sweep.scene.files import MAX_TABLE_BYTES, open_regular, text_problem
 
 
 @dataclass(frozen=True)
@@ -46,26 +47,50 @@ def read_table(path: str | Path) -> tuple[pd.DataFrame, dict]:
     path = Path(path)
     if path.is_dir():
         raise ExperimentError(f"{path}: a folder, not an experiment table (.csv or .parquet)")
-    if not path.is_file():
+    if not path.exists() and not path.is_symlink():
         raise ExperimentError(f"{path}: experiment table not found")
     if path.suffix.lower() not in TABLE_SUFFIXES:
         raise ExperimentError(
             f"{path}: an experiment table is .csv or .parquet, not {path.suffix or 'a file without suffix'!r}"
         )
-    try:
-        if path.suffix.lower() == ".parquet":
-            import pyarrow.parquet as pq
+    # a FIFO, a device or a file over MAX_TABLE_BYTES is refused before it is read
+    with open_regular(path, "experiment table", MAX_TABLE_BYTES, ExperimentError) as fh:
+        try:
+            if path.suffix.lower() == ".parquet":
+                import pyarrow.parquet as pq
 
-            t = pq.read_table(path)
-            md = {k.decode(errors="replace"): v.decode(errors="replace") for k, v in (t.schema.metadata or {}).items()}
-            return t.to_pandas(), md
-        import pandas as pd
+                try:
+                    names = pq.read_schema(path).names
+                except Exception:  # noqa: BLE001 - unreadable: read_table below says why, as it always has
+                    names = []
+                if len(set(names)) < len(names):  # pyarrow cannot read such a table: say why
+                    raise ExperimentError(f"{path}: {_repeated(sorted({n for n in names if names.count(n) > 1})[0])}")
+                t = pq.read_table(path)  # by name, so its errors name the file (checked just above)
+                md = {
+                    k.decode(errors="replace"): v.decode(errors="replace") for k, v in (t.schema.metadata or {}).items()
+                }
+                names = t.schema.names
+                df = t.to_pandas()
+            else:
+                import csv
+                import io
 
-        return pd.read_csv(path), {}
-    except ExperimentError:
-        raise
-    except Exception as e:  # pandas/pyarrow raise many types for unreadable files
-        raise ExperimentError(f"{path}: cannot read the experiment table ({type(e).__name__}: {e})") from None
+                head = fh.read(4096)
+                if (why := text_problem(path, "experiment table", head)) is not None:
+                    raise ExperimentError(why)
+                fh.seek(0)
+                import pandas as pd
+
+                raw = fh.read()
+                df, md = pd.read_csv(io.BytesIO(raw)), {}
+                text = raw.decode("utf-8", errors="replace")
+                names = next(csv.reader(io.StringIO(text)), [])  # as written: pandas renames a repeated 'x' to 'x.1'
+            df.attrs["repeated_columns"] = sorted({str(n) for n in names if names.count(n) > 1})
+            return df, md
+        except ExperimentError:
+            raise
+        except Exception as e:  # pandas/pyarrow raise many types for unreadable files
+            raise ExperimentError(f"{path}: cannot read the experiment table ({type(e).__name__}: {e})") from None
 
 
 def load_experiment(cfg: ExperimentConfig, floors: tuple[int, int]) -> Experiment:
@@ -81,7 +106,11 @@ def experiment_from_table(
     df: pd.DataFrame, md: dict, where: str, cfg: ExperimentConfig, floors: tuple[int, int]
 ) -> Experiment:
     """Read the table and check it: time column present, numeric, finite, strictly increasing;
-    every mapped column present, numeric and finite; every channel a model floor."""
+    every mapped column present, named once, numeric, finite and not constant; every channel a model floor."""
+    repeated = set(df.attrs.get("repeated_columns", ()))
+    for col in [cfg.time_column, *cfg.channels]:
+        if col in repeated:
+            raise ExperimentError(f"{where}: {_repeated(col)}")
     if cfg.time_column not in df.columns:
         raise ExperimentError(
             f"{where}: no time column '{cfg.time_column}' (columns: {', '.join(map(str, df.columns))})"
@@ -112,9 +141,24 @@ def experiment_from_table(
                 f"{where}: no column '{col}' (mapped to floor {code}); columns: {', '.join(map(str, df.columns))}"
             )
         floor_dof(code, floors, f"[experiment] channels.{col}")
-        chans[code] = _numeric(df[col], where, col) * factor
+    for col, code in cfg.channels.items():
+        x = _numeric(df[col], where, col)
+        if np.all(x == x[0]):
+            what = "zero throughout" if x[0] == 0 else f"constant ({float(x[0])!r} {cfg.units} throughout)"
+            raise ExperimentError(
+                f"{where}: column '{col}' (floor {code}) is {what}: a floor that never moves relative to the "
+                "table gives nothing to score against (a marker not tracked, or the wrong column?)"
+            )
+        chans[code] = x * factor
         cols[code] = col
     return Experiment(str(where), t, chans, cols, md)
+
+
+def _repeated(col: str) -> str:
+    return (
+        f"column name '{col}' appears more than once in the table's header: which one is meant cannot be told; "
+        "give each column its own name"
+    )
 
 
 def _numeric(series: pd.Series, where: str, col: str) -> np.ndarray:

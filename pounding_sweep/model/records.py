@@ -14,6 +14,7 @@ import numpy as np
 
 from pounding_sweep.codes import ACCEPTED_UNITS, UNIT_ALIASES
 from pounding_sweep.errors import RecordError
+from pounding_sweep.scene.files import MAX_RECORD_BYTES, read_regular, text_problem
 
 G_STANDARD = 9.80665  # m/s^2
 
@@ -26,6 +27,7 @@ __all__ = [
     "read_record",
     "similitude_scale",
     "resample",
+    "implausible_timing",
 ]
 
 
@@ -81,27 +83,22 @@ _UNIT_FACTORS = {"g": G_STANDARD, "m/s2": 1.0, "cm/s2": 0.01}
 _UNIT_ALIASES = UNIT_ALIASES  # the accepted spellings: pounding_sweep.codes (one home)
 _ACCEPTED_UNITS = ACCEPTED_UNITS
 
-# How PEER line 3 spells units (spaces removed, upper case) -> our canonical name.
-_HEADER_UNITS = {
-    "G": "g",
-    "M/S/S": "m/s2",
-    "M/SEC/SEC": "m/s2",
-    "M/S2": "m/s2",
-    "M/S^2": "m/s2",
-    "M/S**2": "m/s2",
-    "M/SEC2": "m/s2",
-    "M/SEC^2": "m/s2",
-    "M/SEC**2": "m/s2",
-    "CM/S/S": "cm/s2",
-    "CM/SEC/SEC": "cm/s2",
-    "CM/S2": "cm/s2",
-    "CM/S^2": "cm/s2",
-    "CM/S**2": "cm/s2",
-    "CM/SEC2": "cm/s2",
-    "CM/SEC^2": "cm/s2",
-    "CM/SEC**2": "cm/s2",
-    "GAL": "cm/s2",
-}
+# How an AT2 header's line 3 names units. NGA-West2 and the older PEER format write "... IN UNITS OF G";
+# files from elsewhere write the same thing many ways ("IN CM/SEC/SEC", "(cm/s^2)", "UNITS: GAL",
+# "cm.s-2", "cm/s²"). Every mention on the line is found, wherever it stands: a length over time squared,
+# "gal", or g as a word after "units of", "in", "unit(s):" or in brackets. Lengths other than m and cm
+# are recognised so that they are refused, not read as g.
+_LENGTHS = {"M": "m", "CM": "cm", "MM": "mm", "IN": "in", "INCH": "in", "INCHES": "in", "FT": "ft", "FEET": "ft"}
+_TIME = r"(?:S|SEC|SECS|SECOND|SECONDS)"
+_SQUARED = rf"(?:/\s*{_TIME}|\^?\s*2|\*\*\s*2|²)"
+_HEADER_COMPOUND = re.compile(
+    rf"(?<![A-Z0-9])(M|CM|MM|IN|INCH|INCHES|FT|FEET)\s*"
+    rf"(?:/\s*{_TIME}\s*{_SQUARED}|[*.·]?\s*{_TIME}\s*(?:\^|\*\*)?\s*(?:-\s*2|⁻²))(?![A-Z0-9])"
+)
+_HEADER_GAL = re.compile(r"(?<![A-Z0-9])GALS?(?![A-Z0-9])")
+_HEADER_G = re.compile(r"(?:UNITS?\s*(?:OF|:|=|IS|ARE)?\s*|\bIN\s+|[(\[]\s*)G(?:'?S)?(?:\s*[)\]]|(?![A-Z0-9/]))")
+_HEADER_UNITS_WORD = re.compile(r"UNITS?\s+OF\s+(\S+(?:\s*/\s*\S+)*)")
+_SUPPORTED = {"g": "g", "m": "m/s2", "cm": "cm/s2"}
 
 # Plain decimal / Fortran E (or D) number: "-.6403182E-02", "5", "1.5d-3". No underscores, no hex.
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eEdD][+-]?\d+)?")
@@ -121,11 +118,12 @@ def _unit_factor(units: object, path: str) -> tuple[str, float]:
 
 
 def _read_lines(path: Path) -> list[str]:
-    """Whole file as lines (any line ending); UTF-8 with a Latin-1 fallback for accented station names."""
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise RecordError(f"{path}: cannot read file ({exc.strerror or exc})") from None
+    """Whole file as lines (any line ending); UTF-8 with a Latin-1 fallback for accented station names.
+    A FIFO, a device or a file over MAX_RECORD_BYTES is refused unread; UTF-16 and binary files are
+    refused by what they are (never echoed as Latin-1 characters)."""
+    raw = read_regular(path, "record file", MAX_RECORD_BYTES, RecordError)
+    if (why := text_problem(path, "record file", raw)) is not None:
+        raise RecordError(why)
     try:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError:
@@ -162,21 +160,40 @@ def _is_nonfinite_spelling(token: str) -> bool:
 # --------------------------------------------------------------------------- AT2
 
 
-def _at2_header_units(line3: str, path: str) -> str | None:
-    """Units named on AT2 line 3 ('... IN UNITS OF G'), or None when the line names none."""
+def _at2_header_units(line3: str, path: str) -> tuple[str | None, str]:
+    """(canonical units, as written) named on AT2 line 3 ('... IN UNITS OF G'), or (None, '') when the
+    line names none. A line naming two different units, units this reader does not convert (mm, in, ft
+    over s^2), or 'UNITS OF' something unknown is a RecordError: such a record is refused, never read as g."""
     upper = line3.upper()
     if ("VELOCITY" in upper or "DISPLACEMENT" in upper) and "ACCELERATION" not in upper:
         raise RecordError(f"{path}, line 3: not an acceleration record: {line3.strip()!r}")
-    m = re.search(r"UNITS\s+OF\s+(\S+(?:\s*/\s*\S+)*)", upper)
-    if m is None:
-        return None
-    word = re.sub(r"\s+", "", m.group(1)).rstrip(".,;:")
-    if word not in _HEADER_UNITS:
+    found: dict[str, str] = {}  # canonical or unsupported length -> as written
+    for m in _HEADER_COMPOUND.finditer(upper):
+        length = _LENGTHS[m.group(1)]
+        found.setdefault(_SUPPORTED.get(length, f"{length}/s2"), m.group(0).strip())
+    for m in _HEADER_GAL.finditer(upper):
+        found.setdefault("cm/s2", m.group(0))
+    for m in _HEADER_G.finditer(upper):
+        found.setdefault("g", m.group(0).strip())
+    unsupported = [w for u, w in found.items() if u not in _UNIT_FACTORS]
+    if unsupported:
         raise RecordError(
-            f"{path}, line 3: unrecognised units {word!r} in header {line3.strip()!r}; "
-            "pass units= explicitly (e.g. 'm/s2' or 'cm/s2')"
+            f"{path}, line 3: units {unsupported[0]!r} in header {line3.strip()!r} are not supported: "
+            "convert the record to g, m/s2 or cm/s2"
         )
-    return _HEADER_UNITS[word]
+    if len(found) > 1:
+        named = " and ".join(repr(w) for w in found.values())
+        raise RecordError(
+            f"{path}, line 3: header {line3.strip()!r} names two units ({named}): keep the one the values are in"
+        )
+    if found:
+        ((canon, written),) = found.items()
+        return canon, written
+    m = _HEADER_UNITS_WORD.search(upper)
+    if m is not None:  # 'UNITS OF <something unknown>': refuse rather than guess g
+        word = re.sub(r"\s+", "", m.group(1)).rstrip(".,;:")
+        return None, word
+    return None, ""
 
 
 def _at2_npts_dt(line4: str, path: str) -> tuple[int, float]:
@@ -198,23 +215,33 @@ def _at2_npts_dt(line4: str, path: str) -> tuple[int, float]:
     return int(npts_f), dt
 
 
-def read_at2(path, units="g") -> GroundRecord:
+def read_at2(path, units=None) -> GroundRecord:
     """Read a PEER AT2 file (NGA-West2 or older PEER header) into m/s^2.
 
-    Units rule: an explicit units other than "g" always wins. With units="g" (the default), if
-    header line 3 names other units (e.g. "UNITS OF CM/S/S"), the header's units are used.
+    Units: those header line 3 names (NGA-West2: "UNITS OF G"; other spellings of g, m/s2 and cm/s2
+    are recognised too), else `units`, else g (the PEER convention). `units` given and the header
+    naming others is a RecordError naming both (a record is never read in units its header contradicts),
+    and so is a header naming units this reader cannot convert, or unknown ones without `units`.
     """
     p = Path(path)
     src = str(path)
-    _unit_factor(units, src)  # reject bad units before touching the file
+    explicit = None if units is None else _unit_factor(units, src)[0]  # bad units: refused before the file
     lines = _read_lines(p)
     if len(lines) < 4:
         raise RecordError(f"{src}: only {len(lines)} line(s); a PEER AT2 file needs 4 header lines")
     npts, dt = _at2_npts_dt(lines[3], src)
-    header_units = _at2_header_units(lines[2], src)
-    canon, _ = _unit_factor(units, src)
-    if canon == "g" and header_units is not None:
-        canon = header_units
+    header, written = _at2_header_units(lines[2], src)
+    if header is not None and explicit is not None and header != explicit:
+        raise RecordError(
+            f"{src}, line 3: units = {units!r} ({explicit}) contradicts the header, which says {written!r} "
+            f"({header}): {lines[2].strip()!r}; leave units out to read the record as its header says"
+        )
+    if header is None and written and explicit is None:
+        raise RecordError(
+            f"{src}, line 3: unrecognised units {written!r} in header {lines[2].strip()!r}; "
+            "give units explicitly if the values are in g, m/s2 or cm/s2"
+        )
+    canon = header or explicit or "g"
     factor = _UNIT_FACTORS[canon]
 
     values: list[float] = []
@@ -323,7 +350,7 @@ def read_csv_record(path, units="m/s2") -> GroundRecord:
 def read_record(path, format="auto", units=None) -> GroundRecord:
     """Read a record as AT2 or CSV; format "auto" goes by suffix (.at2 -> AT2, .csv/.txt -> CSV).
 
-    units=None uses the format's default ("g" for AT2, with its header rule; "m/s2" for CSV).
+    units=None uses the format's default (AT2: its header's units, else g; CSV: m/s2).
     """
     src = str(path)
     fmt = format.strip().lower() if isinstance(format, str) else format
@@ -333,10 +360,36 @@ def read_record(path, format="auto", units=None) -> GroundRecord:
         if fmt is None:
             raise RecordError(f"{src}: cannot tell the format from suffix {suffix!r}; pass format='at2' or 'csv'")
     if fmt == "at2":
-        return read_at2(path) if units is None else read_at2(path, units=units)
+        return read_at2(path, units=units)
     if fmt == "csv":
         return read_csv_record(path) if units is None else read_csv_record(path, units=units)
     raise RecordError(f"{src}: unknown format {format!r}; accepted: 'auto', 'at2', 'csv'")
+
+
+# --------------------------------------------------------------------------- plausibility
+
+#: a ground-motion record's sample step and length beyond which its time is probably not in seconds
+#: (strong-motion records are sampled every 0.001-0.02 s and last seconds to a few minutes)
+PLAUSIBLE_STEP_S = 0.05
+PLAUSIBLE_LENGTH_S = 600.0
+
+
+def implausible_timing(rec: GroundRecord) -> str | None:
+    """What is odd about a record's time axis as read (before similitude scaling), or None."""
+    odd, limits = [], []
+    if rec.dt_s > PLAUSIBLE_STEP_S:
+        odd.append(f"a sample step of {rec.dt_s:.6g} s")
+        limits.append(f"steps above {PLAUSIBLE_STEP_S:g} s")
+    if rec.duration_s > PLAUSIBLE_LENGTH_S:
+        odd.append(f"a length of {rec.duration_s:,.6g} s")
+        limits.append(f"lengths above {PLAUSIBLE_LENGTH_S:g} s")
+    if not odd:
+        return None
+    return (
+        f"{rec.source}: {' and '.join(odd)} {'are' if len(odd) > 1 else 'is'} implausible for a ground-motion "
+        f"record ({', '.join(limits)}): "
+        "is its time in ms rather than s?"
+    )
 
 
 # --------------------------------------------------------------------------- scaling, resampling

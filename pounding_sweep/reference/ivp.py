@@ -387,7 +387,9 @@ def law_ivp_reference(scene, t_end=None, rtol=1e-10, atol=1e-13, max_step=1e-3, 
             if Q.law == "jankowski":
                 # the branch's formula, continued past its end so the event can be located
                 el = Q.kh * max(z[j], 0.0) ** 1.5
-                out[j] = el + (2.0 * Q.xi * math.sqrt(Q.kh * math.sqrt(max(z[j], 0.0)) * Q.meff[j]) * zd[j] if branch[j] else 0.0)
+                out[j] = el + (
+                    2.0 * Q.xi * math.sqrt(Q.kh * math.sqrt(max(z[j], 0.0)) * Q.meff[j]) * zd[j] if branch[j] else 0.0
+                )
             elif Q.law == "hertzdamp":
                 out[j] = Q.kh * max(z[j], 0.0) ** 1.5 * (1.0 + Q.a * zd[j] / v0[j]) if branch[j] else 0.0
             else:

@@ -101,14 +101,22 @@ def _hermite_crossing_rate(p0, p1, m0, m1, h):
 
     def p(t):
         return (
-            (2 * t**3 - 3 * t**2 + 1) * p0 + (t**3 - 2 * t**2 + t) * m0 * h + (-2 * t**3 + 3 * t**2) * p1 + (t**3 - t**2) * m1 * h
+            (2 * t**3 - 3 * t**2 + 1) * p0
+            + (t**3 - 2 * t**2 + t) * m0 * h
+            + (-2 * t**3 + 3 * t**2) * p1
+            + (t**3 - t**2) * m1 * h
         )
 
     ts = np.linspace(0.0, 1.0, 257)
     vals = np.array([p(t) for t in ts])
     k = int(np.argmax(vals > 0.0))
     t = brentq(p, ts[k - 1], ts[k], xtol=1e-16) if k > 0 and vals[k - 1] <= 0.0 else 0.0
-    dp = (6 * t**2 - 6 * t) * p0 + (3 * t**2 - 4 * t + 1) * m0 * h + (-6 * t**2 + 6 * t) * p1 + (3 * t**2 - 2 * t) * m1 * h
+    dp = (
+        (6 * t**2 - 6 * t) * p0
+        + (3 * t**2 - 4 * t + 1) * m0 * h
+        + (-6 * t**2 + 6 * t) * p1
+        + (3 * t**2 - 2 * t) * m1 * h
+    )
     return dp / h
 
 
@@ -123,7 +131,6 @@ def law_newmark_reference(scene, noise: float = 0.0, seed: int = 0, **overrides)
         Q = dataclasses.replace(Q, base=P)
     n, p, dt, N = P.n_dof, P.n_pairs, P.dt, P.nsteps
     ones = np.ones(n)
-    G = P.G
     t = np.arange(N + 1) * dt
     U, V, A = np.zeros((N + 1, n)), np.zeros((N + 1, n)), np.zeros((N + 1, n))
     F_hist, act_hist = np.zeros((N + 1, p)), np.zeros((N + 1, p), dtype=bool)
@@ -206,7 +213,9 @@ def _plain_step(Q: LawProblem, k, u, v, a, ag, st):
     active = st["active"]
     v0 = st["v0"].copy()
     Keff = P.K + (2.0 / dt) * P.C + (4.0 / dt**2) * P.M
-    p_hat = -(P.M @ np.ones(P.n_dof)) * ag[k + 1] + P.M @ (4.0 / dt**2 * u + 4.0 / dt * v + a) + P.C @ (2.0 / dt * u + v)
+    p_hat = (
+        -(P.M @ np.ones(P.n_dof)) * ag[k + 1] + P.M @ (4.0 / dt**2 * u + 4.0 / dt * v + a) + P.C @ (2.0 / dt * u + v)
+    )
     u_free = np.linalg.solve(Keff, p_hat)
     v_free = 2.0 / dt * (u_free - u) - v
     z0, z1 = P.G.T @ u - P.gap, P.G.T @ u_free - P.gap

@@ -16,10 +16,12 @@ _PATTERNS = {
 
 def floor_dof(code: str, floors: tuple[int, int], key: str) -> int:
     """'b1f3' (building 1, floor 3) -> its DOF index in the coupled model."""
-    m = re.fullmatch(r"b([12])f(\d+)", code)
+    m = re.fullmatch(r"b(0|[1-9]\d*)f(0|[1-9]\d*)", code)
     if not m:
         raise ConfigError(f"{key} = {code!r}: a model floor is written b<building>f<floor>, e.g. 'b1f3'")
     b, f = int(m.group(1)), int(m.group(2))
+    if b not in (1, 2):
+        raise ConfigError(f"{key} = {code!r}: there is no building {b} (the model has buildings 1 and 2)")
     if not 1 <= f <= floors[b - 1]:
         raise ConfigError(f"{key} = {code!r}: building {b} has floors 1..{floors[b - 1]}, so it maps to no floor")
     return (f - 1) if b == 1 else floors[0] + f - 1

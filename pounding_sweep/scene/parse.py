@@ -11,30 +11,62 @@ import types
 import typing
 from pathlib import Path
 
-from pounding_sweep.errors import ConfigError
+from pounding_sweep.errors import ConfigError, shown
 from pounding_sweep.scene.axes import SWEEPABLE
+from pounding_sweep.scene.files import MAX_SCENE_BYTES, read_regular, resolve, text_problem
 from pounding_sweep.scene.keys import check_keys
-from pounding_sweep.scene.schema import MAX_AXIS_VALUES, SECTIONS, TOP_KEYS, Axis, ExperimentConfig, Scene
-from pounding_sweep.scene.validate import validate
+from pounding_sweep.scene.schema import (
+    MAX_AXIS_VALUES,
+    SECTIONS,
+    TOP_KEYS,
+    Axis,
+    BuildingConfig,
+    ExperimentConfig,
+    Scene,
+)
+from pounding_sweep.scene.validate import one_storey_damping_modes, validate
 
 
 def load_scene(path: str | Path) -> Scene:
     """Read, resolve and validate a scene file; raise ConfigError naming file, key and value."""
     path = Path(path)
+    data = read_regular(path, "scene file", MAX_SCENE_BYTES, ConfigError)
     try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as e:
-        raise ConfigError(f"{path}: cannot read scene file ({e.strerror or e})") from None
+        text = data.decode("utf-8")
     except UnicodeDecodeError as e:
-        raise ConfigError(f"{path}: not UTF-8 text ({e.reason} at byte {e.start})") from None
+        why = text_problem(path, "scene file", data)
+        raise ConfigError(why or f"{path}: not UTF-8 text ({e.reason} at byte {e.start})") from None
+    if (why := text_problem(path, "scene file", data)) is not None:
+        raise ConfigError(why)
     try:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(f"{path}: TOML syntax error: {e}{_toml_line(text, str(e))}") from None
+    except RecursionError:  # tomllib recurses once per level of nested arrays and inline tables
+        raise ConfigError(f"{path}: TOML nested too deeply (arrays or inline tables inside each other)") from None
+    if _depth(raw) > MAX_NESTING:
+        raise ConfigError(
+            f"{path}: TOML nested more than {MAX_NESTING} levels deep (arrays or tables inside each other)"
+        )
     try:
-        return scene_from_dict(raw, base_dir=path.resolve().parent, source=str(path), toml_text=text)
+        return scene_from_dict(raw, base_dir=resolve(path).parent, source=str(path), toml_text=text)
     except ConfigError as e:
         raise ConfigError(f"{path}: {e}") from None
+
+
+MAX_NESTING = 8  # the deepest a scene goes is 5: the file, [experiment], [experiment.video], marker positions, [x, y]
+
+
+def _depth(value, level: int = 0) -> int:
+    """How deeply tables and arrays nest (the top table is level 1), without recursion."""
+    deepest, todo = level, [(value, 1)]
+    while todo:
+        v, d = todo.pop()
+        if isinstance(v, dict | list):
+            deepest = max(deepest, d)
+            if d <= MAX_NESTING:  # deeper is refused anyway: no need to walk it all
+                todo.extend((x, d + 1) for x in (v.values() if isinstance(v, dict) else v))
+    return deepest
 
 
 def _toml_line(text: str, message: str) -> str:
@@ -70,26 +102,28 @@ def scene_from_dict(raw: dict, base_dir: Path, source: str = "<dict>", toml_text
     for name, cls in SECTIONS.items():
         table = raw.get(name, {})
         if not isinstance(table, dict):
-            raise ConfigError(f"'{name}' must be a table [{name}], got {type(table).__name__} {table!r}")
+            raise ConfigError(f"'{name}' must be a table [{name}], got {type(table).__name__} {shown(table)}")
         sections[name] = _build(cls, table, name)
+        if cls is BuildingConfig and len(sections[name].masses_kg) == 1 and "damping_modes" in table:
+            raise ConfigError(one_storey_damping_modes(name, sections[name].damping_modes))  # given, even as [1, 2]
     name = _typed(raw.get("name", Path(source).stem), str, "name")
     if not name or any(c in name for c in "/\\\x00") or name in (".", ".."):
         raise ConfigError(
-            f"name = {name!r}: a scene name is also the default output file name; "
+            f"name = {shown(name)}: a scene name is also the default output file name; "
             "use letters, digits, '-', '_' or '.', no path separators"
         )
     desc = _typed(raw.get("description", ""), str, "description")
     exc = sections["excitation"]
     if exc.record is not None:
-        sections["excitation"] = dataclasses.replace(exc, record=str((base_dir / exc.record).resolve()))
+        sections["excitation"] = dataclasses.replace(exc, record=str(resolve(base_dir / exc.record)))
     out = sections["output"]
     out_path = out.path or f"results/{name}.parquet"
-    sections["output"] = dataclasses.replace(out, path=str((base_dir / out_path).resolve()))
+    sections["output"] = dataclasses.replace(out, path=str(resolve(base_dir / out_path)))
     sweep = _parse_sweep(raw.get("sweep", {}), base_dir)
     experiment = None
     if "experiment" in raw:
         if not isinstance(raw["experiment"], dict):
-            raise ConfigError(f"'experiment' must be a table [experiment], got {raw['experiment']!r}")
+            raise ConfigError(f"'experiment' must be a table [experiment], got {shown(raw['experiment'])}")
         xraw = dict(raw["experiment"])
         video = xraw.pop("video", None)
         experiment = _build(ExperimentConfig, xraw, "experiment")
@@ -101,7 +135,7 @@ def scene_from_dict(raw: dict, base_dir: Path, source: str = "<dict>", toml_text
                 experiment, video=spec, channels=experiment.channels or spec.default_channels()
             )
         if experiment.table is not None:
-            experiment = dataclasses.replace(experiment, table=str((base_dir / experiment.table).resolve()))
+            experiment = dataclasses.replace(experiment, table=str(resolve(base_dir / experiment.table)))
     scene = Scene(
         name=name, description=desc, sweep=sweep, source=source, toml_text=toml_text, experiment=experiment, **sections
     )
@@ -143,35 +177,35 @@ def _coerce(value, hint, key: str):
 def _typed(value, typ, key: str):
     if typ is bool:
         if not isinstance(value, bool):
-            raise ConfigError(f"{key} = {value!r}: expected true or false")
+            raise ConfigError(f"{key} = {shown(value)}: expected true or false")
         return value
     if typ is dict:
         if not isinstance(value, dict) or not value:
-            raise ConfigError(f"{key} = {value!r}: expected a non-empty table of name = value")
+            raise ConfigError(f"{key} = {shown(value)}: expected a non-empty table of name = value")
         return {str(k): _typed(v, str, f"{key}.{k}") for k, v in value.items()}
     if typ is float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ConfigError(f"{key} = {value!r}: expected a number")
+            raise ConfigError(f"{key} = {shown(value)}: expected a number")
         value = float(value)
         if not math.isfinite(value):
-            raise ConfigError(f"{key} = {value!r}: must be finite")
+            raise ConfigError(f"{key} = {shown(value)}: must be finite")
         return value
     if typ is int:
         if isinstance(value, bool) or not isinstance(value, int):
-            raise ConfigError(f"{key} = {value!r}: expected an integer")
+            raise ConfigError(f"{key} = {shown(value)}: expected an integer")
         return value
     if typ is str:
         if not isinstance(value, str):
-            raise ConfigError(f"{key} = {value!r}: expected a string")
+            raise ConfigError(f"{key} = {shown(value)}: expected a string")
         if "\x00" in value:
-            raise ConfigError(f"{key} = {value!r}: contains a NUL character")
+            raise ConfigError(f"{key} = {shown(value)}: contains a NUL character")
         return value
     raise TypeError(typ)  # pragma: no cover - a field type the loader does not know
 
 
 def _parse_sweep(table, base_dir: Path) -> tuple[Axis, ...]:
     if not isinstance(table, dict):
-        raise ConfigError(f"'sweep' must be a table [sweep], got {table!r}")
+        raise ConfigError(f"'sweep' must be a table [sweep], got {shown(table)}")
     check_keys(table, SWEEPABLE, "[sweep]")
     axes = []
     for name, spec in table.items():
@@ -180,7 +214,7 @@ def _parse_sweep(table, base_dir: Path) -> tuple[Axis, ...]:
             vals = spec if isinstance(spec, list) else [spec]
             if not vals:
                 raise ConfigError(f"{key} = []: an axis needs at least one value")
-            vals = tuple(str((base_dir / _typed(v, str, key)).resolve()) for v in vals)
+            vals = tuple(str(resolve(base_dir / _typed(v, str, key))) for v in vals)
         elif name == "law":
             vals = spec if isinstance(spec, list) else [spec]
             if not vals:
@@ -191,7 +225,7 @@ def _parse_sweep(table, base_dir: Path) -> tuple[Axis, ...]:
         else:
             vals = _coerce(spec, tuple[float, ...], key)
         if len(set(vals)) != len(vals):
-            raise ConfigError(f"{key} = {list(vals)!r}: repeated values")
+            raise ConfigError(f"{key} = {shown(list(vals))}: repeated values")
         axes.append(Axis(name, vals))
     return tuple(axes)
 
@@ -217,4 +251,4 @@ def _range_values(spec: dict, key: str) -> tuple[float, ...]:
         if start <= 0 or stop <= 0:
             raise ConfigError(f"{key}: log spacing needs start and stop > 0 (got {start}, {stop})")
         return tuple(float(x) for x in np.geomspace(start, stop, num))
-    raise ConfigError(f"{key}.spacing = {spacing!r}: expected 'linear' or 'log'")
+    raise ConfigError(f"{key}.spacing = {shown(spacing)}: expected 'linear' or 'log'")

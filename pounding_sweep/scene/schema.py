@@ -11,16 +11,24 @@ from dataclasses import dataclass, field
 from pounding_sweep.scene.video import VideoSpec  # plain data; OpenCV stays unimported
 
 
-def _f(doc: str, default=dataclasses.MISSING, **kw):
+def _f(doc: str, default=dataclasses.MISSING, when: str | None = None, **kw):
+    """A field with its --describe text; `when`: when a key whose default is None is required (or what
+    leaving it out means)."""
+    meta = {"doc": doc, "when": when}
     if default is dataclasses.MISSING:
-        return field(metadata={"doc": doc}, **kw)
-    return field(default=default, metadata={"doc": doc}, **kw)
+        return field(metadata=meta, **kw)
+    return field(default=default, metadata=meta, **kw)
 
 
 EXECUTORS = ("local", "dask")
 MAX_AXIS_VALUES = 10_000_000  # a range longer than this is a typo, not a sweep
 MAX_STEPS = 100_000_000  # steps of one harmonic run (records: the same limit on resampling, records._MAX_SAMPLES)
 MAX_GRID = 50_000_000
+#: floors of one building: the model's matrices are (floors of both)^2, a run's cost about floors^3.5 on the
+#: scalar kernel (the engine's limits: scene/describe.py LIMITS); a longer list is a mistake, not a building
+MAX_FLOORS = 1000
+#: threads of the local executor, and processes of a Dask LocalCluster: more than any machine has cores
+MAX_THREADS = 1024
 
 # ----------------------------------------------------------------------------- sections
 
@@ -32,21 +40,36 @@ class BuildingConfig:
     masses_kg: tuple[float, ...] = _f("floor masses [kg], floor 1 first")
     name: str = _f("label used in outputs", "")
     story_stiffness_N_per_m: tuple[float, ...] | None = _f(
-        "lateral stiffness of each story [N/m] (one value: the same for every story)", None
+        "lateral stiffness of each story [N/m] (one value: the same for every story)",
+        None,
+        when="required unless column_EI_Nm2 is given",
     )
     column_EI_Nm2: tuple[float, ...] | None = _f(
-        "column flexural stiffness EI [N m^2] (k = n_columns 12 EI / h^3)", None
+        "column flexural stiffness EI [N m^2] (k = n_columns 12 EI / h^3)",
+        None,
+        when="instead of story_stiffness_N_per_m",
     )
-    n_columns: int | None = _f("columns per story (with column_EI_Nm2)", None)
+    n_columns: int | None = _f("columns per story", None, when="required with column_EI_Nm2")
     story_height_m: tuple[float, ...] | None = _f(
         "story height h [m] (one value: every story): with column_EI_Nm2 it sets k = n 12 EI / h^3; with either form "
         "it gives the drift ratios (peak_drift_ratio_*) and the floors' heights for gap studies",
         None,
+        when="required with column_EI_Nm2; optional otherwise",
     )
-    damping_ratio: float | None = _f("Rayleigh damping ratio matched at damping_modes (0.0105 = 1.05 %)", None)
-    damping_modes: tuple[int, ...] = _f("the two modes (1-based) at which damping_ratio holds", (1, 2))
-    rayleigh_a0_per_s: float | None = _f("explicit Rayleigh mass coefficient a0 [1/s] (instead of damping_ratio)", None)
-    rayleigh_a1_s: float | None = _f("explicit Rayleigh stiffness coefficient a1 [s] (instead of damping_ratio)", None)
+    damping_ratio: float | None = _f(
+        "Rayleigh damping ratio matched at damping_modes (0.0105 = 1.05 %)",
+        None,
+        when="optional; without it or rayleigh_a0_per_s/rayleigh_a1_s the building is undamped",
+    )
+    damping_modes: tuple[int, ...] = _f(
+        "the two modes (1-based) at which damping_ratio holds (not with one storey)", (1, 2)
+    )
+    rayleigh_a0_per_s: float | None = _f(
+        "explicit Rayleigh mass coefficient a0 [1/s]", None, when="optional, instead of damping_ratio"
+    )
+    rayleigh_a1_s: float | None = _f(
+        "explicit Rayleigh stiffness coefficient a1 [s]", None, when="optional, instead of damping_ratio"
+    )
 
 
 @dataclass(frozen=True)
@@ -55,8 +78,10 @@ class ContactConfig:
 
     r: float = _f("coefficient of restitution r in [0, 1] (eq. 10; each law's own relation: restitution_relation)")
     gap_m: float = _f("seismic gap d [m] between facing floors at rest", 0.0)
-    ks_ratio: float | None = _f("contact stiffness as a ratio k_s / k_ref", None)
-    ks_N_per_m: float | None = _f("contact stiffness k_s [N/m] (instead of ks_ratio)", None)
+    ks_ratio: float | None = _f(
+        "contact stiffness as a ratio k_s / k_ref", None, when="required unless ks_N_per_m is given, or either swept"
+    )
+    ks_N_per_m: float | None = _f("contact stiffness k_s [N/m]", None, when="instead of ks_ratio")
     k_ref_N_per_m: float = _f("reference story stiffness k for ks_ratio [N/m] (paper: 6830)", 6830.0)
     law: str = _f(
         "'classic' (eq. 8, may pull briefly before separation), 'no_tension' (force >= 0), 'hertz' "
@@ -92,12 +117,26 @@ class ExcitationConfig:
 
     type: str = _f("'harmonic' or 'record'")
     name: str = _f("label used in outputs", "")
-    amplitude_m: float | None = _f("harmonic: table displacement amplitude [m]", None)
-    frequency_Hz: float | None = _f("harmonic: table frequency [Hz]", None)
-    duration_s: float | None = _f("length of the run [s] (record: default its own length; longer pads zeros)", None)
-    record: str | None = _f("record: path of a PEER .AT2 or a two-column CSV (time [s], acceleration)", None)
+    amplitude_m: float | None = _f(
+        "harmonic: table displacement amplitude [m]", None, when="required for type = 'harmonic'"
+    )
+    frequency_Hz: float | None = _f("harmonic: table frequency [Hz]", None, when="required for type = 'harmonic'")
+    duration_s: float | None = _f(
+        "length of the run [s] (a record: longer pads zeros)",
+        None,
+        when="required for type = 'harmonic'; a record's own length by default",
+    )
+    record: str | None = _f(
+        "record: path of a PEER .AT2 or a two-column CSV (time [s], acceleration)",
+        None,
+        when="required for type = 'record', unless [sweep] record",
+    )
     format: str = _f("record format: 'auto' (by suffix), 'at2' or 'csv'", "auto")
-    units: str | None = _f("record acceleration units: 'g', 'm/s2' or 'cm/s2' (default: the format's)", None)
+    units: str | None = _f(
+        "record acceleration units: 'g', 'm/s2' or 'cm/s2' (an AT2 header naming others is an error)",
+        None,
+        when="default: an AT2's header's units, else g; a CSV's m/s2",
+    )
     scale: float = _f("factor on the record's acceleration", 1.0)
     length_scale: float = _f(
         "similitude length scale lambda_L (eqs. 17-19): time / sqrt(lambda_L), acceleration kept", 1.0
@@ -142,7 +181,11 @@ class IntegrationConfig:
 class OutputConfig:
     """Where results go and which time histories to keep."""
 
-    path: str = _f("Parquet file of one row per run (relative to the scene file)", "")
+    path: str = _f(
+        "Parquet dataset folder of one row per run (relative to the scene file)",
+        "",
+        when="default: results/<name>.parquet",
+    )
     histories: tuple[str, ...] = _f(
         "history channels: disp_b1f3, vel_b2f1, abs_acc_b1f3, force_f3, ground_acc (none: metrics only)", ()
     )
@@ -171,19 +214,19 @@ class ExperimentConfig:
     """Tracked displacement to score every run against (CSV or Parquet; see the README's format)."""
 
     table: str | None = _f(
-        "path of the tracked-displacement table (.csv or .parquet); or an [experiment.video] "
-        "section to track a video instead",
+        "path of the tracked-displacement table (.csv or .parquet)",
         None,
+        when="required unless an [experiment.video] section names a video to track",
     )
     channels: dict | None = _f(
-        "table column -> model floor, e.g. {model1_floor3 = 'b1f3'} (with a video: default "
-        "every marker named by a floor)",
+        "table column -> model floor, e.g. {model1_floor3 = 'b1f3'}",
         None,
+        when="required with a table; with a video every marker named by a floor",
     )
     time_column: str = _f("name of the time column [s]", "t_s")
     units: str = _f("units of the displacement columns: 'mm' or 'm'", "mm")
     window_s: tuple[float, ...] | None = _f(
-        "[start, end] of the compared window in simulation time [s] (default: all overlap)", None
+        "[start, end] of the compared window in simulation time [s]", None, when="default: all overlap"
     )
     time_offset_s: float = _f(
         "experiment time minus simulation time [s] (the table's t = offset is the simulation's t = 0)", 0.0
@@ -196,6 +239,7 @@ class ExperimentConfig:
         "[experiment.video]: a shake-table video whose LED markers are tracked into the "
         "table (see python -m pounding_sweep track --help for its keys)",
         None,
+        when="instead of table",
     )
 
 

@@ -14,10 +14,18 @@ from pounding_sweep.codes import (
     canonical_unit,
     is_nonlinear,
 )
-from pounding_sweep.errors import ConfigError
+from pounding_sweep.errors import ConfigError, shown
 from pounding_sweep.scene.axes import check_ks
 from pounding_sweep.scene.channels import floor_dof, parse_channel
-from pounding_sweep.scene.schema import EXECUTORS, MAX_GRID, MAX_STEPS, BuildingConfig, Scene
+from pounding_sweep.scene.schema import (
+    EXECUTORS,
+    MAX_FLOORS,
+    MAX_GRID,
+    MAX_STEPS,
+    MAX_THREADS,
+    BuildingConfig,
+    Scene,
+)
 
 
 def _positive(value, key):
@@ -25,11 +33,27 @@ def _positive(value, key):
         raise ConfigError(f"{key} = {value!r}: must be > 0")
 
 
+DEFAULT_DAMPING_MODES = (1, 2)
+
+
+def one_storey_damping_modes(bname: str, modes) -> str:
+    """The message for damping_modes on a one-storey building (which has mode 1 only)."""
+    return (
+        f"[{bname}] damping_modes = {list(modes)}: a one-storey building has only mode 1, where damping_ratio "
+        "is met by stiffness-proportional damping alone; remove damping_modes"
+    )
+
+
 def validate(s: Scene) -> None:
     """Physical and logical checks that the type coercion cannot make."""
     for bname in ("building1", "building2"):
         b: BuildingConfig = getattr(s, bname)
         n = len(b.masses_kg)
+        if n > MAX_FLOORS:
+            raise ConfigError(
+                f"[{bname}] masses_kg: {n:,} floors, more than the {MAX_FLOORS:,} a building may have "
+                "(see python -m pounding_sweep --describe for what the engine supports)"
+            )
         for v in b.masses_kg:
             _positive(v, f"[{bname}] masses_kg")
         has_k = b.story_stiffness_N_per_m is not None
@@ -64,10 +88,12 @@ def validate(s: Scene) -> None:
                 raise ConfigError(f"[{bname}] {k} = {v!r}: must be >= 0")
         if b.damping_ratio is not None and not 0 <= b.damping_ratio < 1:
             raise ConfigError(f"[{bname}] damping_ratio = {b.damping_ratio!r}: must lie in [0, 1)")
+        if n == 1 and tuple(b.damping_modes) != DEFAULT_DAMPING_MODES:
+            raise ConfigError(one_storey_damping_modes(bname, b.damping_modes))
         if len(b.damping_modes) != 2 or len(set(b.damping_modes)) != 2 or not all(1 <= m <= n for m in b.damping_modes):
             if n > 1:
                 raise ConfigError(
-                    f"[{bname}] damping_modes = {list(b.damping_modes)}: two different modes between 1 and {n}"
+                    f"[{bname}] damping_modes = {shown(list(b.damping_modes))}: two different modes between 1 and {n}"
                 )
     c = s.contact
     axes = {a.name: a.values for a in s.sweep}
@@ -145,14 +171,14 @@ def validate(s: Scene) -> None:
     _positive(s.output.history_decimate, "[output] history_decimate")
     for ch in s.output.histories:
         parse_channel(ch, (len(s.building1.masses_kg), len(s.building2.masses_kg)))
-    if s.execution.threads < 0:
-        raise ConfigError(f"[execution] threads = {s.execution.threads}: must be >= 0")
+    check_workers(s.execution.threads, "[execution] threads")
     if s.execution.batch_runs < 0:
         raise ConfigError(f"[execution] batch_runs = {s.execution.batch_runs}: must be >= 0")
     if s.execution.executor not in EXECUTORS:
         raise ConfigError(f"[execution] executor = {s.execution.executor!r}: expected one of {list(EXECUTORS)}")
-    if s.execution.dask_workers < 0:
-        raise ConfigError(f"[execution] dask_workers = {s.execution.dask_workers}: must be >= 0")
+    check_workers(s.execution.dask_workers, "[execution] dask_workers")
+    if s.execution.dask_address:
+        check_dask_address(s.execution.dask_address, "[execution] dask_address")
     if s.execution.max_runs < 1:
         raise ConfigError(f"[execution] max_runs = {s.execution.max_runs}: must be >= 1")
     if s.execution.chunk_runs < 1:
@@ -211,10 +237,15 @@ def _validate_experiment(s: Scene) -> None:
     if x.combine not in ("mean", "max", "rms"):
         raise ConfigError(f"[experiment] combine = {x.combine!r}: expected 'mean', 'max' or 'rms'")
     if x.window_s is not None and (len(x.window_s) != 2 or not x.window_s[0] < x.window_s[1]):
-        raise ConfigError(f"[experiment] window_s = {list(x.window_s)}: expected [start, end] with start < end")
+        raise ConfigError(f"[experiment] window_s = {shown(list(x.window_s))}: expected [start, end] with start < end")
     if x.max_lag_s < 0:
         raise ConfigError(f"[experiment] max_lag_s = {x.max_lag_s!r}: must be >= 0")
     _positive(x.refine_max_evals, "[experiment] refine_max_evals")
+    if x.time_column in x.channels:
+        raise ConfigError(
+            f"[experiment] channels.{x.time_column} = {x.channels[x.time_column]!r}: '{x.time_column}' is the "
+            "time column (time_column), not a displacement; map the floor's displacement column instead"
+        )
     floors = (len(s.building1.masses_kg), len(s.building2.masses_kg))
     seen = {}
     for col, target in x.channels.items():
@@ -264,3 +295,36 @@ def _check_laws(c, axes: dict) -> None:
 def _check_r(r, key):
     if not 0.0 <= r <= 1.0:
         raise ConfigError(f"{key} = {r!r}: the coefficient of restitution must lie in [0, 1]")
+
+
+def check_workers(value: int, key: str) -> None:
+    """A thread or worker-process count: 0 (every core) up to MAX_THREADS."""
+    said = f"{key} {value}" if key.startswith("--") else f"{key} = {value}"  # an option, or a scene key
+    if value < 0:
+        raise ConfigError(f"{said}: must be >= 0")
+    if value > MAX_THREADS:
+        raise ConfigError(f"{said}: more than {MAX_THREADS:,}, the most a sweep starts (0: every core)")
+
+
+#: how a Dask scheduler address is written: tcp://host:port (or tls://, ucx://, ws://, wss://), or host:port
+_SCHEMES = ("tcp", "tls", "ucx", "ws", "wss")
+
+
+def check_dask_address(address: str, key: str) -> None:
+    """The form of a scheduler address (whether a scheduler answers there is found when connecting)."""
+    import re
+
+    scheme, sep, rest = address.partition("://")
+    if not sep:  # host:port is tcp://host:port to Dask
+        scheme, rest = "tcp", address
+    host, colon, port = rest.rpartition(":")
+    ok = (
+        scheme in _SCHEMES
+        and bool(colon)
+        and port.isdigit()
+        and 0 < int(port) < 65536
+        and re.fullmatch(r"[A-Za-z0-9._-]+|\[[0-9A-Fa-f:.]+\]", host) is not None
+    )
+    if not ok:
+        said = f"{key} {shown(address)}" if key.startswith("--") else f"{key} = {shown(address)}"
+        raise ConfigError(f"{said}: not a scheduler address; expected tcp://HOST:PORT, e.g. 'tcp://10.0.0.5:8786'")

@@ -15,6 +15,7 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 
 from pounding_sweep.errors import ConfigError
+from pounding_sweep.scene.files import resolve
 from pounding_sweep.scene.keys import check_keys
 
 FLOOR_NAME = re.compile(r"(?:b(\d+)f(\d+)|model(\d+)_floor(\d+))(?:_mm)?")
@@ -217,7 +218,7 @@ def parse_video_section(table: dict, base_dir: Path) -> VideoSpec:
         raise _err("median_ksize", ksize, "must be odd (1: no median filter)")
     p = Path(path)
     return VideoSpec(
-        path=str((base_dir / p).resolve()) if not p.is_absolute() else str(p),
+        path=str(resolve(base_dir / p)) if not p.is_absolute() else str(p),
         markers=markers,
         references=refs,
         positions_px=positions,

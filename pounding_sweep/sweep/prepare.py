@@ -52,8 +52,9 @@ class Prepared:
     def dt(self) -> float:
         return self.sysarr.dt
 
-    def run(self, params: dict[str, np.ndarray], threads: int = 1, batch_runs: int = 0):
-        """Integrate the runs described by `params` (as Grid.chunk gives them)."""
+    def run(self, params: dict[str, np.ndarray], threads: int = 1, batch_runs: int = 0, done=None):
+        """Integrate the runs described by `params` (as Grid.chunk gives them); `done(n)`: called as groups
+        of n runs finish (not with dt_s = 'auto', whose runs are rerun at finer steps)."""
         if self.auto is not None:
             return self.auto.run(params, threads, batch_runs)
         runs, rec, derived = self.kernel_inputs(params)
@@ -68,6 +69,7 @@ class Prepared:
             self.score,
             self.kernel,
             law_codes(params),
+            done,
         )
         return metrics, run_time, hist, scores, derived
 

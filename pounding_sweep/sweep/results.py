@@ -8,9 +8,11 @@ of the grid, in run_id order), which pandas, pyarrow, polars and DuckDB read as 
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import platform
+import re
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +21,7 @@ import pyarrow.parquet as pq
 
 from pounding_sweep import __version__
 from pounding_sweep.engine import layout as L
+from pounding_sweep.errors import OutputError
 
 META_KEY = b"pounding_sweep"
 
@@ -176,6 +179,30 @@ def read_metadata(path: str | Path) -> dict:
     return json.loads(read_schema(path).metadata[META_KEY])
 
 
+def meta_warnings(metadata: dict[bytes, bytes]) -> list[str]:
+    """The warnings stored in metadata made by file_metadata."""
+    return list(json.loads(metadata[META_KEY]).get("warnings", []))
+
+
+def store_warnings(folder: Path, messages: list[str]) -> None:
+    """Put a sweep's warnings into the metadata of its first part (the one read_metadata reads): the
+    parts carry the warnings known before the runs; those found from the results (no run made contact)
+    come after every part is written. The part is rewritten under a temporary name and renamed."""
+    parts = part_files(folder)
+    if not parts or part_index(parts[0]) != 0:
+        return
+    table = pq.read_table(parts[0])
+    md = dict(table.schema.metadata or {})
+    if META_KEY not in md:
+        return
+    info = json.loads(md[META_KEY])
+    if info.get("warnings") == list(messages):
+        return
+    info["warnings"] = list(messages)
+    md[META_KEY] = json.dumps(info, default=str).encode()
+    write_part(folder, 0, table, md)
+
+
 def read_schema(path: str | Path) -> pa.Schema:
     """Schema (with the key-value metadata) of a result file, or of a dataset folder's first part."""
     p = Path(path)
@@ -194,77 +221,156 @@ def read_schema(path: str | Path) -> pa.Schema:
 
 PART_NAME = "part-{:05d}.parquet"
 MANIFEST = "_sweep.json"
+_PART = re.compile(r"part-(\d{5,})\.parquet")
+#: hidden names only a sweep writes in its folders: parts and manifests being written, the folder's lock
+_OURS_HIDDEN = re.compile(r"\.part-\d{5,}\.parquet(\.\d+)?\.tmp|\._sweep\.json(\.\d+)?\.tmp|\._sweep\.lock")
 
 
 def part_files(folder: str | Path) -> list[Path]:
-    """The finished parts of a dataset folder, in order."""
-    return sorted(Path(folder).glob("part-*.parquet"))
+    """The finished parts of a dataset folder (named as this package names them), in order."""
+    folder = Path(folder)
+    try:
+        names = sorted(p.name for p in folder.iterdir() if _PART.fullmatch(p.name))
+    except (FileNotFoundError, NotADirectoryError):
+        return []
+    return [folder / n for n in names]
 
 
 def part_index(path: Path) -> int:
-    return int(path.name[len("part-") : -len(".parquet")])
+    return int(_PART.fullmatch(path.name).group(1))
+
+
+def is_own_temporary(name: str) -> bool:
+    """A hidden file a sweep writes while it runs (a part or manifest being written, the lock)."""
+    return _OURS_HIDDEN.fullmatch(name) is not None
+
+
+def _cannot_write(path: Path, e: OSError) -> OutputError:
+    what = e.strerror or str(e)
+    hint = " (free some space, then run the same command again to resume)" if e.errno in _FULL else ""
+    return OutputError(f"{path}: cannot write ({what}){hint}")
+
+
+_FULL = {errno.ENOSPC, getattr(errno, "EDQUOT", errno.ENOSPC)}
+
+
+def _discard(path: Path) -> None:
+    try:
+        path.unlink(missing_ok=True)
+    except OSError:  # a read-only place, where nothing was written either
+        pass
+
+
+def _fsync_dir(folder: Path) -> None:
+    """Make a rename in `folder` durable (where the platform can)."""
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def write_table_atomic(path: Path, table: pa.Table, metadata: dict[bytes, bytes]) -> Path:
+    """Write a Parquet file atomically and durably: `.<name>.<pid>.tmp` beside it (hidden from readers;
+    the process id keeps two writers apart), flushed to disk, then renamed. A write that fails (a full
+    disk) is an OutputError naming the file; nothing half-written stays."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with open(tmp, "wb") as f:
+            pq.write_table(table.replace_schema_metadata(metadata), f, compression="zstd")
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+        _fsync_dir(path.parent)
+    except OSError as e:
+        raise _cannot_write(path, e) from None
+    finally:
+        _discard(tmp)
+    return path
 
 
 def write_part(folder: Path, index: int, table: pa.Table, metadata: dict[bytes, bytes]) -> Path:
-    """Write one part atomically: `.part-N.parquet.tmp` (hidden from readers), then rename."""
-    folder.mkdir(parents=True, exist_ok=True)
-    final = folder / PART_NAME.format(index)
-    tmp = folder / f".{final.name}.tmp"
-    try:
-        pq.write_table(table.replace_schema_metadata(metadata), tmp, compression="zstd")
-        os.replace(tmp, final)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return final
+    """One part of a dataset folder, written by write_table_atomic."""
+    return write_table_atomic(folder / PART_NAME.format(index), table, metadata)
+
+
+class ManifestError(Exception):
+    """`_sweep.json` is there but cannot be read as a manifest (empty, cut short, not ours)."""
+
+
+MANIFEST_KEYS = ("config_hash", "version", "grid_size", "chunk_runs", "parts")
 
 
 def read_manifest(folder: Path) -> dict | None:
+    """The manifest of a dataset folder; None when there is none; ManifestError when it is damaged."""
+    path = Path(folder) / MANIFEST
     try:
-        return json.loads((Path(folder) / MANIFEST).read_text())
+        with open(path, "rb") as f:
+            raw = f.read(64 * 2**20)
     except FileNotFoundError:
         return None
+    except OSError as e:
+        raise ManifestError(f"cannot read it ({e.strerror or e})") from None
+    if not raw.strip():
+        raise ManifestError("it is empty")
+    try:
+        m = json.loads(raw)
+    except (UnicodeDecodeError, ValueError):
+        raise ManifestError("it is cut short or not JSON") from None
+    if not isinstance(m, dict) or any(k not in m for k in MANIFEST_KEYS):
+        raise ManifestError("it is not a pounding_sweep manifest (no " + ", ".join(MANIFEST_KEYS) + ")")
+    return m
 
 
 def write_manifest(folder: Path, manifest: dict) -> None:
-    folder.mkdir(parents=True, exist_ok=True)
-    tmp = folder / f".{MANIFEST}.tmp"
-    tmp.write_text(json.dumps(manifest, indent=1, sort_keys=True))
-    os.replace(tmp, folder / MANIFEST)
+    """Atomically and durably, like a part."""
+    path = folder / MANIFEST
+    tmp = folder / f".{MANIFEST}.{os.getpid()}.tmp"
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with open(tmp, "w") as f:
+            f.write(json.dumps(manifest, indent=1, sort_keys=True))
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+        _fsync_dir(folder)
+    except OSError as e:
+        raise _cannot_write(path, e) from None
+    finally:
+        _discard(tmp)
 
 
 def remove_stale_temporaries(folder: Path) -> None:
-    """Parts a killed sweep left half-written (never renamed)."""
-    for t in Path(folder).glob(".part-*.tmp"):
-        t.unlink(missing_ok=True)
+    """Parts and manifests a killed sweep left half-written (never renamed). Only ever called by the
+    sweep holding the folder's lock (sweep/resume.py), so no running sweep's file is among them."""
+    for t in list(Path(folder).glob(".part-*.tmp")) + list(Path(folder).glob(f".{MANIFEST}*.tmp")):
+        if is_own_temporary(t.name):
+            t.unlink(missing_ok=True)
 
 
-class AtomicParquetWriter:
-    """Stream tables into `<path>.tmp`; rename to `path` on success, delete on failure."""
+def part_config_hash(path: Path) -> tuple[str | None, int]:
+    """(config_hash, rows) of a part from its footer alone; (None, rows) for a Parquet file this package
+    did not write. Raises OSError or pyarrow's ArrowInvalid for a file that is not whole Parquet."""
+    meta = pq.read_metadata(path)
+    kv = meta.metadata or {}
+    if META_KEY not in kv or b"config_hash" not in kv:
+        return None, meta.num_rows
+    return kv[b"config_hash"].decode(errors="replace"), meta.num_rows
 
-    def __init__(self, path: str | Path, metadata: dict[bytes, bytes]):
-        self.path = Path(path)
-        self.tmp = self.path.with_name(self.path.name + ".tmp")
-        self.metadata = metadata
-        self._writer: pq.ParquetWriter | None = None
 
-    def write(self, table: pa.Table) -> None:
-        if self._writer is None:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-            schema = table.schema.with_metadata(self.metadata)
-            self._writer = pq.ParquetWriter(self.tmp, schema, compression="zstd")
-        self._writer.write_table(table.replace_schema_metadata(self.metadata))
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, exc_type, exc, tb):
-        if self._writer is not None:
-            self._writer.close()
-        if exc_type is None and self._writer is not None:
-            os.replace(self.tmp, self.path)
-        else:
-            self.tmp.unlink(missing_ok=True)
-        return False
+def part_config(path: Path) -> dict | None:
+    """The canonical scene a part of ours was written from (None if it holds none)."""
+    try:
+        return json.loads(pq.read_metadata(path).metadata[META_KEY]).get("config")
+    except Exception:  # noqa: BLE001 - only used to name a difference in a message
+        return None
 
 
 def sidecar_path(path: str | Path, what: str) -> Path:

@@ -8,6 +8,8 @@ scored as it finishes and the best runs are kept as running minima.
 
 from __future__ import annotations
 
+import dataclasses
+import threading
 import time
 from collections import Counter
 from collections.abc import Callable
@@ -28,29 +30,35 @@ from pounding_sweep.errors import ConfigError, OutputError  # noqa: F401
 from pounding_sweep.model.excitation import Excitation
 from pounding_sweep.model.grid import Grid
 from pounding_sweep.scene import Scene
+from pounding_sweep.scene.hashing import hash_of
+from pounding_sweep.sweep.checks import ContactTally, check_contact, check_time_step
 from pounding_sweep.sweep.prepare import Prepared, drift_ratio_columns, prepare  # noqa: F401
 from pounding_sweep.sweep.ranking import Ranking, Refinement, refine, score_columns, score_table_columns
 from pounding_sweep.sweep.results import (
-    MANIFEST,
     PART_NAME,
-    AtomicParquetWriter,
     file_metadata,
     histories_path,
     histories_table,
+    meta_warnings,
     metrics_table,
     numpy_column,
+    read_metadata,
     sidecar_path,
-    write_manifest,
+    store_warnings,
     write_part,
+    write_table_atomic,
 )
-from pounding_sweep.sweep.resume import claim_output
+from pounding_sweep.sweep.resume import OutputFolder
+from pounding_sweep.warn import collecting
 
 HISTORY_CHUNK_BYTES = 256 * 2**20
 
 
 @dataclass
 class SweepSummary:
-    """What ran: counts, statuses, timings, best runs and where the output went."""
+    """What ran: counts, statuses, timings, best runs and where the output went. `steps`, `kernel_s`
+    cover every run of the grid (resumed ones too); `new_runs`, `new_steps`, `new_kernel_s` and `run_s`
+    only those this call ran."""
 
     scene: str
     runs: int
@@ -69,6 +77,11 @@ class SweepSummary:
     parts: int = 0
     resumed_parts: int = 0
     executor: str = "local"
+    new_runs: int = 0
+    new_steps: int = 0
+    new_kernel_s: float = 0.0
+    refinement_reused: bool = False
+    warnings: list[str] = field(default_factory=list)
 
 
 def run_scene(
@@ -83,11 +96,23 @@ def run_scene(
 ) -> SweepSummary:
     """Run every grid point of the scene into a Parquet dataset folder (one part per chunk); return
     a summary. Parts already in the folder from an interrupted run of the same scene (same config
-    hash and package version) are kept and skipped; other results there are refused unless
-    `overwrite`. `executor`: one from executors.make_executor (default: the scene's [execution]);
-    `kernel`: engine.driver.KERNELS ("scalar": every chunk on the scalar kernel)."""
-    from pounding_sweep.sweep.executors import make_executor
+    hash and package version) are kept and skipped, and so is a refinement already stored in the best
+    table; other results there are refused unless `overwrite`. `executor`: one from
+    executors.make_executor (default: the scene's [execution]); `kernel`: engine.driver.KERNELS
+    ("scalar": every chunk on the scalar kernel). `progress(done, total)` is called as runs finish
+    (within a chunk on the local executor); when it has them, its `compiling` method is told when a
+    kernel is compiled (engine.driver.Announce) and `restart(done)` when the runs start.
 
+    Probable mistakes in the scene (pounding_sweep.warn) are collected: passed on as they happen to
+    an enclosing `warn.collecting()` (the command line prints them), stored in the result metadata
+    (`warnings`; part 0 holds all of them) and listed in the summary."""
+    with collecting() as notes:
+        summary = _run_scene(scene, out_path, threads, progress, executor, overwrite, confirmed, kernel, notes)
+    summary.warnings = notes.messages()
+    return summary
+
+
+def _run_scene(scene, out_path, threads, progress, executor, overwrite, confirmed, kernel, notes) -> SweepSummary:
     out_path = Path(out_path or scene.output.path)
     ex = scene.execution
     size = Grid.from_scene(scene).size
@@ -96,65 +121,103 @@ def run_scene(
             f"[sweep] gives {size:,} runs, more than [execution] max_runs = {ex.max_runs:,}: "
             "confirm with --yes (or raise max_runs) if that many is meant"
         )
+    hpath = histories_path(out_path) if scene.output.histories else None
+    best_path = sidecar_path(out_path, "best") if scene.experiment is not None else None
+    # the output is claimed (locked, shown writable) before anything is read or computed, and released
+    # as found when the sweep fails before its first part
+    folder = OutputFolder(out_path, hpath, overwrite, best_path).claim()
+    ok = False
+    try:
+        summary = _run_claimed(scene, folder, threads, progress, executor, kernel, size, notes)
+        ok = True
+    finally:
+        folder.release(ok)
+    return summary
+
+
+def _run_claimed(scene, folder, threads, progress, executor, kernel, size, notes) -> SweepSummary:
+    from pounding_sweep.sweep.executors import make_executor
+
+    out_path, hpath, ex = folder.out, folder.hpath, scene.execution
     prep = prepare(scene, kernel)
+    check_time_step(prep)
     grid, model, exc = prep.grid, prep.model, prep.excitation
     chunk_runs = ex.chunk_runs
     if prep.hist.active:
         per_run = prep.hist.kinds.size * (int(exc.max_steps) // prep.hist.decimate + 1) * 8
         chunk_runs = max(1, min(chunk_runs, HISTORY_CHUNK_BYTES // per_run))
     chunks = [(i, s, e) for i, (s, e) in enumerate(grid.chunks(chunk_runs))]
+    config = scene.canonical()
     manifest = {
-        "config_hash": scene.config_hash(),
+        "config_hash": hash_of(config),
         "version": __version__,
         "scene": scene.name,
         "grid_size": grid.size,
         "chunk_runs": chunk_runs,
         "parts": len(chunks),
+        "config": config,  # the canonical scene: a refused resume names the key that differs
     }
-    hpath = histories_path(out_path) if prep.hist.active else None
-    done = claim_output(out_path, hpath, manifest, overwrite)
+    done = folder.resume(manifest)
     todo = [c for c in chunks if c[0] not in done]
 
     how = scene.experiment.combine if scene.experiment else "mean"
-    meta = file_metadata(scene, _model_facts(prep))
+    facts = _model_facts(prep)
+    meta = file_metadata(scene, {**facts, "warnings": notes.messages()})
     names = L.metric_columns(model.floors, model.n_pairs)
     ranking = (
         Ranking([f"rel_rms_{c}_pct" for c in prep.score_codes] + ["rel_rms_combined_pct"]) if prep.score_codes else None
     )
     tally = _Tally(ranking)
     for i in sorted(done):
-        tally.add(pq.read_table(out_path / PART_NAME.format(i)))
+        tally.add(_read_part(out_path / PART_NAME.format(i)))
+    tally.mark_resumed()
     if progress is not None and done:
         progress(tally.runs, grid.size)
 
-    exe = executor or make_executor(
-        ex.executor, threads if threads is not None else ex.threads, ex.dask_address, ex.dask_workers
-    )
-    compile_s = compile_kernel(prep.sysarr, prep.opts, prep.hist, prep.score, kernel, prep.law_codes_used)
+    refine_wanted = ranking is not None and scene.experiment.refine
+    stored = _stored_refinement(folder.best, scene) if refine_wanted else None
+    compile_s = 0.0
+    if todo or (refine_wanted and stored is None):  # the kernel this sweep uses: compiled, or loaded from the cache
+        announce = getattr(progress, "compiling", None)
+        compile_s = compile_kernel(prep.sysarr, prep.opts, prep.hist, prep.score, kernel, prep.law_codes_used, announce)
+    if hasattr(progress, "restart"):
+        progress.restart(tally.runs)
+    exe = None
+    if todo:
+        exe = executor or make_executor(
+            ex.executor, threads if threads is not None else ex.threads, ex.dask_address, ex.dask_workers
+        )
     t_run = time.perf_counter()
     try:
-        for res in exe.map(prep, todo):
-            columns = {"run_id": res.params["run_id"], **_param_columns(exc, res.params, res.derived)}
-            extra = score_table_columns(res.scores, prep.score_codes, how) if res.scores is not None else {}
-            extra.update(drift_ratio_columns(scene, res.metrics, names))
-            table = metrics_table(columns, names, res.metrics, res.run_time, extra)
-            if not (out_path / MANIFEST).exists():
-                write_manifest(out_path, manifest)
-            if hpath is not None:  # histories first: a finished main part implies its histories exist
-                write_part(
-                    hpath,
-                    res.index,
-                    histories_table(res.params["run_id"], res.hist, prep.dt * prep.hist.decimate, prep.hist_columns),
-                    meta,
-                )
-            write_part(out_path, res.index, table, meta)
-            tally.add(table)
-            if progress is not None:
-                progress(tally.runs, grid.size)
+        if todo:
+            inflight = _InFlight(progress, tally, grid.size)
+            for res in exe.map(prep, todo, done=inflight):
+                columns = {"run_id": res.params["run_id"], **_param_columns(exc, res.params, res.derived)}
+                extra = score_table_columns(res.scores, prep.score_codes, how) if res.scores is not None else {}
+                extra.update(drift_ratio_columns(scene, res.metrics, names))
+                table = metrics_table(columns, names, res.metrics, res.run_time, extra)
+                folder.write_manifest(manifest)
+                if hpath is not None:  # histories first: a finished main part implies its histories exist
+                    write_part(
+                        hpath,
+                        res.index,
+                        histories_table(
+                            res.params["run_id"], res.hist, prep.dt * prep.hist.decimate, prep.hist_columns
+                        ),
+                        meta,
+                    )
+                write_part(out_path, res.index, table, meta)
+                folder.wrote_part()
+                inflight.part_done(table)
+                if progress is not None:
+                    progress(tally.runs, grid.size)
     finally:
-        if executor is None:
+        if executor is None and exe is not None:
             exe.close()
     run_s = time.perf_counter() - t_run
+    check_contact(tally.contact, scene)
+    if notes.messages() != meta_warnings(meta):
+        store_warnings(out_path, notes.messages())
     summary = SweepSummary(
         scene.name,
         grid.size,
@@ -165,38 +228,77 @@ def run_scene(
         run_s,
         tally.kernel_s,
         tally.steps,
-        exe.workers,
+        exe.workers if exe is not None else 0,
         {"peak_force_N": tally.peak_force},
         parts=len(chunks),
         resumed_parts=len(done),
-        executor=exe.name,
+        executor=exe.name if exe is not None else ex.executor,
     )
+    summary.new_runs, summary.new_steps, summary.new_kernel_s = tally.new()
     if ranking is not None:
         import pandas as pd
 
         best = ranking.frame()
         if best.empty:  # every run diverged or ended before the window: nothing to rank
             best = pd.DataFrame(columns=["criterion", "error_pct", "run_id"])
-        elif scene.experiment.refine:
-            summary.refinement = refine_best(prep, best)
+        elif refine_wanted:
+            grid_best = best[best.criterion == "rel_rms_combined_pct"]
+            if stored is not None and stored.start_error_pct == float(grid_best.error_pct.iloc[0]):
+                # the same sweep, the same best cell: the stored refinement is what refining again would give
+                start = {n: float(grid_best[n].iloc[0]) for n in stored.optimum if n in grid_best}
+                summary.refinement = dataclasses.replace(stored, start=start)
+                summary.refinement_reused = True
+            else:
+                summary.refinement = refine_best(prep, best)
             if summary.refinement is not None:
-                rf = summary.refinement
-                best = pd.concat(
-                    [best, pd.DataFrame([{"criterion": "refined_combined", "error_pct": rf.error_pct, **rf.optimum}])],
-                    ignore_index=True,
-                )
+                best = pd.concat([best, pd.DataFrame([refinement_row(summary.refinement)])], ignore_index=True)
         best["run_id"] = best["run_id"].astype("Int64")
         summary.best = best
-        summary.best_path = sidecar_path(out_path, "best")
+        summary.best_path = folder.best
         import pyarrow as pa
 
-        with AtomicParquetWriter(summary.best_path, file_metadata(scene, {"kind": "best"})) as w:
-            w.write(pa.Table.from_pandas(best, preserve_index=False))
+        write_table_atomic(
+            summary.best_path,
+            pa.Table.from_pandas(best, preserve_index=False),
+            file_metadata(scene, {"kind": "best", "warnings": notes.messages()}),
+        )
     return summary
 
 
+def _read_part(path: Path):
+    """A finished part, read whole for the tally of a resumed sweep (its footer was checked by resume)."""
+    try:
+        return pq.read_table(path)
+    except Exception:  # noqa: BLE001 - pyarrow's errors for damaged data pages vary
+        raise OutputError(
+            f"{path}: cannot be read as Parquet (damaged); delete it and run the same command again to recompute it"
+        ) from None
+
+
+class _InFlight:
+    """Progress within a chunk: runs finished by the executor's threads before their part is written."""
+
+    def __init__(self, progress, tally, total: int):
+        self.progress, self.tally, self.total = progress, tally, total
+        self.runs = 0
+        self.lock = threading.Lock()
+
+    def __call__(self, n: int) -> None:
+        if self.progress is None:
+            return
+        with self.lock:
+            self.runs += n
+            done = self.tally.runs + self.runs
+        self.progress(min(done, self.total), self.total)
+
+    def part_done(self, table) -> None:
+        with self.lock:
+            self.tally.add(table)
+            self.runs = 0
+
+
 class _Tally:
-    """Counts, timings, extremes and the ranking over the parts of a sweep (new or resumed)."""
+    """Counts, timings, extremes, contact and the ranking over the parts of a sweep (new or resumed)."""
 
     def __init__(self, ranking: Ranking | None):
         self.ranking = ranking
@@ -205,6 +307,8 @@ class _Tally:
         self.steps = 0
         self.kernel_s = 0.0
         self.peak_force = 0.0
+        self.contact = ContactTally()
+        self.resumed = (0, 0, 0.0)  # runs, steps, kernel seconds of the parts kept from an earlier run
 
     def add(self, table) -> None:
         self.runs += table.num_rows
@@ -214,8 +318,52 @@ class _Tally:
         for name in table.column_names:
             if name.startswith("peak_force_f"):
                 self.peak_force = max(self.peak_force, float(np.nanmax(numpy_column(table, name), initial=0.0)))
+        self.contact.add(table, numpy_column)
         if self.ranking is not None:
             self.ranking.update(table)
+
+    def mark_resumed(self) -> None:
+        """What was added so far was resumed: the rest is this call's own work."""
+        self.resumed = (self.runs, self.steps, self.kernel_s)
+
+    def new(self) -> tuple[int, int, float]:
+        """Runs, steps and kernel seconds added since mark_resumed."""
+        r, st, k = self.resumed
+        return self.runs - r, self.steps - st, self.kernel_s - k
+
+
+REFINED = "refined_combined"  # the best table's criterion of the refined optimum
+
+
+def refinement_row(rf: Refinement) -> dict:
+    """The best table's row of a refinement (what a resumed sweep reads back: _stored_refinement)."""
+    return {
+        "criterion": REFINED,
+        "error_pct": rf.error_pct,
+        **rf.optimum,
+        "evaluations": rf.evaluations,
+        "start_error_pct": rf.start_error_pct,
+    }
+
+
+def _stored_refinement(best_path: Path, scene: Scene) -> Refinement | None:
+    """The refinement in the best table of an earlier run of this very sweep (same config hash and
+    package version), or None."""
+    if not best_path.is_file():
+        return None
+    try:
+        md = read_metadata(best_path)
+        if md.get("config_hash") != scene.config_hash() or md.get("version") != __version__:
+            return None
+        t = pq.read_table(best_path)
+        rows = [r for r in t.to_pylist() if r.get("criterion") == REFINED]
+    except (OSError, KeyError, ValueError):
+        return None
+    if not rows or rows[0].get("evaluations") is None or rows[0].get("start_error_pct") is None:
+        return None
+    r = rows[0]
+    optimum = {n: float(r[n]) for n in ("ks_ratio", "r") if r.get(n) is not None and np.isfinite(r[n])}
+    return Refinement({}, float(r["start_error_pct"]), optimum, float(r["error_pct"]), int(r["evaluations"]), "stored")
 
 
 def refine_best(prep: Prepared, best: pd.DataFrame) -> Refinement | None:

@@ -55,7 +55,19 @@ def test_corpus_covers_the_issue():
     for c in CASES:
         assert c.where and c.value, f"{c.id}: a case names both where (file/key/line) and the value"
     counts = Counter(c.category for c in CASES)
-    assert set(counts) == {"toml", "keys", "types", "values", "grid", "record", "table", "video"}
+    assert set(counts) == {
+        "toml",
+        "keys",
+        "types",
+        "values",
+        "grid",
+        "record",
+        "table",
+        "video",
+        "output",  # issue 17: where results go,
+        "resume",  # what an existing result folder holds,
+        "execution",  # and how the sweep runs
+    }
     assert min(counts.values()) >= 5, counts
     assert 10 <= sum(c.subprocess for c in CASES) <= 16  # the real-process dozen
     assert {c.category for c in CASES if c.subprocess} == set(counts)  # one of each kind at least
@@ -237,8 +249,10 @@ def test_scene_strings_are_never_executed_and_files_never_unpickled(tmp_path):
 ALLOWED_READERS = {
     "pd.read_csv": {"model/experiment.py", "plots.py"},
     "pd.read_parquet": {"plots.py"},  # result files the sweep wrote
-    "pq.read_table": {"model/experiment.py", "sweep/run.py", "video/tracker.py"},  # tables; our own parts; track cache
-    "pq.read_schema": {"sweep/results.py"},
+    # tables; our own parts (read back, and rewritten to store warnings); the track cache
+    "pq.read_table": {"model/experiment.py", "sweep/run.py", "sweep/results.py", "video/tracker.py"},
+    "pq.read_schema": {"model/experiment.py", "sweep/results.py"},  # a table's column names; our own parts
+    "pq.read_metadata": {"sweep/results.py", "sweep/resume.py"},  # footers: parts, and the best-runs file, as ours
     "cv2.VideoCapture": {"video/io.py"},
 }
 FORBIDDEN = (

@@ -129,9 +129,13 @@ def test_synthetic_at2_values_units_and_header_variants(tmp_path):
     assert rec.dt_s == 0.005
     assert rec.time_s.tolist() == pytest.approx([0.0, 0.005, 0.010])
     assert rec.pga_m_s2 == pytest.approx(0.2 * G_STANDARD)
-    # explicit units override "g": treat the numbers as cm/s^2
-    np.testing.assert_allclose(read_at2(p, units="gal").acc_m_s2, [-1e-4, 2e-3, 5e-4], rtol=1e-14)
-    np.testing.assert_allclose(read_at2(p, units="m/s^2").acc_m_s2, [-0.01, 0.2, 0.05], rtol=1e-15)
+    # explicit units agreeing with the header are fine
+    np.testing.assert_allclose(read_at2(p, units="g").acc_m_s2, rec.acc_m_s2, rtol=0)
+    # explicit units where the header names none: they are the record's
+    p0 = _write(tmp_path, "a0.AT2", NGA_HEAD.replace(" IN UNITS OF G", "") + "NPTS= 3, DT= .005\n" + body)
+    np.testing.assert_allclose(read_at2(p0).acc_m_s2, rec.acc_m_s2, rtol=0)  # PEER's convention: g
+    np.testing.assert_allclose(read_at2(p0, units="gal").acc_m_s2, [-1e-4, 2e-3, 5e-4], rtol=1e-14)
+    np.testing.assert_allclose(read_at2(p0, units="m/s^2").acc_m_s2, [-0.01, 0.2, 0.05], rtol=1e-15)
     # spaced variant of line 4
     p2 = _write(tmp_path, "b.AT2", NGA_HEAD + "NPTS = 3 DT = 0.01\n" + body)
     assert read_at2(p2).dt_s == 0.01
@@ -139,6 +143,63 @@ def test_synthetic_at2_values_units_and_header_variants(tmp_path):
     head_cm = NGA_HEAD.replace("UNITS OF G", "UNITS OF CM/SEC/SEC")
     p3 = _write(tmp_path, "c.AT2", head_cm + "NPTS=3, DT=.01 SEC\n" + body)
     np.testing.assert_allclose(read_at2(p3).acc_m_s2, [-1e-4, 2e-3, 5e-4], rtol=1e-14)
+
+
+# line 3 of AT2 files from elsewhere than PEER: how each names its units -> the units read
+HEADER_FORMS = {
+    "ACCELERATION TIME SERIES IN UNITS OF G": "g",
+    "ACCELERATION IN G": "g",
+    "Acceleration (g)": "g",
+    "UNITS: G": "g",
+    "ACCELERATION TIME SERIES IN UNITS OF CM/SEC/SEC": "cm/s2",
+    "ACCELERATION IN CM/S2": "cm/s2",
+    "Acceleration (cm/s^2)": "cm/s2",
+    "acceleration in cm/sec**2": "cm/s2",
+    "accel cm.s-2": "cm/s2",
+    "acceleration [cm s^-2]": "cm/s2",
+    "acceleration in cm/s²": "cm/s2",
+    "UNITS: GAL": "cm/s2",
+    "Acceleration in gals": "cm/s2",
+    "ACCELERATION IN M/S/S": "m/s2",
+    "acceleration [m/s**2]": "m/s2",
+    "ACCELERATION TIME HISTORY": "g",  # no units named: PEER's convention
+    "ACCELERATION, GALWAY STATION": "g",  # 'GAL' inside a word is no unit
+}
+FACTOR = {"g": G_STANDARD, "cm/s2": 0.01, "m/s2": 1.0}
+
+
+@pytest.mark.parametrize("line3", HEADER_FORMS)
+def test_at2_header_units_in_their_common_forms(tmp_path, line3):
+    head = NGA_HEAD.replace("ACCELERATION TIME SERIES IN UNITS OF G", line3)
+    p = _write(tmp_path, "h.AT2", head + "NPTS= 2, DT= .01\n .5 -.25\n")
+    want = HEADER_FORMS[line3]
+    np.testing.assert_allclose(read_at2(p).acc_m_s2, np.array([0.5, -0.25]) * FACTOR[want], rtol=1e-15)
+    np.testing.assert_allclose(read_at2(p, units=want).acc_m_s2, np.array([0.5, -0.25]) * FACTOR[want], rtol=1e-15)
+
+
+def test_at2_units_contradicting_the_header_are_refused(tmp_path):
+    """units = 'gal' on a record whose header says UNITS OF G was read as gal: 981 times too weak."""
+    p = _write(tmp_path, "g.AT2", NGA_HEAD + "NPTS= 2, DT= .01\n .5 -.25\n")
+    _raises(["g.AT2", "line 3", "units = 'gal'", "(cm/s2)", "'UNITS OF G'", "(g)"], read_at2, p, units="gal")
+    cm = _write(tmp_path, "cm.AT2", NGA_HEAD.replace("OF G", "OF CM/S/S") + "NPTS= 2, DT= .01\n .5 -.25\n")
+    _raises(["cm.AT2", "units = 'g'", "'CM/S/S'"], read_at2, cm, units="g")
+    _raises(["cm.AT2", "units = 'm/s2'"], read_record, cm, units="m/s2")
+
+
+@pytest.mark.parametrize(
+    "line3, why",
+    [
+        ("ACCELERATION IN MM/S2", "not supported"),
+        ("ACCELERATION IN FT/SEC/SEC", "not supported"),
+        ("ACCELERATION IN G (1 G = 981 CM/S2)", "names two units"),
+        ("ACCELERATION TIME SERIES IN UNITS OF FURLONGS", "unrecognised units 'FURLONGS'"),
+    ],
+)
+def test_at2_headers_that_cannot_be_read_are_refused(tmp_path, line3, why):
+    p = _write(
+        tmp_path, "x.AT2", NGA_HEAD.replace("ACCELERATION TIME SERIES IN UNITS OF G", line3) + "NPTS= 1, DT= .01\n .1\n"
+    )
+    _raises(["x.AT2", "line 3", why], read_at2, p)
 
 
 def test_trailing_blank_lines_are_fine(tmp_path):

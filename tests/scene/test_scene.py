@@ -89,7 +89,7 @@ BAD = {
         edit(r"^ks_ratio = 1.0$", "ks_ratio = 1.0\nks_N_per_m = 6830.0"),
         r"give ks_ratio or ks_N_per_m, not both",
     ),
-    "bad_channel": (BASE + '\nhistories = ["disp_b3f1"]\n', r"channel 'disp_b3f1'.*b<building>f<floor>"),
+    "bad_channel": (BASE + '\nhistories = ["disp_b3f1"]\n', r"channel 'disp_b3f1'.*there is no building 3"),
     "floor_out_of_range": (BASE + '\nhistories = ["disp_b1f4"]\n', r"building 1 has floors 1..3"),
     "missing_record": (
         BASE.replace('type = "harmonic"', 'type = "record"\nrecord = "nowhere.AT2"')
@@ -182,3 +182,47 @@ def test_describe_lists_every_key():
     d = describe()
     for key in ("masses_kg", "ks_ratio", "length_scale", "dt_s", "histories", "threads"):
         assert key in d
+
+
+def test_describe_states_the_engine_limits():
+    """--describe says what the engine supports (issue 17): the lane kernel's size, the scalar kernel
+    beyond it, the switch limit per step for the whole model, the sizes a scene and its files may have."""
+    from pounding_sweep.engine.events import MAX_EVENTS
+    from pounding_sweep.engine.simd import SCRATCH
+    from pounding_sweep.scene.describe import MAX_EVENTS as STATED
+
+    assert STATED == MAX_EVENTS  # the scene layer's copy (it loads no Numba)
+    assert 6 * 24 + 12 <= SCRATCH < 6 * 26 + 13  # "up to 12 + 12 floors"
+    d = describe()
+    for words in (
+        "up to 12 + 12 floors",
+        "scalar kernel",
+        "for the whole model",
+        "contact_unsettled",
+        "1,000 per building",
+    ):
+        assert words in d, words
+
+
+def test_describe_lists_the_top_level_keys_and_marks_what_is_required():
+    """Issue 16: name and description were missing, and a required key read 'default None'."""
+    import dataclasses
+
+    from pounding_sweep.scene.schema import SECTIONS, ExperimentConfig
+
+    lines = describe().splitlines()
+    assert lines[1].startswith("  name: ") and lines[2].startswith("  description: ")
+    assert "None" not in describe()
+    keyed = {line.split(":")[0].strip(): line for line in lines if line.startswith("  ")}
+    for key in ("masses_kg", "r", "type"):
+        assert keyed[key].endswith("(required)"), keyed[key]
+    assert keyed["ks_ratio"].endswith("(required unless ks_N_per_m is given, or either swept)")
+    assert keyed["amplitude_m"].endswith("(required for type = 'harmonic')")
+    assert keyed["gap_m"].endswith("(default 0.0)")
+    for name in ("building1", "building2", "contact", "excitation"):
+        assert f"[{name}] (required section)" in describe()
+    # every key of every section is listed, once per section
+    for name, cls in {**SECTIONS, "experiment": ExperimentConfig}.items():
+        section = describe().split(f"[{name}]", 1)[1].split("\n[", 1)[0]
+        for f in dataclasses.fields(cls):
+            assert f"\n  {f.name}: " in section, (name, f.name)

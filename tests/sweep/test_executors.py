@@ -138,7 +138,8 @@ def test_resume_with_a_changed_scene_is_refused(tmp_path):
     changed = _write_scene(tmp_path, r_values="[0.2, 0.6, 0.9]", duration="0.2", name="changed.toml")
     p = subprocess.run(_cli(changed, out), cwd=REPO, capture_output=True, text=True)
     assert p.returncode == 2 and "Traceback" not in p.stderr
-    assert "holds results of a different sweep" in p.stderr and "config_hash" in p.stderr and "--overwrite" in p.stderr
+    assert "holds results of a different sweep" in p.stderr and "--overwrite" in p.stderr
+    assert "[sweep] r = [0.2, 0.6, 1.0] there, [0.2, 0.6, 0.9] now" in p.stderr  # the key that differs, by name
     assert sorted((q.name, q.stat().st_mtime_ns) for q in out.iterdir()) == before  # untouched
     # asked for, it replaces them
     p = subprocess.run(_cli(changed, out, "--overwrite", "--quiet"), cwd=REPO, capture_output=True, text=True)

@@ -1,0 +1,141 @@
+"""Issue 16: mistakes that ran through silently now warn (pounding_sweep.warn), through one mechanism:
+printed by the command line as `warning: ...` lines on stderr as they happen, listed in the summary,
+stored in the result metadata. A scene without such a mistake prints no warning.
+
+* gap_m = [1, 5] (millimetres in a metre field): no run makes contact;
+* a time step that under-resolves every run's contact: a dt to use instead;
+* a CSV record whose time column is in ms: implausible step and length, before the long run;
+* the separated Duzce scene (no contact by design): the same no-contact warning, without the metres hint.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import warnings
+
+import numpy as np
+import pandas as pd
+import pytest
+from conftest import SWEEPS
+
+from pounding_sweep.cli.run import main
+from pounding_sweep.scene import load_scene
+from pounding_sweep.sweep.results import read_metadata
+from pounding_sweep.sweep.run import run_scene
+from pounding_sweep.warn import InputWarning, collecting, warn
+
+SIX_HZ = (SWEEPS / "paper_6hz.toml").read_text()
+
+
+def scene_file(tmp_path, text: str, name: str = "scene.toml"):
+    p = tmp_path / name
+    p.write_text(text.replace('path = "../results/paper_6hz.parquet"', 'path = "out.parquet"'))
+    return p
+
+
+def short(text: str, sweep: str) -> str:
+    """The 6 Hz scene, 0.5 s, with this [sweep]."""
+    head, _, tail = text.partition("[sweep]")
+    return (
+        head.replace("duration_s = 5.0", "duration_s = 0.5")
+        + "[sweep]\n"
+        + sweep
+        + "\n[output]"
+        + tail.split("[output]")[1]
+    )
+
+
+def cli(*argv) -> tuple[int, str, str]:
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main([str(a) for a in argv])
+    return code, out.getvalue(), err.getvalue()
+
+
+def warning_lines(stderr: str) -> list[str]:
+    return [line for line in stderr.splitlines() if line.startswith("warning: ")]
+
+
+def test_gap_in_millimetres_warns_that_no_run_made_contact(tmp_path):
+    p = scene_file(tmp_path, short(SIX_HZ, "gap_m = [1, 5]\nks_ratio = [1.0, 10.0]\nr = [0.4]"))
+    code, stdout, stderr = cli(p)
+    assert code == 0
+    (line,) = warning_lines(stderr)
+    assert line.startswith("warning: no run made contact (4 run(s), largest pounding force 0 N)")
+    assert "against a gap of 1000 mm" in line and "gap_m = 1 is 1 m (for 1 mm write 0.001)" in line
+    assert "the swept gap_m, ks_ratio, r change nothing here" not in line  # r is not swept (one value)
+    assert "the swept gap_m, ks_ratio change nothing here" in line
+    assert "largest pounding force   0.000 N" in stdout and line.removeprefix("warning: ") in stdout
+    assert read_metadata(tmp_path / "out.parquet")["warnings"] == [line.removeprefix("warning: ")]
+    # the facing floors' approach the message bounds: the largest |u1| + |u2| of any run
+    df = pd.read_parquet(tmp_path / "out.parquet")
+    reach = (df.peak_disp_b1f3_m.abs() + df.peak_disp_b2f3_m.abs()).max()
+    assert f"at most {reach * 1e3:.3g} mm toward each other" in line
+    # a resumed run says it again (from the stored rows), and leaves the stored warnings as they are
+    code, stdout, stderr2 = cli(p)
+    assert code == 0 and warning_lines(stderr2) == [line] and "nothing to run" in stdout
+
+
+def test_the_same_scene_in_metres_warns_nothing(tmp_path):
+    p = scene_file(tmp_path, short(SIX_HZ, "gap_m = [0.001, 0.005]\nks_ratio = [1.0, 10.0]\nr = [0.4]"))
+    code, stdout, stderr = cli(p)
+    assert code == 0 and warning_lines(stderr) == [] and "warning" not in stdout
+    assert read_metadata(tmp_path / "out.parquet")["warnings"] == []
+
+
+def test_a_coarse_time_step_warns_and_suggests_one_that_resolves_every_run(tmp_path):
+    text = short(SIX_HZ, "ks_ratio = [5.0, 10.0]\nr = [0.4]").replace("dt_s = 1e-4", "dt_s = 2e-3")
+    p = scene_file(tmp_path, text)
+    code, stdout, stderr = cli(p, "--quiet")  # warnings are printed with --quiet too
+    assert code == 0 and stdout == ""
+    (line,) = warning_lines(stderr)
+    assert line.startswith("warning: [integration] dt_s = 0.002 s under-resolves every run's contact: 10.1 steps")
+    assert "use dt_s = 0.001 (the softest contact) or 0.0005 (every run), or dt_s = 'auto'" in line
+    assert set(pd.read_parquet(tmp_path / "out.parquet").status) == {"contact_underresolved"}
+    # the suggestions do what they say
+    for dt, flagged in (("1e-3", {"ok", "contact_underresolved"}), ("5e-4", {"ok"})):
+        q = scene_file(tmp_path, text.replace("dt_s = 2e-3", f"dt_s = {dt}"), f"dt{dt}.toml")
+        code, _, stderr = cli(q, "--out", tmp_path / f"dt{dt}.parquet", "--quiet")
+        assert code == 0 and warning_lines(stderr) == []
+        assert set(pd.read_parquet(tmp_path / f"dt{dt}.parquet").status) == flagged
+
+
+def test_a_record_in_milliseconds_warns_before_it_runs(tmp_path):
+    t_ms = np.arange(100) * 5.0  # 200 samples/s written in ms: read as a 5 s step, 495 s long
+    acc = 0.5 * np.sin(2 * np.pi * 2.0 * t_ms / 1e3)
+    (tmp_path / "rec.csv").write_text("t,acc\n" + "".join(f"{t:.1f},{a:.6f}\n" for t, a in zip(t_ms, acc)))
+    head, _, tail = short(SIX_HZ, "ks_ratio = [0.1]").partition("[excitation]")
+    text = (
+        head + '[excitation]\ntype = "record"\nrecord = "rec.csv"\n\n[integration]' + tail.partition("[integration]")[2]
+    )
+    text = text.replace("dt_s = 1e-4", "dt_s = 1e-3")
+    p = scene_file(tmp_path, text)
+    code, stdout, stderr = cli(p)
+    assert code == 0
+    (line,) = warning_lines(stderr)
+    assert line == (
+        f"warning: {tmp_path / 'rec.csv'}: a sample step of 5 s is implausible for a ground-motion record "
+        "(steps above 0.05 s): is its time in ms rather than s? A run takes 495,000 steps of 0.001 s."
+    )
+    assert "495,000 steps" in stdout
+
+
+def test_the_separated_scene_warns_without_the_metres_hint(tmp_path):
+    s = load_scene(SWEEPS / "paper_duzce_separated.toml")
+    with collecting() as outer:
+        summary = run_scene(s, out_path=tmp_path / "sep.parquet")
+    (msg,) = summary.warnings
+    assert outer.messages() == summary.warnings  # an enclosing collector sees them as they happen
+    assert msg.startswith("no run made contact (20 run(s)") and "against a gap of 50 mm" in msg
+    assert "in metres" not in msg and "the swept ks_ratio, r change nothing here" in msg
+
+
+def test_outside_a_collector_a_warning_is_a_python_warning():
+    with pytest.warns(InputWarning, match="something odd"):
+        warn("test", "something odd")
+    with collecting() as c, warnings.catch_warnings():
+        warnings.simplefilter("error")
+        warn("test", "once")
+        warn("test", "once")  # the same message is kept once
+    assert c.messages() == ["once"]

@@ -81,7 +81,7 @@ def simulate(scene: Scene, channels: list[str] | None = None, decimate: int = 1,
     m = dict(zip(names, metrics[0].tolist()))
     m["status"] = status_words(metrics[:1, names.index("status_code")])[0]
     m.update({k: float(v[0]) for k, v in drift_ratio_columns(s, metrics[:1], names).items()})
-    m["ks_N_per_m"] = float(derived["ks_N_per_m"][0])
+    m.update({k: float(v[0]) for k, v in derived.items()})  # the contact's derived parameters (ks_N_per_m, ...)
     m["run_time_s"] = float(run_time[0])
     if auto is not None:
         m.update(auto)

@@ -773,10 +773,10 @@ CASES: list[Case] = [
     _c(
         "unknown_law",
         "values",
-        'law = "hertz"',
+        'law = "hertz-mindlin"',
         [S, "[contact] law"],
-        "'hertz'",
-        edit(BASE, 'law = "classic"', 'law = "hertz"'),
+        "'hertz-mindlin'",
+        edit(BASE, 'law = "classic"', 'law = "hertz-mindlin"'),
     ),
     _c(
         "unknown_scheme",

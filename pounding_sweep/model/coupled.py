@@ -12,7 +12,8 @@ from pounding_sweep.scene import BuildingConfig, Scene
 
 
 def building_from_config(cfg: BuildingConfig, default_name: str) -> ShearFrame:
-    """Resolve a [buildingN] table: story stiffness directly or from columns (k = n 12 EI / h^3)."""
+    """Resolve a [buildingN] table: story stiffness directly or from columns (k = n 12 EI / h^3), times the
+    building's stiffness_scale; masses times its mass_scale."""
     n = len(cfg.masses_kg)
 
     def per_story(vals):
@@ -25,8 +26,8 @@ def building_from_config(cfg: BuildingConfig, default_name: str) -> ShearFrame:
         k = [column_story_stiffness(e, cfg.n_columns, hh) for e, hh in zip(ei, h)]
     return build_shear_frame(
         cfg.name or default_name,
-        cfg.masses_kg,
-        k,
+        [m * cfg.mass_scale for m in cfg.masses_kg],
+        [x * cfg.stiffness_scale for x in k],
         damping_ratio=cfg.damping_ratio,
         damping_modes=tuple(cfg.damping_modes[:2]) if n > 1 else (1, 1),
         rayleigh_a0_per_s=cfg.rayleigh_a0_per_s,

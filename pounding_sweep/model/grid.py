@@ -28,7 +28,8 @@ class Grid:
     def from_scene(cls, scene: Scene) -> Grid:
         fixed = {}
         for name, (section, key) in SWEEPABLE.items():
-            fixed[name] = getattr(getattr(scene, section), key)
+            part = getattr(scene, section)  # [experiment] may be absent: its keys are then None
+            fixed[name] = None if part is None else getattr(part, key)
         swept = {a.name for a in scene.sweep}
         # a swept ks in one form makes the other form derived, not fixed
         for form in KS_FORMS:

@@ -18,7 +18,27 @@ SWEEPABLE = {
     "frequency_Hz": ("excitation", "frequency_Hz"),
     "scale": ("excitation", "scale"),
     "record": ("excitation", "record"),
+    # the structure and the experiment's clock: model error, swept or fitted (sweep/calibrate.py)
+    "stiffness_scale_b1": ("building1", "stiffness_scale"),
+    "stiffness_scale_b2": ("building2", "stiffness_scale"),
+    "mass_scale_b1": ("building1", "mass_scale"),
+    "mass_scale_b2": ("building2", "mass_scale"),
+    "damping_ratio_b1": ("building1", "damping_ratio"),
+    "damping_ratio_b2": ("building2", "damping_ratio"),
+    "time_offset_s": ("experiment", "time_offset_s"),
 }
+
+#: the axes that change the structure's matrices or the experiment's sampling: a grid over them runs each
+#: distinct combination as its own group of runs (sweep/prepare.py Prepared.run)
+STRUCTURE_AXES = (
+    "stiffness_scale_b1",
+    "stiffness_scale_b2",
+    "mass_scale_b1",
+    "mass_scale_b2",
+    "damping_ratio_b1",
+    "damping_ratio_b2",
+    "time_offset_s",
+)
 
 #: the two forms of the contact stiffness
 KS_FORMS = ("ks_ratio", "ks_N_per_m")

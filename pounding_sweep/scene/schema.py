@@ -70,6 +70,11 @@ class BuildingConfig:
     rayleigh_a1_s: float | None = _f(
         "explicit Rayleigh stiffness coefficient a1 [s]", None, when="optional, instead of damping_ratio"
     )
+    stiffness_scale: float = _f(
+        "multiplies every story stiffness (model error: a [sweep] axis or a fitted parameter as stiffness_scale_b1/_b2)",
+        1.0,
+    )
+    mass_scale: float = _f("multiplies every floor mass (a [sweep] axis or fitted as mass_scale_b1/_b2)", 1.0)
 
 
 @dataclass(frozen=True)

@@ -95,8 +95,9 @@ def validate(s: Scene) -> None:
                 raise ConfigError(
                     f"[{bname}] damping_modes = {shown(list(b.damping_modes))}: two different modes between 1 and {n}"
                 )
-    c = s.contact
     axes = {a.name: a.values for a in s.sweep}
+    _check_structure_axes(s, axes)
+    c = s.contact
     _check_r(c.r, "[contact] r")
     for v in axes.get("r", ()):
         _check_r(v, "[sweep] r")
@@ -290,6 +291,30 @@ def _check_laws(c, axes: dict) -> None:
             f"{key} = 0.0 with law {sorted(plastic)[0]!r}: its damping is infinite at r = 0 (a perfectly "
             "plastic impact); use a small r such as 0.01"
         )
+
+
+def _check_structure_axes(s: Scene, axes: dict) -> None:
+    """The structure's scales (> 0), damping ratios in [0, 1) on a building damped by damping_ratio, and a
+    time offset only where there is an experiment to offset."""
+    for bname, b in (("building1", s.building1), ("building2", s.building2)):
+        _positive(b.stiffness_scale, f"[{bname}] stiffness_scale")
+        _positive(b.mass_scale, f"[{bname}] mass_scale")
+    for name, values in axes.items():
+        if name.startswith(("stiffness_scale_b", "mass_scale_b")):
+            for v in values:
+                _positive(v, f"[sweep] {name}")
+        elif name.startswith("damping_ratio_b"):
+            b = getattr(s, f"building{name[-1]}")
+            if b.rayleigh_a0_per_s is not None or b.rayleigh_a1_s is not None:
+                raise ConfigError(
+                    f"[sweep] {name}: [building{name[-1]}] is damped by explicit Rayleigh coefficients; "
+                    "sweep its damping_ratio only where the scene gives one"
+                )
+            for v in values:
+                if not 0 <= v < 1:
+                    raise ConfigError(f"[sweep] {name} = {v!r}: must lie in [0, 1)")
+        elif name == "time_offset_s" and s.experiment is None:
+            raise ConfigError("[sweep] time_offset_s: shifts an experiment's clock, and the scene has no [experiment]")
 
 
 def _check_r(r, key):

@@ -4,7 +4,8 @@ grid, contact arrays per chunk, histories and experiment samples. Shared by swee
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import dataclasses
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -25,7 +26,8 @@ from pounding_sweep.model.coupled import CoupledModel, SystemArrays
 from pounding_sweep.model.excitation import Excitation
 from pounding_sweep.model.grid import Grid
 from pounding_sweep.model.laws import hertz_stiffness, law_arrays
-from pounding_sweep.scene import Scene, contact_stiffness
+from pounding_sweep.scene import SWEEPABLE, Scene, contact_stiffness
+from pounding_sweep.scene.axes import STRUCTURE_AXES
 from pounding_sweep.scene.channels import parse_channel
 
 LAW_NAMES = {code: name for name, code in CONTACT_LAWS.items()}
@@ -47,6 +49,8 @@ class Prepared:
     score_codes: list[str]
     auto: object | None = None  # autodt.AutoDt when dt_s = 'auto'
     kernel: str = "auto"  # engine.driver.KERNELS: which kernel runs the chunks
+    experiment: object | None = None  # the loaded experiment (model.experiment.Experiment), for variants
+    variants: dict = field(default_factory=dict, compare=False, repr=False)  # structure values -> Prepared
 
     @property
     def dt(self) -> float:
@@ -57,6 +61,9 @@ class Prepared:
         of n runs finish (not with dt_s = 'auto', whose runs are rerun at finer steps)."""
         if self.auto is not None:
             return self.auto.run(params, threads, batch_runs)
+        groups = structure_groups(self.scene, params)
+        if groups is not None:
+            return self._run_groups(groups, params, threads, batch_runs, done)
         runs, rec, derived = self.kernel_inputs(params)
         metrics, run_time, hist, scores = run_chunk(
             self.sysarr,
@@ -72,6 +79,45 @@ class Prepared:
             done,
         )
         return metrics, run_time, hist, scores, derived
+
+    def _run_groups(self, groups, params, threads, batch_runs, done):
+        """run() for runs whose structure differs from the scene's: each distinct structure (and experiment
+        clock) as its own group on its own system matrices, the rows put back in order. A group is a plain
+        chunk to the engine, so a grid over the structure stays on the lane kernel where the scene allows."""
+        n = params["run_id"].size
+        out = None
+        for values, idx in groups:
+            sub = {k: v[idx] for k, v in params.items()}
+            part = self.variant(values).run(sub, threads, batch_runs, done)
+            if out is None:
+                out = [np.zeros((n,) + part[0].shape[1:]), np.zeros(n), None, None, {}]
+            out[0][idx], out[1][idx] = part[0], part[1]
+            for slot in (2, 3):
+                if part[slot] is not None:
+                    if out[slot] is None:
+                        out[slot] = np.full((n,) + part[slot].shape[1:], np.nan)
+                    out[slot][idx, ..., : part[slot].shape[-1]] = part[slot]
+            for k, v in part[4].items():
+                out[4].setdefault(k, np.full(n, np.nan))[idx] = v
+        return tuple(out)
+
+    def variant(self, values: tuple) -> Prepared:
+        """This scene with the structure values (STRUCTURE_AXES order) of a group of runs: its own model,
+        matrices and experiment samples; the excitation, histories and kernel shared (cached per values)."""
+        if values not in self.variants:
+            scene = with_structure(self.scene, dict(zip(STRUCTURE_AXES, values)))
+            model = CoupledModel.from_scene(scene)
+            score = self.score
+            if scene.experiment is not None and scene.experiment.time_offset_s != self.scene.experiment.time_offset_s:
+                from pounding_sweep.sweep.scoring import score_spec
+
+                score = score_spec(
+                    self.experiment, scene.experiment, model.floors, self.excitation.max_duration_s, self.dt
+                )
+            self.variants[values] = dataclasses.replace(
+                self, scene=scene, model=model, sysarr=model.system_arrays(self.dt), score=score, variants={}
+            )
+        return self.variants[values]
 
     def kernel_inputs(self, params: dict[str, np.ndarray]):
         """The kernel's inputs for `params` at the scene's dt: (RunArrays, record arrays, the derived
@@ -111,6 +157,8 @@ def prepare(scene: Scene, kernel: str = "auto") -> Prepared:
         exp = load_experiment(scene.experiment, model.floors)
         score = score_spec(exp, scene.experiment, model.floors, exc.max_duration_s, dt)
         codes = list(exp.channels)
+    else:
+        exp = None
     auto = None
     if scene.integration.auto:
         from pounding_sweep.sweep.autodt import AutoDt
@@ -129,7 +177,46 @@ def prepare(scene: Scene, kernel: str = "auto") -> Prepared:
         codes,
         auto,
         kernel,
+        exp,
     )
+
+
+def structure_values(scene: Scene) -> tuple:
+    """The scene's own values of STRUCTURE_AXES (NaN where unset: no damping_ratio, no experiment)."""
+    out = []
+    for name in STRUCTURE_AXES:
+        section, key = SWEEPABLE[name]
+        part = getattr(scene, section)
+        v = None if part is None else getattr(part, key)
+        out.append(np.nan if v is None else float(v))
+    return tuple(out)
+
+
+def structure_groups(scene: Scene, params: dict[str, np.ndarray]):
+    """[(structure values, run indices)] of the runs in `params` grouped by their STRUCTURE_AXES values, or
+    None when every run has the scene's own structure (the common case: one group, no work)."""
+    base = np.array(structure_values(scene))
+    cols = np.column_stack([np.asarray(params[name], float) for name in STRUCTURE_AXES]) if params else None
+    if cols is None or not cols.size:
+        return None
+    same = (cols == base) | (np.isnan(cols) & np.isnan(base))
+    if same.all():
+        return None
+    keys, inverse = np.unique(np.where(np.isnan(cols), np.inf, cols), axis=0, return_inverse=True)
+    keys = np.where(np.isinf(keys), np.nan, keys)
+    return [(tuple(float(x) for x in keys[g]), np.flatnonzero(inverse.ravel() == g)) for g in range(keys.shape[0])]
+
+
+def with_structure(scene: Scene, values: dict) -> Scene:
+    """The scene with STRUCTURE_AXES values set (NaN: left as the scene has it)."""
+    sections: dict = {}
+    for name, v in values.items():
+        if v is None or (isinstance(v, float) and np.isnan(v)):
+            continue
+        section, key = SWEEPABLE[name]
+        sections.setdefault(section, {})[key] = float(v)
+    new = {s: dataclasses.replace(getattr(scene, s), **kv) for s, kv in sections.items()}
+    return dataclasses.replace(scene, **new)
 
 
 def law_codes(params: dict[str, np.ndarray]) -> np.ndarray:

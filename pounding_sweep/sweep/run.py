@@ -30,6 +30,7 @@ from pounding_sweep.errors import ConfigError, OutputError  # noqa: F401
 from pounding_sweep.model.excitation import Excitation
 from pounding_sweep.model.grid import Grid
 from pounding_sweep.scene import Scene
+from pounding_sweep.scene.axes import STRUCTURE_AXES
 from pounding_sweep.scene.hashing import hash_of
 from pounding_sweep.sweep.checks import ContactTally, check_contact, check_time_step
 from pounding_sweep.sweep.prepare import Prepared, drift_ratio_columns, prepare  # noqa: F401
@@ -192,7 +193,7 @@ def _run_claimed(scene, folder, threads, progress, executor, kernel, size, notes
         if todo:
             inflight = _InFlight(progress, tally, grid.size)
             for res in exe.map(prep, todo, done=inflight):
-                columns = {"run_id": res.params["run_id"], **_param_columns(exc, res.params, res.derived)}
+                columns = {"run_id": res.params["run_id"], **_param_columns(exc, res.params, res.derived, grid)}
                 extra = score_table_columns(res.scores, prep.score_codes, how) if res.scores is not None else {}
                 extra.update(drift_ratio_columns(scene, res.metrics, names))
                 table = metrics_table(columns, names, res.metrics, res.run_time, extra)
@@ -433,8 +434,9 @@ def _model_facts(prep: Prepared) -> dict:
     return facts
 
 
-def _param_columns(exc: Excitation, params: dict, derived: dict) -> dict:
-    """The parameter columns of the result rows (only those that mean something for this scene)."""
+def _param_columns(exc: Excitation, params: dict, derived: dict, grid: Grid) -> dict:
+    """The parameter columns of the result rows (only those that mean something for this scene; the structure's
+    scales, damping ratios and the experiment's clock where they are swept)."""
     cols = {}
     if not np.all(np.isnan(params["ks_ratio"])):
         cols["ks_ratio"] = params["ks_ratio"]
@@ -451,6 +453,10 @@ def _param_columns(exc: Excitation, params: dict, derived: dict) -> dict:
     for key in ("kh_N_per_m1_5", "contact_damping_ratio", "hertzdamp_a", "r_single_impact"):
         if key in derived:
             cols[key] = derived[key]
+    swept = {name for name, _ in grid.axes}
+    for name in STRUCTURE_AXES:
+        if name in swept:
+            cols[name] = params[name]
     cols["steps_per_contact_period"] = derived["steps_per_contact_period"]
     for key in ("dt_s", "dt_error_estimate"):  # dt = 'auto'
         if key in derived:

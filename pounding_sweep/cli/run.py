@@ -120,6 +120,39 @@ def _print_summary(s) -> None:
                 f"refined from the best cell ({how}{rf.evaluations} runs): {opt}, combined error {rf.error_pct:.3f} % "
                 f"(grid best {rf.start_error_pct:.3f} %)"
             )
+    if s.calibration:
+        _print_calibration(s.calibration)
+
+
+def _print_calibration(fits) -> None:
+    """The calibration's answer: per law each fitted value with its 95 % interval and whether the data identify it,
+    the error against the noise floor, and (several laws) the comparison."""
+    from pounding_sweep.sweep.calibrate import fit_table, law_table
+
+    ft = fit_table(fits)
+    print("\ncalibration (contact and structure fitted together; 95 % intervals; stored in the best table's metadata):")
+    for f in fits:
+        print(
+            f"  {f.law}: relative RMS {f.error_pct:.3f} %, residual {f.misfit_ratio:.2f} x the noise floor, "
+            f"{f.evaluations} runs, {f.seconds:.0f} s"
+        )
+        rows = ft[ft.contact_law == f.law]
+        for r in rows.itertuples():
+            ident = (
+                "" if r.identified else f"  NOT IDENTIFIED: any value in [{r.profile_low:.4g}, {r.profile_high:.4g}]"
+            )
+            print(
+                f"    {r.parameter:<20} {r.estimate:.5g}  (95 % {r.ci95_low:.5g} .. {r.ci95_high:.5g}; "
+                f"bounds {r.lower_bound:g} .. {r.upper_bound:g}){ident}"
+            )
+    if len(fits) > 1:
+        lt = law_table(fits).sort_values("aic")
+        print("  laws compared (AIC with the residuals' effective count; within 2: the data cannot decide):")
+        print(
+            lt[["contact_law", "parameters", "rel_rms_pct", "misfit_over_noise", "delta_aic", "delta_bic"]].to_string(
+                index=False, float_format=lambda x: f"{x:.3g}"
+            )
+        )
 
 
 def _print_warning(w) -> None:

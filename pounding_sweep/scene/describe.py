@@ -15,6 +15,7 @@ from pounding_sweep.scene.schema import (
     MAX_STEPS,
     MAX_THREADS,
     SECTIONS,
+    CalibrateConfig,
     ExperimentConfig,
 )
 
@@ -45,7 +46,7 @@ def describe() -> str:
     """Every section and key with its meaning: the reference for writing scenes."""
     lines = ["(top level)  keys outside any section"]
     lines += [f"  {k}: {doc} (default {d})" for k, doc, d in TOP]
-    for name, cls in {**SECTIONS, "experiment": ExperimentConfig}.items():
+    for name, cls in {**SECTIONS, "experiment": ExperimentConfig, "calibrate": CalibrateConfig}.items():
         need = " (required section)" if name in REQUIRED_SECTIONS else " (optional section)"
         lines.append(f"[{name}]{need}  {cls.__doc__}")
         for f in dataclasses.fields(cls):

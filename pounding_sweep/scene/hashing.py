@@ -22,6 +22,7 @@ def canonical(scene) -> dict:
     d.pop("source")
     d.pop("toml_text")
     d.pop("execution")
+    d.pop("calibrate", None)  # the fit after the grid: changes no run of the grid (its parts resume)
     d["output"].pop("path")
     digests: dict[str, dict] = {}
 

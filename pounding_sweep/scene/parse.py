@@ -21,6 +21,7 @@ from pounding_sweep.scene.schema import (
     TOP_KEYS,
     Axis,
     BuildingConfig,
+    CalibrateConfig,
     ExperimentConfig,
     Scene,
 )
@@ -136,8 +137,20 @@ def scene_from_dict(raw: dict, base_dir: Path, source: str = "<dict>", toml_text
             )
         if experiment.table is not None:
             experiment = dataclasses.replace(experiment, table=str(resolve(base_dir / experiment.table)))
+    calibrate = None
+    if "calibrate" in raw:
+        if not isinstance(raw["calibrate"], dict):
+            raise ConfigError(f"'calibrate' must be a table [calibrate], got {shown(raw['calibrate'])}")
+        calibrate = _build(CalibrateConfig, raw["calibrate"], "calibrate")
     scene = Scene(
-        name=name, description=desc, sweep=sweep, source=source, toml_text=toml_text, experiment=experiment, **sections
+        name=name,
+        description=desc,
+        sweep=sweep,
+        source=source,
+        toml_text=toml_text,
+        experiment=experiment,
+        calibrate=calibrate,
+        **sections,
     )
     validate(scene)
     return scene

@@ -257,6 +257,28 @@ class Axis:
 
 
 @dataclass(frozen=True)
+class CalibrateConfig:
+    """Fit contact and structure together to the experiment, with uncertainty (sweep/calibrate.py)."""
+
+    parameters: dict = _f(
+        "the parameters to fit and their bounds, e.g. { ks_ratio = [0.1, 10], r = [0.05, 1], stiffness_scale_b1 = "
+        "[0.95, 1.05] }: any numeric [sweep] name (contact, excitation scale, the structure's scales and damping "
+        "ratios, time_offset_s)"
+    )
+    global_points: int = _f("Sobol points of the global stage (scipy.stats.qmc, a power of 2)", 64)
+    starts: int = _f("local least-squares starts: the best global points (and the sweep's best cell)", 3)
+    max_evals: int = _f("simulations each local start may spend", 200)
+    profile_points: int = _f("points of each profile curve (ks_ratio and r: fixed on a ladder, the rest refitted)", 9)
+    profile: tuple[str, ...] = _f(
+        "the parameters to profile", (), when="optional; by default the fitted contact parameters (k_s or k_h, r)"
+    )
+    noise_m: float | None = _f(
+        "the tracking noise (RMS) of every channel [m]", None, when="optional; by default estimated from the data"
+    )
+    misfit_factor: float = _f("warn when the best fit's residual exceeds this many times the noise floor", 3.0)
+
+
+@dataclass(frozen=True)
 class Scene:
     """A whole scene, resolved and validated. Paths are absolute."""
 
@@ -273,6 +295,7 @@ class Scene:
     source: str  # the scene file
     toml_text: str  # the scene file as written
     experiment: ExperimentConfig | None = None
+    calibrate: CalibrateConfig | None = None
 
     def canonical(self) -> dict:
         """Resolved scene as plain data (what the hash covers): scene/hashing.py."""
@@ -303,4 +326,4 @@ SECTIONS = {
     "output": OutputConfig,
     "execution": ExecutionConfig,
 }
-TOP_KEYS = {"name", "description", "sweep", "experiment", *SECTIONS}
+TOP_KEYS = {"name", "description", "sweep", "experiment", "calibrate", *SECTIONS}

@@ -15,7 +15,7 @@ from pounding_sweep.codes import (
     is_nonlinear,
 )
 from pounding_sweep.errors import ConfigError, shown
-from pounding_sweep.scene.axes import check_ks
+from pounding_sweep.scene.axes import STRUCTURE_AXES, check_ks
 from pounding_sweep.scene.channels import floor_dof, parse_channel
 from pounding_sweep.scene.schema import (
     EXECUTORS,
@@ -97,6 +97,7 @@ def validate(s: Scene) -> None:
                 )
     axes = {a.name: a.values for a in s.sweep}
     _check_structure_axes(s, axes)
+    _check_calibrate(s)
     c = s.contact
     _check_r(c.r, "[contact] r")
     for v in axes.get("r", ()):
@@ -291,6 +292,72 @@ def _check_laws(c, axes: dict) -> None:
             f"{key} = 0.0 with law {sorted(plastic)[0]!r}: its damping is infinite at r = 0 (a perfectly "
             "plastic impact); use a small r such as 0.01"
         )
+
+
+#: what [calibrate] may fit: the numeric sweep parameters (names and laws are chosen, not fitted)
+FITTABLE = (
+    "ks_ratio",
+    "ks_N_per_m",
+    "kh_N_per_m1_5",
+    "r",
+    "gap_m",
+    "amplitude_m",
+    "scale",
+    *STRUCTURE_AXES,
+)
+
+
+def _check_calibrate(s: Scene) -> None:
+    """[calibrate]: an experiment to fit; known parameters with bounds [lo, hi], lo < hi, inside each
+    parameter's own range; counts that make sense."""
+    cal = s.calibrate
+    if cal is None:
+        return
+    if s.experiment is None:
+        raise ConfigError("[calibrate]: fits the model to an experiment, and the scene has no [experiment]")
+    if not cal.parameters:
+        raise ConfigError("[calibrate] parameters = {}: name at least one parameter to fit, with its bounds")
+    for name, bounds in cal.parameters.items():
+        key = f"[calibrate] parameters.{name}"
+        if name not in FITTABLE:
+            raise ConfigError(f"{key}: not a parameter the calibration can fit (one of {', '.join(FITTABLE)})")
+        if (
+            not isinstance(bounds, (list, tuple))
+            or len(bounds) != 2
+            or not all(isinstance(b, (int, float)) and not isinstance(b, bool) and math.isfinite(b) for b in bounds)
+            or not bounds[0] < bounds[1]
+        ):
+            raise ConfigError(f"{key} = {shown(bounds)}: expected bounds [low, high] with low < high")
+        lo, hi = float(bounds[0]), float(bounds[1])
+        if name == "r" and not (0.0 <= lo and hi <= 1.0):
+            raise ConfigError(f"{key} = [{lo}, {hi}]: a coefficient of restitution lies in [0, 1]")
+        if name.startswith("damping_ratio_b") and not (0.0 <= lo and hi < 1.0):
+            raise ConfigError(f"{key} = [{lo}, {hi}]: a damping ratio lies in [0, 1)")
+        if name in ("gap_m", "time_offset_s"):
+            if name == "gap_m" and lo < 0:
+                raise ConfigError(f"{key} = [{lo}, {hi}]: a gap is >= 0")
+        elif not name.startswith("damping_ratio_b") and name != "r" and lo <= 0:
+            raise ConfigError(f"{key} = [{lo}, {hi}]: must be > 0")
+    forms = [n for n in ("ks_ratio", "ks_N_per_m", "kh_N_per_m1_5") if n in cal.parameters]
+    if len(forms) > 1:
+        raise ConfigError(f"[calibrate] parameters: fit one form of the contact stiffness, not {' and '.join(forms)}")
+    for name in cal.parameters:
+        if name.startswith("damping_ratio_b"):
+            b = getattr(s, f"building{name[-1]}")
+            if b.damping_ratio is None:
+                raise ConfigError(
+                    f"[calibrate] parameters.{name}: [building{name[-1]}] gives no damping_ratio to fit "
+                    "(explicit Rayleigh coefficients, or undamped)"
+                )
+    for key in ("global_points", "starts", "max_evals", "profile_points"):
+        if getattr(cal, key) < (0 if key in ("global_points", "profile_points") else 1):
+            raise ConfigError(f"[calibrate] {key} = {getattr(cal, key)}: too small")
+    for name in cal.profile:
+        if name not in cal.parameters:
+            raise ConfigError(f"[calibrate] profile: {name!r} is not among the fitted parameters")
+    if cal.noise_m is not None:
+        _positive(cal.noise_m, "[calibrate] noise_m")
+    _positive(cal.misfit_factor, "[calibrate] misfit_factor")
 
 
 def _check_structure_axes(s: Scene, axes: dict) -> None:

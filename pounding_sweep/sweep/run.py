@@ -9,6 +9,7 @@ scored as it finishes and the best runs are kept as running minima.
 from __future__ import annotations
 
 import dataclasses
+import os
 import threading
 import time
 from collections import Counter
@@ -50,7 +51,7 @@ from pounding_sweep.sweep.results import (
     write_table_atomic,
 )
 from pounding_sweep.sweep.resume import OutputFolder
-from pounding_sweep.warn import collecting
+from pounding_sweep.warn import collecting, warn
 
 HISTORY_CHUNK_BYTES = 256 * 2**20
 
@@ -83,6 +84,7 @@ class SweepSummary:
     new_kernel_s: float = 0.0
     refinement_reused: bool = False
     warnings: list[str] = field(default_factory=list)
+    calibration: list | None = None  # sweep.calibrate.Fit per law, with [calibrate]
 
 
 def run_scene(
@@ -253,6 +255,18 @@ def _run_claimed(scene, folder, threads, progress, executor, kernel, size, notes
                 summary.refinement = refine_best(prep, best)
             if summary.refinement is not None:
                 best = pd.concat([best, pd.DataFrame([refinement_row(summary.refinement)])], ignore_index=True)
+        extra_meta = {}
+        if not best.empty:
+            _grid_edge_warnings(best, grid)
+        if scene.calibrate is not None and not best.empty:
+            from pounding_sweep.sweep.calibrate import calibrate, calibration_metadata, calibration_rows
+
+            grid_best = best[best.criterion == "rel_rms_combined_pct"]
+            cell = {n: float(grid_best[n].iloc[0]) for n in scene.calibrate.parameters if n in grid_best}
+            n_threads = threads if threads is not None else ex.threads
+            summary.calibration = calibrate(scene, threads=n_threads or os.cpu_count() or 1, best_cell=cell)
+            best = pd.concat([best, pd.DataFrame(calibration_rows(summary.calibration))], ignore_index=True)
+            extra_meta["calibration"] = calibration_metadata(summary.calibration)
         best["run_id"] = best["run_id"].astype("Int64")
         summary.best = best
         summary.best_path = folder.best
@@ -261,9 +275,29 @@ def _run_claimed(scene, folder, threads, progress, executor, kernel, size, notes
         write_table_atomic(
             summary.best_path,
             pa.Table.from_pandas(best, preserve_index=False),
-            file_metadata(scene, {"kind": "best", "warnings": notes.messages()}),
+            file_metadata(scene, {"kind": "best", "warnings": notes.messages(), **extra_meta}),
         )
     return summary
+
+
+def _grid_edge_warnings(best, grid: Grid) -> None:
+    """Warn when the best cell (combined error) lies on the edge of a swept numeric axis of 3 or more values:
+    the optimum may lie beyond the grid."""
+    rows = best[best.criterion == "rel_rms_combined_pct"]
+    if rows.empty:
+        return
+    row = rows.iloc[0]
+    for name, values in grid.axes:
+        if name in ("law", "record") or len(values) < 3 or name not in row or not np.isfinite(row[name]):
+            continue
+        v = float(row[name])
+        for side, edge in (("lowest", min(values)), ("highest", max(values))):
+            if v == edge:
+                warn(
+                    "grid_edge",
+                    f"the best cell lies on the grid's edge: {name} = {v:g} is the {side} swept value; the optimum "
+                    f"may lie beyond it (extend [sweep] {name})",
+                )
 
 
 def _read_part(path: Path):

@@ -1,0 +1,600 @@
+"""Calibration: contact and structure fitted together to the tracked displacement, with uncertainty.
+
+Why: a real test never matches the nominal structure, and a fit of the contact parameters alone absorbs the
+structure's error into them (a 1-2 % stiffness error moved the fitted k_s/k by up to 70 %). So the parameters
+of [calibrate] (contact, structure scales and damping, the experiment's clock, the excitation's scale) are fitted
+together, and every answer says how certain it is and whether the data can decide it.
+
+Method.
+* Residuals: each scored channel's model displacement at the experiment's sample times (simulation time =
+  experiment time - time_offset_s; cubic Hermite interpolation of the kernel's displacement and velocity at dt,
+  error ~ dt^4 |u''''| / 384, far below any tracking noise) minus the tracked one, divided by the channel's
+  noise floor sigma_c, so channels weigh by their noise.
+* Noise floor sigma_c: the [calibrate] noise_m, else estimated from the table by the difference method: the k-th
+  difference of white noise of variance s^2 has variance C(2k, k) s^2 (von Neumann 1941; Hall, Kay & Titterington
+  1990, Biometrika 77:521), and a smooth signal's k-th difference vanishes as (2 sin(pi f / fs))^k; the median
+  absolute k-th difference / 0.6745 / sqrt(C(2k, k)) (robust to the impacts' kinks), least over k = 2..6. Signal
+  left in the differences can only raise it: an upper bound of the noise.
+* Global stage: `global_points` Sobol points (scipy.stats.qmc, scrambled, fixed seed) over the bounds (log scale
+  for stiffnesses), run as one batch by the grid engine, plus the sweep's best cell when there is one.
+* Local stage: scipy.optimize.least_squares (trust-region reflective, bounds, 2-point Jacobian) from the `starts`
+  best global points; the best optimum is kept.
+* Uncertainty: Gauss-Newton covariance s^2 (J^T J)^-1 (s^2 = RSS / (N - p), J the Jacobian at the optimum, in
+  the fit's coordinates: log for stiffnesses) inflated for the residuals' time correlation by N / N_eff, with
+  N_eff = N (1 - rho) / (1 + rho) and rho the residuals' lag-1 autocorrelation (an AR(1) model of the
+  residuals: the variance of a mean of AR(1) data, Bayley & Hammersley 1946, JRSS Suppl. 8:184); 95 % intervals
+  with Student's t on N_eff - p degrees of freedom, mapped back through the log where used (asymmetric).
+* Profiles: each profiled parameter fixed on a ladder across its bounds, the others refitted; the values whose
+  profile rises less than chi^2_1(0.95) = 3.84 above the optimum in units of the inflated residual variance
+  are those the data cannot exclude (the profile-likelihood interval, Venzon & Moolgavkar 1988). A profile
+  interval that reaches both bounds, or spans more than half of the (log) range, says the parameter is not
+  identified by this data, with that range.
+* Warnings (in the CLI summary, the result metadata and the tables): a fitted value on a bound; the best fit's
+  residual RMS above misfit_factor times the noise floor (the model cannot explain the data); a parameter not
+  identified.
+* Laws: with a [sweep] law axis each law is calibrated on its own (Hertz, elastic, without r) and compared by
+  AIC = N_eff ln(RSS / N) + 2 p and BIC = N_eff ln(RSS / N) + p ln N_eff (N_eff: the correlated residuals'
+  effective count); laws within 2 of the least AIC are not distinguished by the data (Burnham & Anderson 2002,
+  Model Selection and Multimodel Inference, sec. 2.6).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pounding_sweep.scene import Scene
+from pounding_sweep.sweep.prepare import Prepared, prepare
+from pounding_sweep.warn import warn
+
+#: parameters fitted on a log scale (positive, spanning decades)
+LOG_SCALE = ("ks_ratio", "ks_N_per_m", "kh_N_per_m1_5")
+#: the contact parameters profiled by default
+CONTACT = ("ks_ratio", "ks_N_per_m", "kh_N_per_m1_5", "r")
+CHI2_1_95 = 3.841458820694124  # chi^2 quantile, 1 degree of freedom, 0.95
+AIC_TIE = 2.0  # Burnham & Anderson 2002, sec. 2.6: a difference of 2 or less is no evidence either way
+BOUND_FRACTION = 1e-3  # a fitted value this close to a bound (fraction of the fit-coordinate range) is on it
+
+
+def noise_floor(y: np.ndarray) -> float:
+    """Upper-bound estimate of the white noise RMS in a uniformly sampled signal (module docstring)."""
+    best = math.inf
+    for k in range(2, 7):
+        if y.size <= k + 2:
+            break
+        d = np.diff(y, k)
+        s = float(np.median(np.abs(d))) / 0.6744897501960817 / math.sqrt(math.comb(2 * k, k))
+        best = min(best, s)
+    return best
+
+
+@dataclass
+class Target:
+    """The experiment's scored samples: per channel the simulation-clock times (before the offset) and values."""
+
+    codes: list[str]  # 'b1f3', ...
+    dof: np.ndarray  # the kernel's DOF of each channel
+    time_exp: list[np.ndarray]  # experiment clock [s]
+    values: list[np.ndarray]  # tracked displacement [m]
+    sigma: np.ndarray  # noise floor per channel [m]
+    window: tuple[float, float]
+
+    @property
+    def n(self) -> int:
+        return int(sum(v.size for v in self.values))
+
+
+@dataclass
+class Fit:
+    """One calibration (one law): the optimum, its uncertainty, profiles and warnings."""
+
+    law: str
+    names: list[str]
+    bounds: dict[str, tuple[float, float]]
+    estimate: dict[str, float]
+    std_error: dict[str, float]
+    ci95: dict[str, tuple[float, float]]
+    correlation: np.ndarray
+    rss: float  # sum of squared noise-normalised residuals
+    n: int
+    n_eff: float
+    rho: float
+    rms_m: dict[str, float]  # per channel RMS residual [m]
+    noise_m: dict[str, float]
+    misfit_ratio: float  # RMS residual / noise floor, over the channels
+    error_pct: float  # eq. 20 relative RMS at the optimum, mean over channels
+    evaluations: int
+    seconds: float
+    profiles: dict[str, list[dict]] = field(default_factory=dict)
+    identified: dict[str, tuple[bool, float, float]] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def aic(self) -> float:
+        return self.n_eff * math.log(self.rss / self.n) + 2 * len(self.names)
+
+    @property
+    def bic(self) -> float:
+        return self.n_eff * math.log(self.rss / self.n) + len(self.names) * math.log(self.n_eff)
+
+
+class Problem:
+    """The residual function of a scene's experiment over named parameters (module docstring)."""
+
+    def __init__(self, scene: Scene, names: list[str], bounds: dict, noise_m: float | None, threads: int = 1):
+        self.names = list(names)
+        self.bounds = {n: (float(bounds[n][0]), float(bounds[n][1])) for n in self.names}
+        self.threads = threads
+        self.evaluations = 0
+        floors = (len(scene.building1.masses_kg), len(scene.building2.masses_kg))
+        fixed = dataclasses.replace(scene, sweep=())
+        probe = prepare(fixed)
+        exp = probe.experiment
+        codes = list(exp.channels)
+        channels = [f"disp_b{c[1]}f{c[3:]}" for c in codes] + [f"vel_b{c[1]}f{c[3:]}" for c in codes]
+        self.prep: Prepared = prepare(
+            dataclasses.replace(fixed, output=dataclasses.replace(fixed.output, histories=tuple(channels)))
+        )
+        self.base = self.prep.grid.chunk(0, 1)
+        cfg = scene.experiment
+        duration = self.prep.excitation.max_duration_s
+        lo, hi = (0.0, duration) if cfg.window_s is None else cfg.window_s
+        times, values, sig = [], [], []
+        for c in codes:
+            t, y = exp.time_s, exp.channels[c]
+            times.append(t)
+            values.append(y)
+            sig.append(noise_m if noise_m is not None else noise_floor(y))
+        self.offset0 = cfg.time_offset_s
+        self.target = Target(codes, self.prep.score.dof.copy(), times, values, np.asarray(sig), (lo, hi))
+        self.dt = self.prep.dt
+        self.floors = floors
+
+    # ------------------------------------------------------------------ coordinates
+    def to_z(self, theta: np.ndarray) -> np.ndarray:
+        return np.array([math.log(v) if n in LOG_SCALE else v for n, v in zip(self.names, theta)])
+
+    def to_theta(self, z: np.ndarray) -> np.ndarray:
+        return np.array([math.exp(v) if n in LOG_SCALE else v for n, v in zip(self.names, z)])
+
+    @property
+    def z_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        lo = self.to_z(np.array([self.bounds[n][0] for n in self.names]))
+        hi = self.to_z(np.array([self.bounds[n][1] for n in self.names]))
+        return lo, hi
+
+    # ------------------------------------------------------------------ runs
+    def params(self, thetas: np.ndarray, extra: dict | None = None) -> dict:
+        """Grid-style parameters of len(thetas) runs: the scene's values with the fitted ones set."""
+        n = thetas.shape[0]
+        p = {k: np.repeat(v, n) for k, v in self.base.items()}
+        p["run_id"] = np.arange(n)
+        for j, name in enumerate(self.names):
+            p[name] = thetas[:, j].astype(float)
+            if name == "ks_ratio":
+                p["ks_N_per_m"] = np.full(n, np.nan)
+            elif name == "ks_N_per_m":
+                p["ks_ratio"] = np.full(n, np.nan)
+        for k, v in (extra or {}).items():
+            p[k] = np.asarray(v, dtype=object if k in ("law", "record") else float)
+        return p
+
+    def residuals(self, thetas: np.ndarray, extra: dict | None = None) -> np.ndarray:
+        """(runs, N) noise-normalised residuals; rows of runs that diverged are +inf."""
+        thetas = np.atleast_2d(thetas)
+        params = self.params(thetas, extra)
+        _, _, hist, _, _ = self.prep.run(params, self.threads)
+        self.evaluations += thetas.shape[0]
+        n_ch = len(self.target.codes)
+        out = np.empty((thetas.shape[0], self.target.n))
+        offsets = params["time_offset_s"] if "time_offset_s" in self.names else np.full(thetas.shape[0], self.offset0)
+        for i in range(thetas.shape[0]):
+            parts = []
+            for c in range(n_ch):
+                u, v = hist[i, c], hist[i, n_ch + c]
+                ts = self.target.time_exp[c] - offsets[i]
+                model = _hermite(u, v, self.dt, ts)
+                parts.append((model - self.target.values[c]) / self.target.sigma[c])
+            row = np.concatenate(parts)
+            out[i] = np.where(np.isfinite(row), row, 1e6)
+        return out
+
+    def window_mask(self, offset: float) -> np.ndarray:
+        """The samples inside the scored window on the simulation clock at this offset."""
+        lo, hi = self.target.window
+        return np.concatenate([(t - offset >= lo) & (t - offset <= hi) for t in self.target.time_exp])
+
+
+def _hermite(u: np.ndarray, v: np.ndarray, dt: float, t: np.ndarray) -> np.ndarray:
+    """Cubic Hermite interpolation of a displacement history u (velocity v) sampled at k dt, at times t; outside
+    the history: its end values (those samples are masked out of the fit)."""
+    n = u.size
+    x = np.clip(t / dt, 0.0, n - 1)
+    k = np.minimum(np.floor(x).astype(np.int64), n - 2)
+    s = x - k
+    h00 = (1 + 2 * s) * (1 - s) ** 2
+    h10 = s * (1 - s) ** 2
+    h01 = s * s * (3 - 2 * s)
+    h11 = s * s * (s - 1)
+    return h00 * u[k] + h10 * dt * v[k] + h01 * u[k + 1] + h11 * dt * v[k + 1]
+
+
+def calibrate(scene: Scene, threads: int = 1, best_cell: dict | None = None, progress=None) -> list[Fit]:
+    """Calibrate the scene's [calibrate] parameters: one Fit per law (the [sweep] law axis, else the scene's law)."""
+    cal = scene.calibrate
+    laws = scene.axis_values("law") or (scene.contact.law,)
+    fits = []
+    for law in laws:
+        names = [n for n in cal.parameters if not (law == "hertz" and n == "r")]
+        s = dataclasses.replace(scene, contact=dataclasses.replace(scene.contact, law=law))
+        fits.append(_calibrate_one(s, names, threads, best_cell if len(laws) == 1 else None, progress))
+    if len(fits) > 1:
+        compare_laws(fits)
+    return fits
+
+
+def _calibrate_one(scene: Scene, names: list[str], threads: int, best_cell: dict | None, progress) -> Fit:
+    from scipy.optimize import least_squares
+    from scipy.stats import qmc
+    from scipy.stats import t as student_t
+
+    cal = scene.calibrate
+    t0 = time.perf_counter()
+    prob = Problem(scene, names, cal.parameters, cal.noise_m, threads)
+    lo, hi = prob.z_bounds
+    p = len(names)
+    offset_now = prob.offset0
+
+    # masks: samples outside the window at the scene's offset are left out (the same set at every evaluation,
+    # so the residual vector keeps its meaning while the offset is fitted)
+    mask = prob.window_mask(offset_now)
+
+    def rss_rows(thetas):
+        r = prob.residuals(thetas)[:, mask]
+        return np.sum(r * r, axis=1)
+
+    # global stage
+    starts: list[np.ndarray] = []
+    if cal.global_points > 0:
+        m = max(1, int(round(math.log2(cal.global_points))))
+        z = qmc.scale(qmc.Sobol(p, scramble=True, seed=12345).random_base2(m), lo, hi)
+        thetas = np.array([prob.to_theta(zz) for zz in z])
+        rss = rss_rows(thetas)
+        order = np.argsort(rss)
+        starts += [z[i] for i in order[: cal.starts]]
+    if best_cell is not None and all(n in best_cell and np.isfinite(best_cell[n]) for n in names):
+        starts.insert(0, np.clip(prob.to_z(np.array([best_cell[n] for n in names])), lo, hi))
+    if not starts:
+        starts.append(prob.to_z(np.array([float(prob.base[n][0]) for n in names])).clip(lo, hi))
+    if progress is not None:
+        progress(f"calibration ({scene.contact.law}): global stage done, {prob.evaluations} runs")
+
+    def fun(z):
+        return prob.residuals(prob.to_theta(z)[None, :])[0, mask]
+
+    best = None
+    width = hi - lo
+    for z0 in starts[: max(cal.starts, 1)]:
+        res = least_squares(fun, z0, bounds=(lo, hi), x_scale=width, diff_step=1e-4, max_nfev=cal.max_evals)
+        if best is None or res.cost < best.cost:
+            best = res
+    z_opt = best.x
+    theta = prob.to_theta(z_opt)
+    r = best.fun
+    N = r.size
+    rss = float(r @ r)
+    # the residuals' lag-1 autocorrelation, pooled over channels (each channel's series on its own)
+    rho = _lag1(r, [v.size for v in prob.target.values], mask)
+    n_eff = N * (1 - rho) / (1 + rho) if rho > 0 else float(N)
+    s2 = rss / max(N - p, 1)
+    J = best.jac
+    JTJ = J.T @ J
+    try:
+        cov_z = np.linalg.inv(JTJ) * s2 * (N / n_eff)
+    except np.linalg.LinAlgError:
+        cov_z = np.linalg.pinv(JTJ) * s2 * (N / n_eff)
+    se_z = np.sqrt(np.clip(np.diag(cov_z), 0, None))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov_z / np.outer(se_z, se_z)
+    tq = float(student_t.ppf(0.975, max(n_eff - p, 1)))
+    estimate, std_error, ci = {}, {}, {}
+    for j, n in enumerate(names):
+        estimate[n] = float(theta[j])
+        if n in LOG_SCALE:
+            std_error[n] = float(theta[j] * se_z[j])  # delta method
+            ci[n] = (float(math.exp(z_opt[j] - tq * se_z[j])), float(math.exp(z_opt[j] + tq * se_z[j])))
+        else:
+            std_error[n] = float(se_z[j])
+            ci[n] = (float(z_opt[j] - tq * se_z[j]), float(z_opt[j] + tq * se_z[j]))
+
+    # per channel
+    sizes = np.cumsum([0] + [int(mm.sum()) for mm in _split(mask, [v.size for v in prob.target.values])])
+    rms_m, noise, err_pct = {}, {}, []
+    for c, code in enumerate(prob.target.codes):
+        rc = r[sizes[c] : sizes[c + 1]] * prob.target.sigma[c]
+        yc = prob.target.values[c][_split(mask, [v.size for v in prob.target.values])[c]]
+        rms_m[code] = float(np.sqrt(np.mean(rc * rc)))
+        noise[code] = float(prob.target.sigma[c])
+        err_pct.append(100.0 * rms_m[code] / float(np.sqrt(np.mean(yc * yc))))
+    misfit = float(np.sqrt(np.mean([(rms_m[c] / noise[c]) ** 2 for c in prob.target.codes])))
+
+    fit = Fit(
+        scene.contact.law,
+        names,
+        prob.bounds,
+        estimate,
+        std_error,
+        ci,
+        corr,
+        rss,
+        N,
+        n_eff,
+        rho,
+        rms_m,
+        noise,
+        misfit,
+        float(np.mean(err_pct)),
+        0,
+        0.0,
+    )
+    # profiles
+    profiled = list(cal.profile) or [n for n in CONTACT if n in names]
+    for n in profiled:
+        j = names.index(n)
+        fit.profiles[n] = _profile(prob, fun, n, z_opt, lo, hi, cal, s2 * N / n_eff, rss, se_z[j])
+    _identify(fit, prob)
+    _warnings(fit, z_opt, lo, hi, cal)
+    fit.evaluations = prob.evaluations
+    fit.seconds = time.perf_counter() - t0
+    return fit
+
+
+def _split(mask: np.ndarray, sizes: list[int]) -> list[np.ndarray]:
+    out, k = [], 0
+    for s in sizes:
+        out.append(mask[k : k + s])
+        k += s
+    return out
+
+
+def _lag1(r: np.ndarray, sizes: list[int], mask: np.ndarray) -> float:
+    """Pooled lag-1 autocorrelation of the residual series of each channel."""
+    num = den = 0.0
+    k = 0
+    for m in _split(mask, sizes):
+        n = int(m.sum())
+        x = r[k : k + n] - r[k : k + n].mean()
+        k += n
+        if n > 2:
+            num += float(x[1:] @ x[:-1])
+            den += float(x @ x)
+    return num / den if den > 0 else 0.0
+
+
+def _profile(prob: Problem, fun, name, z_opt, lo, hi, cal, s2_eff, rss_opt, se) -> list[dict]:
+    """The profile of `name`: fixed on a ladder over its bounds, and at the optimum +/- 1, 2 and 4 standard
+    errors (where the 95 % profile interval lies when the parameter is identified), the rest refitted."""
+    from scipy.optimize import least_squares
+
+    j = prob.names.index(name)
+    free = [i for i in range(len(prob.names)) if i != j]
+    near = z_opt[j] + np.array([-4, -2, -1, 0, 1, 2, 4]) * (se if np.isfinite(se) else 0.0)
+    ladder = np.unique(np.clip(np.append(np.linspace(lo[j], hi[j], cal.profile_points), near), lo[j], hi[j]))
+    rows = []
+    for zj in ladder:
+        z = z_opt.copy()
+        z[j] = zj
+        if free:
+
+            def sub(zf, zj=zj):
+                zz = z_opt.copy()
+                zz[j] = zj
+                zz[free] = zf
+                return fun(zz)
+
+            res = least_squares(
+                sub,
+                z_opt[free],
+                bounds=(lo[free], hi[free]),
+                x_scale=(hi - lo)[free],
+                diff_step=1e-4,
+                max_nfev=max(20, cal.max_evals // 4),
+            )
+            z[free] = res.x
+            rss = 2.0 * res.cost
+        else:
+            rr = fun(z)
+            rss = float(rr @ rr)
+        theta = prob.to_theta(z)
+        rows.append(
+            {
+                "value": float(theta[j]),
+                "rss": float(rss),
+                "delta_chi2": float((rss - rss_opt) / s2_eff),
+                **{f"fit_{n}": float(theta[i]) for i, n in enumerate(prob.names) if i != j},
+            }
+        )
+    return rows
+
+
+def _identify(fit: Fit, prob: Problem) -> None:
+    """Per profiled parameter: the range the data cannot exclude, and whether that identifies it."""
+    for name, rows in fit.profiles.items():
+        lo_b, hi_b = fit.bounds[name]
+        tr = (lambda v: math.log(v)) if name in LOG_SCALE else (lambda v: v)
+        a, b = _crossings(rows, fit.estimate[name], tr)
+        span = (tr(b) - tr(a)) / (tr(hi_b) - tr(lo_b))
+        touches_both = tr(a) - tr(lo_b) <= 1e-9 * (tr(hi_b) - tr(lo_b)) and tr(hi_b) - tr(b) <= 1e-9 * (
+            tr(hi_b) - tr(lo_b)
+        )
+        ok = not touches_both and span <= 0.5
+        fit.identified[name] = (ok, a, b)
+
+
+def _crossings(rows: list[dict], estimate: float, tr) -> tuple[float, float]:
+    """Where the profile's delta chi^2 crosses CHI2_1_95 on either side of the optimum (linear interpolation in
+    the fit coordinate between ladder points; a bound when it stays below)."""
+    rows = sorted(rows, key=lambda r: r["value"])
+    x = np.array([tr(r["value"]) for r in rows])
+    y = np.array([r["delta_chi2"] for r in rows])
+    i0 = int(np.argmin(np.abs(x - tr(estimate))))
+    ends = []
+    for step in (-1, 1):
+        i = i0
+        while 0 <= i + step < x.size and y[i + step] <= CHI2_1_95:
+            i += step
+        if 0 <= i + step < x.size:  # crosses between i and i + step
+            w = (CHI2_1_95 - y[i]) / (y[i + step] - y[i]) if y[i + step] != y[i] else 0.0
+            xc = x[i] + max(0.0, min(1.0, w)) * (x[i + step] - x[i])
+        else:
+            xc = x[i]
+        ends.append(xc)
+    inv = (lambda v: math.exp(v)) if tr is not None and tr(math.e) == 1.0 else (lambda v: v)
+    return inv(ends[0]), inv(ends[1])
+
+
+def _warnings(fit: Fit, z_opt, lo, hi, cal) -> None:
+    law = fit.law
+    for j, n in enumerate(fit.names):
+        rng = hi[j] - lo[j]
+        for side, edge in (("lower", lo[j]), ("upper", hi[j])):
+            if abs(z_opt[j] - edge) <= BOUND_FRACTION * rng:
+                b = fit.bounds[n][0 if side == "lower" else 1]
+                fit.warnings.append(
+                    f"calibration ({law}): {n} = {fit.estimate[n]:.4g} is on its {side} bound {b:g}: the data "
+                    "want a value outside the bounds, or the model cannot fit them; widen the bound or check the model"
+                )
+    if fit.misfit_ratio > cal.misfit_factor:
+        fit.warnings.append(
+            f"calibration ({law}): the best fit's residual is {fit.misfit_ratio:.1f} times the noise floor "
+            f"({', '.join(f'{c} {fit.rms_m[c] * 1e3:.3f} mm vs {fit.noise_m[c] * 1e3:.3f} mm' for c in fit.rms_m)}): "
+            "the model cannot explain the data; the fitted values are not to be trusted as measurements"
+        )
+    for n, (ok, a, b) in fit.identified.items():
+        if not ok:
+            fit.warnings.append(
+                f"calibration ({law}): {n} is not identified by this data: any value in [{a:.4g}, {b:.4g}] fits "
+                "within the noise (profile likelihood, 95 %)"
+            )
+    for w in fit.warnings:
+        warn("calibration", w)
+
+
+def compare_laws(fits: list[Fit]) -> None:
+    """AIC differences between the laws; a warning when the best is not distinguished from another."""
+    best = min(fits, key=lambda f: f.aic)
+    tied = [f.law for f in fits if f is not best and f.aic - best.aic <= AIC_TIE]
+    if tied:
+        warn(
+            "calibration",
+            f"calibration: the data cannot decide between the contact laws {', '.join([best.law, *tied])} "
+            f"(AIC within {AIC_TIE:g} of the least, {best.law}'s)",
+        )
+
+
+def fit_table(fits: list[Fit]):
+    """One row per law and parameter: estimate, standard error, 95 % interval, bounds, identification."""
+    import pandas as pd
+
+    rows = []
+    for f in fits:
+        for n in f.names:
+            ok, a, b = f.identified.get(n, (True, math.nan, math.nan))
+            rows.append(
+                {
+                    "contact_law": f.law,
+                    "parameter": n,
+                    "estimate": f.estimate[n],
+                    "std_error": f.std_error[n],
+                    "ci95_low": f.ci95[n][0],
+                    "ci95_high": f.ci95[n][1],
+                    "lower_bound": f.bounds[n][0],
+                    "upper_bound": f.bounds[n][1],
+                    "identified": ok,
+                    "profile_low": a,
+                    "profile_high": b,
+                }
+            )
+    return pd.DataFrame(rows)
+
+
+def law_table(fits: list[Fit]):
+    """One row per law: the error at its optimum, the noise floor ratio, AIC and BIC (and their differences)."""
+    import pandas as pd
+
+    best_aic = min(f.aic for f in fits)
+    best_bic = min(f.bic for f in fits)
+    return pd.DataFrame(
+        [
+            {
+                "contact_law": f.law,
+                "parameters": len(f.names),
+                "rel_rms_pct": f.error_pct,
+                "misfit_over_noise": f.misfit_ratio,
+                "aic": f.aic,
+                "bic": f.bic,
+                "delta_aic": f.aic - best_aic,
+                "delta_bic": f.bic - best_bic,
+                "n_samples": f.n,
+                "n_effective": f.n_eff,
+                "evaluations": f.evaluations,
+                "seconds": f.seconds,
+            }
+            for f in fits
+        ]
+    )
+
+
+def calibration_rows(fits: list[Fit]) -> list[dict]:
+    """The best table's rows of a calibration: criterion 'calibrated' (one per law), its error and optimum."""
+    return [{"criterion": "calibrated", "contact_law": f.law, "error_pct": f.error_pct, **f.estimate} for f in fits]
+
+
+def calibration_metadata(fits: list[Fit]) -> dict:
+    """Everything a calibration found, as plain data for the best table's metadata (read_calibration)."""
+    return {
+        "fits": fit_table(fits).to_dict("records"),
+        "laws": law_table(fits).to_dict("records"),
+        "profiles": profile_table(fits).to_dict("records"),
+        "per_law": {
+            f.law: {
+                "parameters": f.names,
+                "correlation": np.where(np.isfinite(f.correlation), f.correlation, None).tolist(),
+                "noise_floor_m": f.noise_m,
+                "rms_residual_m": f.rms_m,
+                "misfit_over_noise": f.misfit_ratio,
+                "n_samples": f.n,
+                "n_effective": f.n_eff,
+                "lag1_autocorrelation": f.rho,
+                "warnings": f.warnings,
+            }
+            for f in fits
+        },
+    }
+
+
+def read_calibration(best_path) -> dict:
+    """The calibration stored in a sweep's best table: {'fits', 'laws', 'profiles'} DataFrames and 'per_law'."""
+    import pandas as pd
+
+    from pounding_sweep.sweep.results import read_metadata
+
+    md = read_metadata(best_path).get("calibration")
+    if md is None:
+        raise KeyError(f"{best_path}: holds no calibration (the scene had no [calibrate])")
+    return {k: pd.DataFrame(md[k]) for k in ("fits", "laws", "profiles")} | {"per_law": md["per_law"]}
+
+
+def profile_table(fits: list[Fit]):
+    import pandas as pd
+
+    rows = []
+    for f in fits:
+        for n, prof in f.profiles.items():
+            for r in prof:
+                rows.append({"contact_law": f.law, "parameter": n, **r})
+    return pd.DataFrame(rows)

@@ -46,9 +46,13 @@ def make_experiment(
     fps: float = 100.0,
     dt_s: float = 2e-5,
     seed: int = 0,
+    time_offset_s: float = 0.0,
+    noise_rho: float = 0.0,
 ):
     """Simulate the hidden parameters on the perturbed structure at a fine dt, sample every floor
-    at `fps`, add Gaussian noise of `noise_mm` RMS; return (table in mm, provenance dict)."""
+    at `fps`, add Gaussian noise of `noise_mm` RMS (AR(1) with lag-1 correlation `noise_rho`: tracking
+    errors that persist over frames), put the table's clock `time_offset_s` ahead of the simulation's;
+    return (table in mm, provenance dict)."""
     truth = perturbed(scene, stiffness_factor, damping_factor)
     floors = (len(scene.building1.masses_kg), len(scene.building2.masses_kg))
     chans = [f"disp_b{b}f{f}" for b, nf in zip((1, 2), floors) for f in range(1, nf + 1)]
@@ -56,11 +60,11 @@ def make_experiment(
     t_end = hist.t_s.iloc[-1]
     t = np.arange(0.0, t_end + 1e-12, 1.0 / fps)
     rng = np.random.default_rng(seed)
-    table = {"t_s": t}
+    table = {"t_s": t + time_offset_s}
     for ch in chans:
         b, f = ch[len("disp_b")], ch.split("f")[-1]
         x_mm = np.interp(t, hist.t_s.to_numpy(), hist[f"{ch}_m"].to_numpy()) * 1e3
-        table[f"model{b}_floor{f}_mm"] = x_mm + rng.normal(0.0, noise_mm, t.size)
+        table[f"model{b}_floor{f}_mm"] = x_mm + ar1_noise(rng, t.size, noise_mm, noise_rho)
     provenance = {
         "synthetic": True,
         "what": "SYNTHETIC tracked displacement made by pounding_sweep, not a measurement",
@@ -71,6 +75,8 @@ def make_experiment(
             "damping_ratio_factor": list(damping_factor),
         },
         "noise_mm_rms": noise_mm,
+        "noise_lag1_correlation": noise_rho,
+        "time_offset_s": time_offset_s,
         "fps": fps,
         "simulation_dt_s": dt_s,
         "seed": seed,
@@ -80,6 +86,18 @@ def make_experiment(
         "pounding_sweep_version": __version__,
     }
     return pd.DataFrame(table), provenance
+
+
+def ar1_noise(rng: np.random.Generator, n: int, rms: float, rho: float) -> np.ndarray:
+    """n samples of stationary AR(1) noise e_k = rho e_(k-1) + w_k of RMS `rms` (white for rho = 0)."""
+    w = rng.normal(0.0, rms * np.sqrt(1.0 - rho * rho), n)
+    if rho == 0.0:
+        return w
+    e = np.empty(n)
+    e[0] = rng.normal(0.0, rms)
+    for k in range(1, n):
+        e[k] = rho * e[k - 1] + w[k]
+    return e
 
 
 def write_experiment(df: pd.DataFrame, provenance: dict, path: str | Path) -> None:

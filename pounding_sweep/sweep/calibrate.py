@@ -342,7 +342,7 @@ def _calibrate_one(scene: Scene, names: list[str], threads: int, best_cell: dict
         0.0,
     )
     # profiles
-    profiled = list(cal.profile) or [n for n in CONTACT if n in names]
+    profiled = (list(cal.profile) or [n for n in CONTACT if n in names]) if cal.profile_points > 0 else []
     for n in profiled:
         j = names.index(n)
         fit.profiles[n] = _profile(prob, fun, n, z_opt, lo, hi, cal, s2 * N / n_eff, rss, se_z[j])

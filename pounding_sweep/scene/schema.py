@@ -260,7 +260,7 @@ class Axis:
 class CalibrateConfig:
     """Fit contact and structure together to the experiment, with uncertainty (sweep/calibrate.py)."""
 
-    parameters: dict = _f(
+    parameters: dict[str, tuple[float, ...]] = _f(
         "the parameters to fit and their bounds, e.g. { ks_ratio = [0.1, 10], r = [0.05, 1], stiffness_scale_b1 = "
         "[0.95, 1.05] }: any numeric [sweep] name (contact, excitation scale, the structure's scales and damping "
         "ratios, time_offset_s)"

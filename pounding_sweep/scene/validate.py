@@ -321,12 +321,7 @@ def _check_calibrate(s: Scene) -> None:
         key = f"[calibrate] parameters.{name}"
         if name not in FITTABLE:
             raise ConfigError(f"{key}: not a parameter the calibration can fit (one of {', '.join(FITTABLE)})")
-        if (
-            not isinstance(bounds, (list, tuple))
-            or len(bounds) != 2
-            or not all(isinstance(b, (int, float)) and not isinstance(b, bool) and math.isfinite(b) for b in bounds)
-            or not bounds[0] < bounds[1]
-        ):
+        if len(bounds) != 2 or not bounds[0] < bounds[1]:
             raise ConfigError(f"{key} = {shown(bounds)}: expected bounds [low, high] with low < high")
         lo, hi = float(bounds[0]), float(bounds[1])
         if name == "r" and not (0.0 <= lo and hi <= 1.0):

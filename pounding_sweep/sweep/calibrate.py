@@ -23,7 +23,10 @@ Method.
   the fit's coordinates: log for stiffnesses) inflated for the residuals' time correlation by N / N_eff, with
   N_eff = N (1 - rho) / (1 + rho) and rho the residuals' lag-1 autocorrelation (an AR(1) model of the
   residuals: the variance of a mean of AR(1) data, Bayley & Hammersley 1946, JRSS Suppl. 8:184); 95 % intervals
-  with Student's t on N_eff - p degrees of freedom, mapped back through the log where used (asymmetric).
+  with Student's t on N_eff - p degrees of freedom, mapped back through the log where used (asymmetric) and
+  clipped to the bounds (a least-squares interval is local: the profiles say more where the fit is not quadratic).
+  A direction the residuals do not change along (singular value below 1e-8 of the largest) gets an infinite
+  standard error: the interval is the bounds.
 * Profiles: each profiled parameter fixed on a ladder across its bounds, the others refitted; the values whose
   profile rises less than chi^2_1(0.95) = 3.84 above the optimum in units of the inflated residual variance
   are those the data cannot exclude (the profile-likelihood interval, Venzon & Moolgavkar 1988). A profile
@@ -292,24 +295,29 @@ def _calibrate_one(scene: Scene, names: list[str], threads: int, best_cell: dict
     n_eff = N * (1 - rho) / (1 + rho) if rho > 0 else float(N)
     s2 = rss / max(N - p, 1)
     J = best.jac
-    JTJ = J.T @ J
-    try:
-        cov_z = np.linalg.inv(JTJ) * s2 * (N / n_eff)
-    except np.linalg.LinAlgError:
-        cov_z = np.linalg.pinv(JTJ) * s2 * (N / n_eff)
+    # a direction the residuals do not change along (a parameter with no effect: no contact, say) has no
+    # finite variance: singular values below 1e-8 of the largest are treated as zero, and the parameters
+    # they involve get an infinite standard error (their interval: the bounds)
+    U_, sv, Vt = np.linalg.svd(J, full_matrices=False)
+    keep = sv > 1e-8 * sv.max() if sv.size and sv.max() > 0 else np.zeros(sv.size, bool)
+    inv_s2 = np.where(keep, 1.0 / np.where(keep, sv, 1.0) ** 2, 0.0)
+    cov_z = (Vt.T * inv_s2) @ Vt * s2 * (N / n_eff)
     se_z = np.sqrt(np.clip(np.diag(cov_z), 0, None))
+    null = np.any(np.abs(Vt[~keep]) > 1e-6, axis=0) if (~keep).any() else np.zeros(p, bool)
+    se_z[null] = np.inf
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = cov_z / np.outer(se_z, se_z)
     tq = float(student_t.ppf(0.975, max(n_eff - p, 1)))
     estimate, std_error, ci = {}, {}, {}
     for j, n in enumerate(names):
         estimate[n] = float(theta[j])
+        zlo, zhi = max(z_opt[j] - tq * se_z[j], lo[j]), min(z_opt[j] + tq * se_z[j], hi[j])  # within the bounds
         if n in LOG_SCALE:
             std_error[n] = float(theta[j] * se_z[j])  # delta method
-            ci[n] = (float(math.exp(z_opt[j] - tq * se_z[j])), float(math.exp(z_opt[j] + tq * se_z[j])))
+            ci[n] = (float(math.exp(zlo)), float(math.exp(zhi)))
         else:
             std_error[n] = float(se_z[j])
-            ci[n] = (float(z_opt[j] - tq * se_z[j]), float(z_opt[j] + tq * se_z[j]))
+            ci[n] = (float(zlo), float(zhi))
 
     # per channel
     sizes = np.cumsum([0] + [int(mm.sum()) for mm in _split(mask, [v.size for v in prob.target.values])])
@@ -383,6 +391,7 @@ def _profile(prob: Problem, fun, name, z_opt, lo, hi, cal, s2_eff, rss_opt, se) 
     j = prob.names.index(name)
     free = [i for i in range(len(prob.names)) if i != j]
     near = z_opt[j] + np.array([-4, -2, -1, 0, 1, 2, 4]) * (se if np.isfinite(se) else 0.0)
+    near = near[np.isfinite(near)]
     ladder = np.unique(np.clip(np.append(np.linspace(lo[j], hi[j], cal.profile_points), near), lo[j], hi[j]))
     rows = []
     for zj in ladder:

@@ -81,7 +81,7 @@ BAD = {
     ),
     "negative_gap": (edit(r"^gap_m = 0.0", "gap_m = -0.001"), r"gap_m = -0.001: must be >= 0"),
     "dt_longer_than_run": (edit(r"^dt_s = 1e-4$", "dt_s = 6.0"), r"dt_s = 6.0: must be shorter than"),
-    "unknown_law": (edit(r'^law = "classic"$', 'law = "hertz"'), r"law = 'hertz'"),
+    "unknown_law": (edit(r'^law = "classic"$', 'law = "hertz-mindlin"'), r"law = 'hertz-mindlin'"),
     "unknown_scheme": (edit(r'^scheme = "event" .*$', 'scheme = "euler"'), r"scheme = 'euler'"),
     "empty_axis": (edit(r"^r = \[0.2, .*$", "r = []"), r"\[sweep\] r = \[\]"),
     "unknown_axis": (edit(r"^r = \[0.2, .*$", "damping = [0.1]"), r"unknown key 'damping' in \[sweep\]"),

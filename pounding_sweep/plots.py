@@ -609,7 +609,7 @@ def accuracy_ladder(
     exc = scene.excitation
     if duration_s is not None:
         exc = dataclasses.replace(exc, duration_s=float(duration_s))
-    base = dataclasses.replace(scene, experiment=None, sweep=(), excitation=exc)
+    base = dataclasses.replace(scene, experiment=None, calibrate=None, sweep=(), excitation=exc)
     validate(base)
     floors = (len(scene.building1.masses_kg), len(scene.building2.masses_kg))
     channel = channel or f"disp_b1f{floors[0]}"
@@ -742,6 +742,8 @@ def figures(
         skipped["heatmaps"] = (
             f"no map: the sweep varies {' and '.join(swept) if swept else 'nothing'}, a map needs two axes"
         )
+    if best is not None and "calibrated" in set(best.get("criterion", ())):
+        out["calibration_profiles"] = calibration_profile_figure(best_file)
     scene = scene_of(results)
     pick, label, _ = best_run(results, df)
     out.update(history_figures(scene, pick, label, md, skipped))
@@ -757,6 +759,41 @@ def figures(
         table, f"{scene.name}: error against run time ({what}" + (f", first {dur:g} s)" if dur else ")")
     )
     return out
+
+
+def calibration_profile_figure(best_path: str | Path):
+    """Profile curves of a calibration (sweep/calibrate.py): per profiled parameter and law, the increase of
+    the residual (delta chi^2, the rest refitted) against the parameter, the 95 % threshold 3.84 and the
+    fitted value; the law comparison in the title when several laws were calibrated."""
+    from pounding_sweep.sweep.calibrate import CHI2_1_95, read_calibration
+
+    cal = read_calibration(best_path)
+    prof, fits, laws = cal["profiles"], cal["fits"], cal["laws"]
+    names = list(dict.fromkeys(prof.parameter)) if not prof.empty else []
+    fig = _figure(figsize=(5.2 * max(1, len(names)), 4.0))
+    axes = fig.subplots(1, max(1, len(names)), squeeze=False)
+    for ax, name in zip(axes[0], names):
+        for law, rows in prof[prof.parameter == name].groupby("contact_law", sort=False):
+            rows = rows.sort_values("value")
+            line = ax.plot(rows.value, np.maximum(rows.delta_chi2, 1e-3), marker="o", ms=3, label=law)[0]
+            f = fits[(fits.contact_law == law) & (fits.parameter == name)]
+            if not f.empty:
+                ax.axvline(f.estimate.iloc[0], color=line.get_color(), lw=0.8, ls=":")
+                ax.axvspan(f.profile_low.iloc[0], f.profile_high.iloc[0], color=line.get_color(), alpha=0.12)
+        ax.axhline(CHI2_1_95, color="k", lw=0.8, ls="--", label="95 % (3.84)")
+        ax.set_yscale("log")
+        if name in ("ks_ratio", "ks_N_per_m", "kh_N_per_m1_5"):
+            ax.set_xscale("log")
+        ax.set_xlabel(name)
+        ax.set_ylabel("delta chi^2 (others refitted)")
+        ax.legend(fontsize=8)
+    if len(laws) > 1:
+        order = laws.sort_values("aic")
+        text = ", ".join(f"{r.contact_law} dAIC {r.delta_aic:.1f}" for r in order.itertuples())
+        fig.suptitle(f"calibration profiles; laws: {text} (within 2: not distinguished)", fontsize=9)
+    else:
+        fig.suptitle("calibration profiles (shaded: the values the data cannot exclude, 95 %)", fontsize=9)
+    return fig
 
 
 def plot_results(

@@ -65,6 +65,7 @@ def _point(scene: Scene, record, gaps, contact: dict) -> Scene:
         contact=c,
         excitation=e,
         experiment=None,
+        calibrate=None,
         sweep=(Axis("gap_m", tuple(gaps)),),
         output=dataclasses.replace(scene.output, histories=()),
     )

@@ -18,7 +18,7 @@ import pyarrow.parquet as pq
 
 from pounding_sweep import __version__
 from pounding_sweep.scene import Scene
-from pounding_sweep.sweep.simulate import simulate
+from pounding_sweep.sweep.simulate import simulate, with_overrides
 
 
 def perturbed(scene: Scene, stiffness_factor: tuple[float, float], damping_factor: tuple[float, float]) -> Scene:
@@ -48,15 +48,18 @@ def make_experiment(
     seed: int = 0,
     time_offset_s: float = 0.0,
     noise_rho: float = 0.0,
+    with_table: bool = False,
 ):
     """Simulate the hidden parameters on the perturbed structure at a fine dt, sample every floor
     at `fps`, add Gaussian noise of `noise_mm` RMS (AR(1) with lag-1 correlation `noise_rho`: tracking
     errors that persist over frames), put the table's clock `time_offset_s` ahead of the simulation's;
-    return (table in mm, provenance dict)."""
+    return (table in mm, provenance dict). With `with_table`, also the table's displacement `table_mm` (as a
+    tracked table marker gives it, same noise): A sin(2 pi f t) for a harmonic excitation, the ground
+    acceleration integrated twice from rest for a record."""
     truth = perturbed(scene, stiffness_factor, damping_factor)
     floors = (len(scene.building1.masses_kg), len(scene.building2.masses_kg))
     chans = [f"disp_b{b}f{f}" for b, nf in zip((1, 2), floors) for f in range(1, nf + 1)]
-    hist, metrics = simulate(truth, channels=chans, dt_s=dt_s, **hidden)
+    hist, metrics = simulate(truth, channels=chans + (["ground_acc"] if with_table else []), dt_s=dt_s, **hidden)
     t_end = hist.t_s.iloc[-1]
     t = np.arange(0.0, t_end + 1e-12, 1.0 / fps)
     rng = np.random.default_rng(seed)
@@ -65,6 +68,10 @@ def make_experiment(
         b, f = ch[len("disp_b")], ch.split("f")[-1]
         x_mm = np.interp(t, hist.t_s.to_numpy(), hist[f"{ch}_m"].to_numpy()) * 1e3
         table[f"model{b}_floor{f}_mm"] = x_mm + ar1_noise(rng, t.size, noise_mm, noise_rho)
+    if with_table:
+        table["table_mm"] = table_displacement_m(with_overrides(truth, **hidden), hist, t) * 1e3 + rng.normal(
+            0.0, noise_mm, t.size
+        )
     provenance = {
         "synthetic": True,
         "what": "SYNTHETIC tracked displacement made by pounding_sweep, not a measurement",
@@ -81,7 +88,8 @@ def make_experiment(
         "simulation_dt_s": dt_s,
         "seed": seed,
         "status_of_truth_run": metrics["status"],
-        "units": "displacement relative to the table in mm; t_s in seconds",
+        "units": "displacement relative to the table in mm; t_s in seconds"
+        + ("; table_mm: the table's displacement in mm" if with_table else ""),
         "generator": "pounding_sweep.synthetic.make_experiment (sweeps/experiments/make_synthetic.py)",
         "pounding_sweep_version": __version__,
     }
@@ -98,6 +106,19 @@ def ar1_noise(rng: np.random.Generator, n: int, rms: float, rho: float) -> np.nd
     for k in range(1, n):
         e[k] = rho * e[k - 1] + w[k]
     return e
+
+
+def table_displacement_m(scene: Scene, hist: pd.DataFrame, t: np.ndarray) -> np.ndarray:
+    """The table's displacement [m] at times t: the scene's A sin(2 pi f t) for a harmonic excitation,
+    else `hist`'s ground acceleration integrated twice from rest (trapezoid rule)."""
+    e = scene.excitation
+    if e.type == "harmonic":
+        return e.amplitude_m * np.sin(2 * np.pi * e.frequency_Hz * t)
+    from scipy.integrate import cumulative_trapezoid
+
+    ts = hist.t_s.to_numpy()
+    v = cumulative_trapezoid(hist.ground_acc_m_s2.to_numpy(), ts, initial=0.0)
+    return np.interp(t, ts, cumulative_trapezoid(v, ts, initial=0.0))
 
 
 def write_experiment(df: pd.DataFrame, provenance: dict, path: str | Path) -> None:

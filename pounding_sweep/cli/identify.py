@@ -1,8 +1,12 @@
 """`python -m pounding_sweep identify TABLE ...`: modal identification of a displacement table and, with
---scene, the model update that matches each building's first frequency (identify/table.py does the work).
+--scene, the model update that matches each building's first frequency (identify/table.py does the work;
+identify/safety.py says when not to trust it).
 
-Exit status 0 when done, 2 on bad input with one line `error: <file>: <what> (<value>)` on stderr and no
-file written (the updated sections go to `<out>.tmp`, renamed when complete).
+Exit status 0 when done, 2 with one line `error: <file>: <what> (<value>)` on stderr and no file written
+(the updated sections go to `<out>.tmp`, renamed when complete) on bad input, a single-frequency table
+motion, no mode found, or a model update refused (f1 at a forcing frequency, a stiffness changed by more
+than 30 %; --force-update writes it anyway, with a warning). The modes found are printed before the
+last two errors, so that the numbers can be seen.
 """
 
 from __future__ import annotations
@@ -32,6 +36,13 @@ def _identify_parser() -> argparse.ArgumentParser:
     p.add_argument("--fmax", type=float, help="highest frequency considered [Hz]")
     p.add_argument("--start", type=float, default=0.0, help="analyse from this time on [s] (e.g. after the release)")
     p.add_argument(
+        "--input",
+        default="auto",
+        help="column with the table's motion (displacement; acceleration if its name says acc): modes from the "
+        "transmissibility floor / table; 'none': from the floors alone (default: the column named table* or "
+        "ground*, if there is one)",
+    )
+    p.add_argument(
         "--free-vibration", action="store_true", help="the record is free vibration: also logarithmic decrement"
     )
     p.add_argument("--scene", help="scene whose buildings are updated to the identified first frequencies")
@@ -39,15 +50,48 @@ def _identify_parser() -> argparse.ArgumentParser:
         "--update-damping", action="store_true", help="with --scene, also set damping_ratio to the identified one"
     )
     p.add_argument("--out", help="with --scene: write the updated [buildingN] sections to this TOML file")
+    p.add_argument(
+        "--force-update",
+        action="store_true",
+        help="write the update even when f1 is at a forcing frequency or a stiffness changes by more than 30 %%",
+    )
     return p
+
+
+def _print_identification(ident, forcing) -> None:
+    import numpy as np
+
+    from pounding_sweep.identify.safety import forcing_notes
+
+    print(f"method: {ident.method}")
+    if ident.input_line is not None:
+        line = ident.input_line
+        print(
+            f"table motion '{ident.input_column}': largest line {line.frequency_Hz:.3f} Hz holds "
+            f"{100 * line.fraction:.1f} % of its acceleration power (broadband)"
+        )
+    for b, r in sorted(ident.results.items()):
+        head = f"building {b}" if b else "other columns"
+        print(
+            f"{head} ({', '.join(r.channels)}; shapes relative to {r.reference}; {ident.fs:g} samples/s, "
+            f"resolution {r.spectrum.resolution_Hz:.3g} Hz, band {r.band_Hz[0]:.4g}-{r.band_Hz[1]:.4g} Hz)"
+        )
+        if not r.modes:
+            print("  no mode")
+        for k, m in enumerate(r.modes, 1):
+            ld = "" if m.damping_log_decrement is None else f", log decrement {100 * m.damping_log_decrement:.2f} %"
+            hp = "n/a" if not np.isfinite(m.damping_half_power) else f"{100 * m.damping_half_power:.2f} %"
+            shape = ", ".join(f"{c} {v:+.3f}" for c, v in m.shape.items())
+            print(f"  mode {k}: {m.frequency_Hz:.4f} Hz, damping half-power {hp}{ld}; shape {shape}")
+        for n in list(r.notes) + forcing_notes(r, forcing):
+            print(f"  note: {n}")
 
 
 def identify_main(argv: list[str]) -> int:
     args = _identify_parser().parse_args(argv)
-    import numpy as np
-
     from pounding_sweep.errors import InputError
-    from pounding_sweep.identify.table import identify_table, model_updates
+    from pounding_sweep.identify.safety import forcing_frequencies, method_warnings, update_problems
+    from pounding_sweep.identify.table import empty_reason, identify_table, model_updates
     from pounding_sweep.model.experiment import read_table
     from pounding_sweep.scene import load_scene
 
@@ -62,6 +106,7 @@ def identify_main(argv: list[str]) -> int:
         if args.out and not args.scene:
             raise Bad(args.out, "--out writes updated buildings: it needs --scene", "--out without --scene")
         df, _ = read_table(src)
+        scene = load_scene(args.scene) if args.scene else None
         ident = identify_table(
             df,
             src,
@@ -72,9 +117,29 @@ def identify_main(argv: list[str]) -> int:
             args.fmax,
             args.start,
             args.free_vibration,
+            args.input,
         )
-        scene = load_scene(args.scene) if args.scene else None
+        forcing = forcing_frequencies(ident, scene)
+        _print_identification(ident, forcing)
+        for w in method_warnings(ident, scene):
+            sys.stdout.flush()
+            print(f"warning: {w}", file=sys.stderr)
+        if ident.empty:
+            raise Bad(src, empty_reason(ident))
         updates = model_updates(ident, scene, args.update_damping) if scene is not None else []
+        problems = update_problems(updates, ident, forcing)
+        if updates:
+            print()
+            for u in updates:
+                print(f"{u.section}: f1 {u.f1_model_Hz:.4f} -> {u.f1_target_Hz:.4f} Hz: stiffness x {u.factor:.4f}")
+        if problems and not args.force_update:
+            raise Bad(
+                src,
+                "model update refused: " + "; ".join(problems),
+                "--force-update writes it anyway",
+            )
+        for pr in problems:
+            print(f"warning: model update forced although {pr}", file=sys.stderr)
         text = "".join(u.toml() + "\n" for u in updates)
         if args.out:
             out = Path(args.out)
@@ -86,25 +151,10 @@ def identify_main(argv: list[str]) -> int:
                 tmp.unlink(missing_ok=True)
                 raise Bad(out, "cannot write", e.strerror or e) from None
     except (Bad, InputError) as e:
+        sys.stdout.flush()  # the modes printed so far come before the error
         print(f"error: {e}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    for b, r in sorted(ident.results.items()):
-        head = f"building {b}" if b else "other columns"
-        print(
-            f"{head} ({', '.join(r.channels)}; shapes relative to {r.reference}; {ident.fs:g} samples/s, "
-            f"resolution {r.spectrum.resolution_Hz:.3g} Hz)"
-        )
-        for k, m in enumerate(r.modes, 1):
-            ld = "" if m.damping_log_decrement is None else f", log decrement {100 * m.damping_log_decrement:.2f} %"
-            hp = "n/a" if not np.isfinite(m.damping_half_power) else f"{100 * m.damping_half_power:.2f} %"
-            shape = ", ".join(f"{c} {v:+.3f}" for c, v in m.shape.items())
-            print(f"  mode {k}: {m.frequency_Hz:.4f} Hz, damping half-power {hp}{ld}; shape {shape}")
-        for n in r.notes:
-            print(f"  note: {n}")
     if updates:
-        print()
-        for u in updates:
-            print(f"{u.section}: f1 {u.f1_model_Hz:.4f} -> {u.f1_target_Hz:.4f} Hz: stiffness x {u.factor:.4f}")
         print()
         print(text if not args.out else f"updated sections written to {args.out}")
     return 0

@@ -26,6 +26,24 @@ tracked pixel histories by FFT, and checked f1 by FFT before each test. Methods 
   signed by their phase (peak picking, the basic frequency-domain method; Bendat & Piersol,
   Engineering Applications of Correlation and Spectral Analysis, 2nd ed., Wiley 1993). Compared
   with a model's modes through the MAC (Allemang & Brown, Proc. 1st IMAC, 1982).
+- With the table's motion (the input): the transmissibility floor / table, estimated as H1 =
+  cross-spectrum / input auto-spectrum (Bendat & Piersol), so that the peaks are the structure's and
+  not the input's. Welch's segment averaging needs segments longer than the response's decay (a
+  resolution well below the half-power band); a shake-table record of a few seconds of lightly damped
+  models has no such segments (on the 6.68 s Duzce record, 1.67 s segments put Model-2's 7.12 Hz at
+  6.75 Hz). The whole record is used instead, under an exponential window w = exp(-sigma t), as in
+  impact testing (Ewins, Modal Testing, 2nd ed., Research Studies Press 2000): for a structure at
+  rest at the start, y w = (h w) * (x w) exactly (w(t) = w(t - s) w(s)), so the ratio of the windowed
+  transforms is the transfer function of the same modes with sigma added to each decay rate
+  (frequencies kept, damping ratio + sigma / omega, removed again from the half-power damping); sigma
+  makes the window 1 % at the record's end, so the cut-off response leaks next to nothing.
+  Cross- and auto-spectra are averaged over 3 adjacent bins (frequency smoothing): the peaks are found
+  on that estimate (resolution 3 / record length) and placed on the unsmoothed ratio nearby (bins of
+  1 / record length). A peak counts only where the floors' response stands above its noise floor
+  (where the table's motion is tracking noise, the ratio of two noises has peaks of its own).
+- Single-frequency input: the share of the input's power, as acceleration (what drives the
+  relative-coordinate equations; a displacement's spectrum is weighted by f^4) and above its noise
+  floor (4 x the median of its Welch spectrum), in the main lobe (+/- 2 bins) of its largest peak.
 
 NumPy and SciPy only (no OpenCV).
 """
@@ -92,6 +110,94 @@ def welch_psd(x, fs: float, nperseg: int | None = None) -> Spectrum:
     return Spectrum(f, p, "psd", fs / nper)
 
 
+#: what a table channel measures -> power of f that turns its spectrum into its acceleration's
+TO_ACCELERATION = {"displacement": 4, "velocity": 2, "acceleration": 0}
+
+
+@dataclass(frozen=True)
+class InputLine:
+    """The largest line of a table motion's spectrum and the share of the motion's power in it."""
+
+    frequency_Hz: float
+    fraction: float  # of the acceleration power above the noise floor, in the line's main lobe
+    kind: str  # 'displacement', 'velocity' or 'acceleration'
+    resolution_Hz: float
+
+
+def input_line(x, fs: float, kind: str = "displacement") -> InputLine:
+    """How concentrated at one frequency a table motion is: the share of its power (as acceleration,
+    which is what drives the structure: a displacement's PSD times f^4) in the main lobe (+/- 2 bins) of
+    its largest peak, counting only bins above the noise floor (4 x the median of the PSD as measured:
+    white tracking noise, weighted by f^4, would otherwise outweigh a 2 mm sine). Welch PSD, segments of a
+    quarter of the record (7 averages at 50 % overlap: noise bins stay well below 4 x the median), linear
+    trend removed. A sine reads 1.0; the shipped Duzce record, as table displacement or acceleration,
+    0.15-0.35 (0.42 with 0.5 mm of tracking noise)."""
+    if kind not in TO_ACCELERATION:
+        raise ValueError(f"table motion kind must be one of {', '.join(TO_ACCELERATION)}, got {kind!r}")
+    x = _as_record(x, fs)
+    nper = max(x.size // 4, 8)
+    f, p = scipy.signal.welch(x, fs=fs, nperseg=nper, detrend="linear")
+    res = fs / nper
+    band = f >= 2.0 * res
+    keep = band & (p > 4.0 * float(np.median(p[band])))
+    q = np.where(keep, p * f ** TO_ACCELERATION[kind], 0.0)
+    if q.sum() <= 0:
+        return InputLine(float("nan"), 0.0, kind, res)
+    i = int(np.argmax(q))
+    lobe = np.abs(f - f[i]) <= 2.0 * res
+    # the line's frequency, read between bins on the whole record's spectrum
+    a = amplitude_spectrum(scipy.signal.detrend(x), fs)
+    near = np.nonzero(np.abs(a.frequency_Hz - f[i]) <= 2.0 * res)[0]
+    j = int(near[np.argmax(a.values[near])])
+    return InputLine(refine_peak(a.frequency_Hz, a.values, j)[0], float(q[lobe].sum() / q.sum()), kind, res)
+
+
+@dataclass(frozen=True)
+class Transmissibility:
+    """Floor / table transfer functions of a record (H1, exponentially windowed, frequency-smoothed)."""
+
+    frequency_Hz: np.ndarray
+    H: np.ndarray  # (frequencies, channels) complex: smoothed cross-spectrum / smoothed input auto-spectrum
+    raw: np.ndarray  # (frequencies, channels) complex: ratio of the windowed transforms, no smoothing
+    response: np.ndarray  # (frequencies, channels): amplitude of each floor's smoothed spectrum
+    resolution_Hz: float  # smoothing width: smooth_bins / record length
+    decay_per_s: float  # sigma of the exponential window, added to every mode's decay rate
+
+
+def transmissibility(x, Y, fs: float, smooth_bins: int = 3, end_weight: float = 0.01, pad: int = 8) -> Transmissibility:
+    """H1 = S_xy / S_xx of every column of Y (floors) on x (the table), from the whole record under the
+    window exp(-sigma t) with exp(-sigma T) = end_weight, spectra averaged over `smooth_bins` adjacent
+    bins of 1 / T. Records are taken relative to their first sample (the structure at rest)."""
+    x = _as_record(x, fs)
+    Y = np.asarray(Y, dtype=float)
+    if Y.ndim == 1:
+        Y = Y[:, None]
+    if Y.shape[0] != x.size:
+        raise ValueError(f"the table record has {x.size} samples, the floors {Y.shape[0]}")
+    n = x.size
+    sigma = np.log(1.0 / end_weight) * fs / n
+    w = np.exp(-sigma * np.arange(n) / fs)
+    nfft = int(2 ** np.ceil(np.log2(n))) * max(int(pad), 1)
+    f = np.fft.rfftfreq(nfft, 1.0 / fs)
+    X = np.fft.rfft((x - x[0]) * w, nfft)
+    Yf = np.fft.rfft((Y - Y[:1]) * w[:, None], nfft, axis=0)
+    m = max(1, int(round(smooth_bins * nfft / n))) | 1  # odd: centred
+
+    def smooth(v):
+        k = np.ones(m) / m
+        if v.ndim == 1:
+            return np.convolve(v, k, "same")
+        return np.column_stack([np.convolve(v[:, j], k, "same") for j in range(v.shape[1])])
+
+    sxx = smooth(np.abs(X) ** 2)
+    sxy = smooth(np.conj(X)[:, None] * Yf)
+    syy = smooth(np.abs(Yf) ** 2)
+    tiny = np.finfo(float).tiny
+    H = sxy / np.maximum(sxx, tiny)[:, None]
+    raw = Yf / np.where(np.abs(X) > 0, X, tiny)[:, None]
+    return Transmissibility(f, H, raw, np.sqrt(syy), smooth_bins * fs / n, float(sigma))
+
+
 def spectrum(x, fs: float, method: str = "fft", **kw) -> Spectrum:
     if method == "fft":
         return amplitude_spectrum(x, fs, **kw)
@@ -119,6 +225,15 @@ class Peak:
     bin: int
 
 
+def _band(s: Spectrum, fmin: float, fmax: float | None) -> tuple[float, float, np.ndarray]:
+    """(low, high, bins) of the band [fmin, fmax]; below twice the resolution nothing is a peak (a
+    record cannot resolve a period longer than half its length)."""
+    f = s.frequency_Hz
+    lo = max(fmin, 2.0 * s.resolution_Hz)
+    hi = f[-1] if fmax is None else min(fmax, f[-1])
+    return lo, hi, np.nonzero((f >= lo) & (f <= hi))[0]
+
+
 def find_peaks(
     s: Spectrum,
     n: int = 3,
@@ -126,6 +241,8 @@ def find_peaks(
     fmax: float | None = None,
     min_relative_height: float = 0.002,
     min_snr: float = 4.0,
+    valid=None,
+    sidelobes=None,
 ) -> list[Peak]:
     """The `n` most prominent spectral peaks in [fmin, fmax], in ascending frequency, each refined
     between bins; peaks lower than `min_relative_height` times the highest are ignored, and so are
@@ -133,25 +250,61 @@ def find_peaks(
     is a peak (a record cannot resolve a period longer than half its length). Peaks that rise less
     than `min_snr` times the spectrum's median in the band (its noise floor: peaks of a noise
     spectrum rarely reach 3 times it) above their surroundings (scipy's prominence) are noise or
-    bumps on a stronger mode's flank, not modes."""
+    bumps on a stronger mode's flank, not modes. A peak is a bin higher than both neighbours in the
+    whole spectrum, and the 4-resolution rule looks outside the band too: where the band's edge is its
+    largest value, the spectrum still rises outside the band (the flank of a peak there), and that is
+    no mode (band_edge_maximum says so). `sidelobes(d)`, when given, is the window's side-lobe envelope
+    (relative height d resolutions from a line, e.g. `hann_sidelobes`): a peak no higher than twice it
+    under a higher peak of the whole spectrum is that peak's side lobe. `valid(peak)`, when given, is a
+    further test each peak must pass before the `n` are chosen."""
     f, v = s.frequency_Hz, s.values
-    fmax = f[-1] if fmax is None else fmax
-    band = (f >= max(fmin, 2.0 * s.resolution_Hz)) & (f <= fmax)
-    if not band.any():
+    _, _, idx = _band(s, fmin, fmax)
+    if idx.size < 3:
         return []
-    top = v[band].max()
+    top = v[idx].max()
     if top <= 0:
         return []
     df = f[1] - f[0]
-    floor = min_snr * float(np.median(v[band]))
-    idx, props = scipy.signal.find_peaks(
-        np.where(band, v, 0.0),
+    floor = min_snr * float(np.median(v[idx]))
+    # peaks of the whole spectrum above twice the resolution, kept if inside the band: a bump next to a
+    # stronger peak outside the band (its side lobe) and the band's edge on that peak's flank are none
+    _, _, every = _band(s, 0.0, None)
+    found, props = scipy.signal.find_peaks(
+        v[every[0] :],
         height=min_relative_height * top,
         prominence=floor,
         distance=max(1, int(round(4 * s.resolution_Hz / df))),
     )
-    order = idx[np.argsort(-props["prominences"])][:n]
-    return sorted((Peak(*refine_peak(f, v, int(i)), int(i)) for i in order), key=lambda p: p.frequency_Hz)
+    found = found + every[0]
+    inside = (found >= idx[0]) & (found <= idx[-1])
+    if sidelobes is not None:
+        for k in np.nonzero(inside)[0]:
+            d = np.abs(f[found] - f[found[k]]) / s.resolution_Hz
+            higher = (v[found] > v[found[k]]) & (d > 1.0)
+            if np.any(v[found[k]] <= 2.0 * sidelobes(d[higher]) * v[found[higher]]):
+                inside[k] = False
+    order = found[inside][np.argsort(-props["prominences"][inside])]
+    peaks = [Peak(*refine_peak(f, v, int(i)), int(i)) for i in order]
+    if valid is not None:
+        peaks = [p for p in peaks if valid(p)]
+    return sorted(peaks[:n], key=lambda p: p.frequency_Hz)
+
+
+def hann_sidelobes(d):
+    """Envelope of the Hann window's side lobes d bins from a line, relative to the line's height:
+    |sinc(d) / (1 - d^2)| <= 1 / (pi d |d^2 - 1|) (the lobes' peaks come within 10 % of it; d > 1)."""
+    d = np.asarray(d, dtype=float)
+    return 1.0 / (np.pi * d * np.abs(d * d - 1.0))
+
+
+def band_edge_maximum(s: Spectrum, fmin: float = 0.0, fmax: float | None = None) -> float | None:
+    """The edge frequency of [fmin, fmax] when the spectrum is largest there (the flank of a peak
+    outside the band, not a mode); None when the band's largest value lies inside it."""
+    _, _, idx = _band(s, fmin, fmax)
+    if idx.size == 0:
+        return None
+    j = idx[int(np.argmax(s.values[idx]))]
+    return float(s.frequency_Hz[j]) if j in (idx[0], idx[-1]) else None
 
 
 def half_power_damping(s: Spectrum, f_peak: float) -> float:
@@ -289,8 +442,11 @@ class ModalResult:
     fs: float
     reference: str
     modes: tuple[Mode, ...]
-    spectrum: Spectrum  # sum of the channels' amplitude spectra, each normalised to its own peak
+    spectrum: Spectrum  # what the peaks were picked on: sum of the channels' |H| or amplitude spectra, each normalised
     notes: tuple[str, ...] = field(default_factory=tuple)
+    method: str = "output-only"  # or 'transmissibility'
+    decay_per_s: float = 0.0  # the exponential window's sigma (transmissibility), removed from the damping
+    band_Hz: tuple[float, float] = (0.0, 0.0)  # where peaks were looked for
 
 
 def identify(
@@ -303,13 +459,21 @@ def identify(
     free_vibration: bool = False,
     reference: int = -1,
     start_s: float = 0.0,
+    table=None,
+    min_snr: float = 4.0,
 ) -> ModalResult:
     """Frequencies, damping and shape ratios of up to `n_modes` modes of one structure from its
     floors' records (columns of X; the reference channel is usually the top floor).
 
-    Peaks are picked on the sum of the channels' normalised spectra (a mode strong at any floor
-    counts; Hann window, or for a free vibration one that only tapers its end); half-power damping on the reference channel's rectangular-window spectrum; with
-    free_vibration, also the logarithmic decrement of each mode after a band-pass of +/- 25 % around it."""
+    With `table` (the table's motion, sampled with X): peaks of the transmissibility floor / table
+    (`transmissibility`), summed over the channels, each normalised; a peak counts where the floors'
+    response stands `min_snr` times above its median; half-power damping on the reference channel's
+    unsmoothed ratio, less the window's sigma / omega; shapes from the ratios of H at the peak.
+    Without: peaks of the sum of the channels' normalised spectra (a mode strong at any floor counts;
+    Hann window, or for a free vibration one that only tapers its end); half-power damping on the
+    reference channel's rectangular-window spectrum. A forced record's spectrum peaks at the forcing as
+    much as at the modes: this cannot tell them apart. With free_vibration, also the logarithmic
+    decrement of each mode after a band-pass of +/- 25 % around it."""
     X = np.asarray(X, dtype=float)
     if X.ndim == 1:
         X = X[:, None]
@@ -318,31 +482,96 @@ def identify(
         raise ValueError(f"{X.shape[1]} columns but {len(channels)} channel names")
     t = np.arange(X.shape[0]) / fs
     Xs = X[t >= start_s]
+    notes = []
     # a free vibration lives at the record's start: a Hann window would weight it almost to zero and
     # bias a fast-decaying mode's peak; no window leaves the side lobes of a slow mode cut off at the
     # end (spurious peaks): keep the start, taper the end
     win = "decay" if free_vibration else "hann"
-    specs = [amplitude_spectrum(Xs[:, j], fs, window=win) for j in range(Xs.shape[1])]
-    tot = sum(s.values / max(s.values[1:].max(), 1e-300) for s in specs)
-    sumspec = Spectrum(specs[0].frequency_Hz, tot, "amplitude", specs[0].resolution_Hz)
-    peaks = find_peaks(sumspec, n_modes, fmin, fmax)
-    rect = amplitude_spectrum(Xs[:, reference], fs, window="boxcar")
-    notes = []
+    sigma = 0.0
+    if table is None:
+        specs = [amplitude_spectrum(Xs[:, j], fs, window=win) for j in range(Xs.shape[1])]
+        tot = sum(s.values / max(s.values[1:].max(), 1e-300) for s in specs)
+        sumspec = Spectrum(specs[0].frequency_Hz, tot, "amplitude", specs[0].resolution_Hz)
+        lobes = hann_sidelobes if win == "hann" else None
+        peaks = find_peaks(sumspec, n_modes, fmin, fmax, min_snr=min_snr, sidelobes=lobes)
+        rect = amplitude_spectrum(Xs[:, reference], fs, window="boxcar")
+        method = "output-only"
+    else:
+        tr = transmissibility(np.asarray(table, dtype=float)[t >= start_s], Xs, fs)
+        sigma = tr.decay_per_s
+        f = tr.frequency_Hz
+        _, _, idx = _band(Spectrum(f, f, "amplitude", tr.resolution_Hz), fmin, fmax)
+        mag = np.abs(tr.H)
+        inband = idx if idx.size else np.arange(f.size)
+        tot = (mag / np.maximum(mag[inband].max(axis=0), 1e-300)).sum(axis=1)
+        sumspec = Spectrum(f, tot, "amplitude", tr.resolution_Hz)
+        resp = (tr.response / np.maximum(tr.response[inband].max(axis=0), 1e-300)).sum(axis=1)
+        floor = min_snr * float(np.median(resp[inband]))
+        dropped = []
+
+        def above_noise(p: Peak) -> bool:
+            if resp[p.bin] >= floor:
+                return True
+            dropped.append(p)
+            return False
+
+        peaks = find_peaks(sumspec, n_modes, fmin, fmax, min_snr=min_snr, valid=above_noise)
+        for p in sorted(dropped[:n_modes], key=lambda p: p.frequency_Hz):
+            notes.append(
+                f"{p.frequency_Hz:.3f} Hz: a peak of the transmissibility where the floors' response is at its "
+                f"noise floor ({resp[p.bin] / floor * min_snr:.1f} x its median, under {min_snr:g}): not a mode"
+            )
+        # the smoothed estimate finds the peaks; the unsmoothed ratio places them: smoothing averages H over
+        # +/- half its width with the input's power as weights, which pulls a peak toward the stronger input
+        rawmag = np.abs(tr.raw)
+        rawsum = (rawmag / np.maximum(rawmag[inband].max(axis=0), 1e-300)).sum(axis=1)
+        half = max(1, int(round(0.5 * tr.resolution_Hz / (f[1] - f[0]))))
+        placed = []
+        for p in peaks:
+            a, b = max(p.bin - half, 1), min(p.bin + half, f.size - 2)
+            i = a + int(np.argmax(rawsum[a : b + 1]))
+            placed.append(Peak(*refine_peak(f, rawsum, i), i) if a < i < b else p)
+        peaks = placed
+        # damping: the unsmoothed ratio keeps the peak's width (the exponential window's sigma is removed below)
+        rect = Spectrum(f, np.abs(tr.raw[:, reference]), "amplitude", fs / Xs.shape[0])
+        method = "transmissibility"
+    lo, hi, _ = _band(sumspec, fmin, fmax)
+    edge = band_edge_maximum(sumspec, fmin, fmax)
+    if edge is not None:
+        notes.append(
+            f"the spectrum is largest at the band's {'lower' if abs(edge - lo) <= abs(edge - hi) else 'upper'} "
+            f"edge {edge:.4g} Hz: the flank of a peak outside {lo:.4g}-{hi:.4g} Hz, not a mode"
+        )
+    if not peaks and edge is None:
+        notes.append(f"no peak in {lo:.4g}-{hi:.4g} Hz rises above the noise floor ({min_snr:g} x the median)")
     modes = []
     for p in peaks:
         zhp = half_power_damping(rect, p.frequency_Hz)
-        if np.isfinite(zhp) and 2 * zhp * p.frequency_Hz < 2 * rect.resolution_Hz:
-            notes.append(
-                f"{p.frequency_Hz:.3f} Hz: half-power band {2 * zhp * p.frequency_Hz:.3g} Hz is not wider than "
-                f"twice the resolution {rect.resolution_Hz:.3g} Hz (record too short): damping unreliable"
-            )
+        if np.isfinite(zhp):
+            # the band as measured; under the exponential window it is widened by sigma / pi, removed here
+            band = 2 * zhp * p.frequency_Hz
+            zhp -= sigma / (2 * np.pi * p.frequency_Hz)
+            if band < 2 * rect.resolution_Hz or zhp <= 0:
+                notes.append(
+                    f"{p.frequency_Hz:.3f} Hz: half-power band {band:.3g} Hz is not wider than twice the resolution "
+                    f"{rect.resolution_Hz:.3g} Hz (record too short): damping unreliable"
+                )
+            if zhp <= 0:
+                zhp = float("nan")
         zld = None
         if free_vibration:
-            hi = min(1.25 * p.frequency_Hz, 0.49 * fs)
+            hi_bp = min(1.25 * p.frequency_Hz, 0.49 * fs)
             try:
-                zld = log_decrement(Xs[:, reference], fs, band_Hz=(0.75 * p.frequency_Hz, hi)).damping_ratio
+                zld = log_decrement(Xs[:, reference], fs, band_Hz=(0.75 * p.frequency_Hz, hi_bp)).damping_ratio
             except ValueError as e:
                 notes.append(f"{p.frequency_Hz:.3f} Hz: no logarithmic decrement ({e})")
-        ratios, _ = mode_shape_ratios(Xs, fs, p.frequency_Hz, reference, window=win)
+        if table is None:
+            ratios, _ = mode_shape_ratios(Xs, fs, p.frequency_Hz, reference, window=win)
+        else:
+            h = tr.H[p.bin]
+            r = h / h[reference] if abs(h[reference]) > 0 else np.full(h.shape, np.nan)
+            ratios = np.abs(r) * np.sign(np.cos(np.angle(r)))
         modes.append(Mode(p.frequency_Hz, zhp, zld, dict(zip(channels, ratios.tolist()))))
-    return ModalResult(channels, float(fs), channels[reference], tuple(modes), sumspec, tuple(notes))
+    return ModalResult(
+        channels, float(fs), channels[reference], tuple(modes), sumspec, tuple(notes), method, sigma, (lo, hi)
+    )

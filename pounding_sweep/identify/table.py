@@ -1,7 +1,9 @@
 """Modal identification of a displacement table (a tracked video, a test record): its columns grouped
-by building, each building identified (identify/modes.py), and the model update that matches each
-building's first frequency (identify/update.py). Every problem with the table is one ExperimentError
-naming the file, what is wrong and the value."""
+by building, each building identified (identify/modes.py) against the table's motion when the table has
+a column for it (transmissibility) or from the floors alone (output-only), and the model update that
+matches each building's first frequency (identify/update.py). Every problem with the table is one
+ExperimentError naming the file, what is wrong and the value; so is a single-frequency table motion
+(identify/safety.py)."""
 
 from __future__ import annotations
 
@@ -10,12 +12,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from pounding_sweep.errors import ExperimentError
-from pounding_sweep.identify.modes import ModalResult, identify
+from pounding_sweep.identify.modes import InputLine, ModalResult, identify, input_line
+from pounding_sweep.identify.safety import HARMONIC_INPUT_FRACTION, input_kind
 from pounding_sweep.identify.update import StiffnessUpdate, update_scene
 from pounding_sweep.scene.video import floor_code
 
 #: columns a tracked table carries besides the floors' displacements
 NOT_DISPLACEMENT = {"frame", "table_in_camera_mm"}
+#: a column whose name starts so holds the table's motion (track writes table_in_camera_mm)
+TABLE_PREFIXES = ("table", "ground")
 
 
 @dataclass(frozen=True)
@@ -25,6 +30,27 @@ class TableIdentification:
     source: str
     fs: float  # samples per second
     results: dict[int, ModalResult]
+    input_column: str | None = None  # the table's motion, when used (transmissibility)
+    input_line: InputLine | None = None  # its largest spectral line and that line's share of its power
+
+    @property
+    def method(self) -> str:
+        """One line: how the modes were found."""
+        if self.input_column is None:
+            return (
+                "output-only: peaks of the floors' spectra (no table channel; a forced record's peaks are "
+                "the forcing's as much as the structure's)"
+            )
+        r = next(iter(self.results.values()), None)
+        extra = "" if r is None else f", window decay {r.decay_per_s:.3g} 1/s removed from the damping"
+        return (
+            f"transmissibility floor / table, H1 = cross-spectrum / auto-spectrum of '{self.input_column}' "
+            f"({self.input_line.kind}; exponential window{extra}, 3-bin smoothing)"
+        )
+
+    @property
+    def empty(self) -> bool:
+        return not any(r.modes for r in self.results.values())
 
 
 def _bad(src, what, value=None) -> ExperimentError:
@@ -41,6 +67,30 @@ def building_groups(columns) -> dict[int, list[str]]:
     return {b: [c for _, c in sorted(v)] for b, v in g.items()}
 
 
+def table_motion_column(df, src, time_column: str = "t_s", choice: str | None = "auto") -> str | None:
+    """The column holding the table's motion: `choice` if a name, None for 'none', else the one numeric
+    column whose name starts with 'table' or 'ground' (none: None; several: an error)."""
+    if choice is None or str(choice).lower() == "none":
+        return None
+    if choice != "auto":
+        if choice not in df.columns:
+            raise _bad(src, f"no column '{choice}' for the table's motion (--input)", ", ".join(map(str, df.columns)))
+        if not np.issubdtype(df[choice].dtype, np.number):
+            raise _bad(src, f"column '{choice}' (--input) is not numeric", df[choice].dtype)
+        return choice
+    found = [
+        c
+        for c in df.columns
+        if c != time_column
+        and str(c).lower().startswith(TABLE_PREFIXES)
+        and not str(c).endswith(("_quality", "_px"))
+        and np.issubdtype(df[c].dtype, np.number)
+    ]
+    if len(found) > 1:
+        raise _bad(src, "several columns hold the table's motion: choose one with --input", ", ".join(found))
+    return found[0] if found else None
+
+
 def identify_table(
     df,
     src: str,
@@ -51,9 +101,12 @@ def identify_table(
     fmax: float | None = None,
     start_s: float = 0.0,
     free_vibration: bool = False,
+    table_column: str | None = "auto",
 ) -> TableIdentification:
     """Check the table (a uniformly sampled time column, finite numeric columns) and identify each
-    building's modes from its floors' columns (default: every numeric column but the tracker's extras)."""
+    building's modes from its floors' columns (default: every numeric column but the tracker's extras
+    and the table's motion), against the table's motion when there is a column for it
+    (`table_motion_column`); a single-frequency table motion is refused (HARMONIC_INPUT_FRACTION)."""
     if n_modes < 1:
         raise _bad(src, "--modes must be >= 1", n_modes)
     if time_column not in df.columns:
@@ -69,10 +122,20 @@ def identify_table(
             f"steps {dt.min():.6g} .. {dt.max():.6g} s",
         )
     fs = 1.0 / float(np.median(dt))
+    top = fmax if fmax is not None else fs / 2
+    if not (np.isfinite(fmin) and np.isfinite(top) and 0 <= fmin < top <= fs / 2):
+        raise _bad(
+            src,
+            f"--fmin and --fmax must satisfy 0 <= fmin < fmax <= {fs / 2:g} Hz (half the sampling rate)",
+            f"fmin {fmin:g}, fmax {top:g}",
+        )
+    table_col = table_motion_column(df, src, time_column, table_column)
     if columns:
         for c in columns:
             if c not in df.columns:
                 raise _bad(src, f"no column '{c}'", ", ".join(map(str, df.columns)))
+            if c == table_col:
+                raise _bad(src, f"column '{c}' is the table's motion, not a floor (--input none to analyse it)")
         cols = list(columns)
     else:
         cols = [
@@ -80,6 +143,7 @@ def identify_table(
             for c in df.columns
             if c != time_column
             and c not in NOT_DISPLACEMENT
+            and c != table_col
             and not str(c).endswith(("_quality", "_px"))
             and np.issubdtype(df[c].dtype, np.number)
         ]
@@ -89,16 +153,55 @@ def identify_table(
         x = df[c].to_numpy(dtype=float)
         if not np.all(np.isfinite(x)):
             raise _bad(src, f"column '{c}' holds non-finite values", f"row {int(np.argmax(~np.isfinite(x))) + 1}")
+    table, line = None, None
+    if table_col is not None:
+        table = df[table_col].to_numpy(dtype=float)
+        if not np.all(np.isfinite(table)):
+            raise _bad(
+                src, f"column '{table_col}' holds non-finite values", f"row {int(np.argmax(~np.isfinite(table))) + 1}"
+            )
+        try:
+            line = input_line(table[t - t[0] >= start_s], fs, input_kind(table_col))
+        except ValueError as e:
+            raise _bad(src, f"cannot analyse the table's motion '{table_col}'", e) from None
+        if line.fraction >= HARMONIC_INPUT_FRACTION:
+            raise _bad(
+                src,
+                f"column '{table_col}' is a single-frequency (harmonic) table motion: "
+                f"{100 * line.fraction:.1f} % of its power at {line.frequency_Hz:.3f} Hz; the floors of a harmonic "
+                "test move at the forcing frequency, not at their modes: identify from free vibration or a "
+                "broadband record",
+                f"{HARMONIC_INPUT_FRACTION:.0%} or more in one line is refused",
+            )
     results = {}
     for b, cs in sorted(building_groups(cols).items()):
         X = np.column_stack([df[c].to_numpy(dtype=float) for c in cs])
         try:
             results[b] = identify(
-                X, fs, cs, n_modes=n_modes, fmin=fmin, fmax=fmax, free_vibration=free_vibration, start_s=start_s
+                X,
+                fs,
+                cs,
+                n_modes=n_modes,
+                fmin=fmin,
+                fmax=fmax,
+                free_vibration=free_vibration,
+                start_s=start_s,
+                table=table,
             )
         except ValueError as e:
             raise _bad(src, f"cannot identify {', '.join(cs)}", e) from None
-    return TableIdentification(src, fs, results)
+    return TableIdentification(src, fs, results, table_col, line)
+
+
+def empty_reason(ident: TableIdentification) -> str:
+    """Why no building has a mode: each building's band and notes, in one line."""
+    parts = []
+    for b, r in sorted(ident.results.items()):
+        head = f"building {b}" if b else "other columns"
+        lo, hi = r.band_Hz
+        why = "; ".join(n for n in r.notes if "damping" not in n) or "no peak above the noise"
+        parts.append(f"{head}, {lo:.4g}-{hi:.4g} Hz: {why}")
+    return "no mode found (" + "; ".join(parts) + ")"
 
 
 def model_updates(ident: TableIdentification, scene, update_damping: bool = False) -> list[StiffnessUpdate]:
@@ -106,6 +209,8 @@ def model_updates(ident: TableIdentification, scene, update_damping: bool = Fals
     first frequency (paper sec. 3)."""
     targets = {b: r.modes[0].frequency_Hz for b, r in ident.results.items() if b in (1, 2) and r.modes}
     if not targets:
+        if any(b in (1, 2) for b in ident.results):
+            raise _bad(ident.source, "no mode identified for building 1 or 2: nothing to update", empty_reason(ident))
         cols = [c for r in ident.results.values() for c in r.channels]
         raise _bad(
             ident.source,

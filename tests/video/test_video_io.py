@@ -235,12 +235,18 @@ def test_identify_prints_modes_and_writes_the_update(video, tmp_path, capsys):
     )
     capsys.readouterr()
     upd = tmp_path / "updated.toml"
-    code, out, err = run_cli(
-        identify_main,
-        [str(table), "--modes", "1", "--scene", str(REPO / "sweeps/paper_6hz.toml"), "--out", str(upd)],
-        capsys,
-    )
+    argv = [str(table), "--modes", "1", "--scene", str(REPO / "sweeps/paper_6hz.toml"), "--out", str(upd)]
+    # the rendered table moves at 6 Hz only (table_in_camera_mm): a harmonic test, refused
+    code, out, err = run_cli(identify_main, argv, capsys)
+    assert code == 2 and "'table_in_camera_mm' is a single-frequency (harmonic) table motion" in err
+    assert not upd.exists()
+    # this video's floors are drawn at their modes whatever the table does: identify them from the floors alone;
+    # 80 frames resolve 1.25 Hz, so Model-2's 7.17 Hz cannot be told from the scene's 6 Hz forcing: forced
+    code, out, err = run_cli(identify_main, argv + ["--input", "none"], capsys)
+    assert code == 2 and "model update refused: building2: f1 7.1" in err and not upd.exists()
+    code, out, err = run_cli(identify_main, argv + ["--input", "none", "--force-update"], capsys)
     assert code == 0, err
+    assert "method: output-only" in out and "warning: model update forced although building2" in err
     assert "building 1" in out and "building 2" in out and "mode 1: 4.2" in out
     text = upd.read_text()
     assert "[building1]" in text and "[building2]" in text and "story_stiffness_N_per_m" in text

@@ -165,6 +165,11 @@ def _coerce(value, hint, key: str):
         if isinstance(value, str) and str in args:  # float | str: a word goes to str, the rest to the number
             return _coerce(value, str, key)
         return _coerce(value, args[0], key)
+    if origin is dict:  # dict[str, float]: a table of names to numbers
+        if not isinstance(value, dict) or not value:
+            raise ConfigError(f"{key} = {shown(value)}: expected a non-empty table of name = value")
+        item = typing.get_args(hint)[1]
+        return {str(k): _typed(v, item, f"{key}.{k}") for k, v in value.items()}
     if origin is tuple:
         item = typing.get_args(hint)[0]
         seq = value if isinstance(value, list) else [value]

@@ -47,6 +47,7 @@ class Prepared:
     score_codes: list[str]
     auto: object | None = None  # autodt.AutoDt when dt_s = 'auto'
     kernel: str = "auto"  # engine.driver.KERNELS: which kernel runs the chunks
+    combination: object | None = None  # sweep.scoring.Combination: how the channels' errors combine
 
     @property
     def dt(self) -> float:
@@ -104,12 +105,12 @@ def prepare(scene: Scene, kernel: str = "auto") -> Prepared:
         scene.contact.min_impact_speed_m_s,
     )
     hspec, hcols = history_spec(scene, model.floors)
-    score, codes = ScoreSpec.none(), []
+    score, codes, comb = ScoreSpec.none(), [], None
     if scene.experiment is not None:
         from pounding_sweep.sweep.scoring import load_experiment, score_spec
 
         exp = load_experiment(scene.experiment, model.floors)
-        score = score_spec(exp, scene.experiment, model.floors, exc.max_duration_s, dt)
+        score, comb = score_spec(exp, scene.experiment, model.floors, exc.max_duration_s, dt)
         codes = list(exp.channels)
     auto = None
     if scene.integration.auto:
@@ -129,6 +130,7 @@ def prepare(scene: Scene, kernel: str = "auto") -> Prepared:
         codes,
         auto,
         kernel,
+        comb,
     )
 
 

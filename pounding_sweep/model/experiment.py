@@ -238,12 +238,13 @@ def noise_floor(x: np.ndarray) -> tuple[float, int]:
     at the order 1..8 that gives the smallest estimate, since the signal adds to every order and the
     noise is the same in all.
 
-    Measured (simulate()'s histories of the paper's 6 Hz and Duzce runs plus known Gaussian noise):
-    displacement at 100 samples/s 1.0-1.3 times the noise (6 Hz Model-2, pounding at every cycle, 1.8);
-    absolute acceleration at 500-1000 samples/s 1.0-1.35 times; on pure noise 0.965 (500 samples: the
-    smallest of 8 estimates). Acceleration at 100 samples/s comes out 2-25 times too large: impacts
-    lasting 5-20 ms are not resolved at that rate, and its signal cannot be told from noise. An estimate
-    too large only lowers that channel's weight (sweep/scoring.py)."""
+    Measured (benchmarks/bench_noise_floor.py: the paper's 6 Hz and Duzce runs through simulate() plus known
+    Gaussian noise): displacement at 100 samples/s 1.1-1.25 times the noise (6 Hz Model-2, which pounds
+    every cycle: 1.8); absolute acceleration at 500-1000 samples/s 1.0-1.3 times; pure noise 0.96 (500
+    samples; the smallest of 8 estimates, spread 0.07). Acceleration at 100 samples/s comes out 2-20 times
+    too large: impacts lasting 6-23 ms (k_s/k = 10 to 1: median_compression_phase) are not resolved at that
+    rate, and its signal cannot be told from noise. An estimate too large only lowers that channel's weight
+    (sweep/scoring.py)."""
     from math import comb
 
     best, order = np.inf, 0

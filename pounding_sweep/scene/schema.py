@@ -225,7 +225,7 @@ class ExperimentConfig:
     README's format)."""
 
     table: str | None = _f(
-        "path of the tracked-displacement table (.csv or .parquet)",
+        "path of the table of tracked displacement (and measured acceleration) (.csv or .parquet)",
         None,
         when="required unless an [experiment.video] section names a video to track",
     )
@@ -240,10 +240,9 @@ class ExperimentConfig:
     units: str = _f("units of the displacement columns: 'mm' or 'm'", "mm")
     acc_units: str = _f("units of the acceleration columns: 'm/s2' or 'g' (9.80665 m/s^2)", "m/s2")
     lowpass_Hz: float | None = _f(
-        "cut-off of a Butterworth low-pass filter [Hz] applied to the acceleration channels of the experiment "
-        "and of every run alike: causal, from rest at the window's start, on the experiment's samples "
-        "(scipy.signal.sosfilt on the experiment's, the same sections in the kernel on each run's); below the "
-        "table's Nyquist frequency",
+        "cut-off [Hz] of a Butterworth low-pass filter applied alike to the acceleration channels' samples of "
+        "the experiment (scipy.signal.sosfilt) and of every run (the same sections, in the kernel): causal, from "
+        "rest at the window's start; below the table's Nyquist frequency",
         None,
         when="optional; without it accelerations are compared unfiltered",
     )
@@ -256,7 +255,7 @@ class ExperimentConfig:
     weights: dict[str, float] | str = _f(
         "weights of those channels in the combined error: 'equal', 'noise' (each channel by its "
         "signal-to-noise ratio squared, (RMS / noise floor)^2, the noise floor estimated from the table by "
-        "differences: the weights of a least-squares fit weighted by inverse noise variance), or a table "
+        "differences; with combine = 'rms', least squares weighted by the inverse noise variance), or a table "
         "column -> weight, e.g. {model1_floor3 = 1.0, b1f3_acc = 0.5} ('max' uses only which are > 0)",
         "equal",
     )

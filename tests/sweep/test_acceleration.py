@@ -19,6 +19,7 @@ from pounding_sweep.model.records import G_STANDARD
 from pounding_sweep.scene import Axis, load_scene
 from pounding_sweep.sweep.prepare import prepare
 from pounding_sweep.sweep.ranking import combine_errors
+from pounding_sweep.sweep.results import read_metadata
 from pounding_sweep.sweep.run import run_scene
 from pounding_sweep.sweep.simulate import simulate
 from pounding_sweep.synthetic import make_experiment
@@ -168,6 +169,10 @@ def test_hidden_parameters_score_best_on_accelerations(tmp_path, accel_table):
         if use == "acceleration":  # the displacements are scored, but left out of the combined error
             w = prepare(s).combination.weights
             assert w[0] == w[1] == 0 and w[2] > 0 and w[3] > 0 and w.sum() == pytest.approx(1.0)
+        md = read_metadata(summary.path)["experiment"]  # what set the weights, and the filter, are kept
+        assert md["lowpass"]["cutoff_Hz"] == 50.0 and md["lowpass"]["applied_to"] == ["abs_acc_b1f3", "abs_acc_b2f3"]
+        assert set(md["noise"]) == {c for c in chans.values() if use == "both" or c.startswith("abs_acc")}
+        assert sum(md["weights"].values()) == pytest.approx(1.0)
 
 
 def test_noise_floor_of_the_synthetic_channels(accel_table):

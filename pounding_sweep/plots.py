@@ -313,7 +313,7 @@ def experiment_peaks(scene, md: dict) -> dict[str, tuple[float, float]]:
     lo, hi = md["experiment"]["window_s"]
     keep = (t >= lo - 1e-9) & (t <= hi + 1e-9)
     out = {}
-    for code, x in exp.channels.items():
+    for code, x in exp.displacements.items():
         k = int(np.argmax(np.abs(x[keep])))
         out[code] = (float(abs(x[keep][k])), float(t[keep][k]))
     return out
@@ -422,7 +422,7 @@ def zoom_window(scene, t_end: float, exp=None, x=None, width_s: float = 0.5) -> 
     if scene.excitation.type == "harmonic" and t_end >= 2.0 + width_s:
         return 2.0, 2.0 + width_s
     if exp is not None:
-        code, xe = next(iter(exp.channels.items()))
+        code, xe = next(iter((exp.displacements or exp.channels).items()))  # accelerations only: theirs
         te = exp.time_s - scene.experiment.time_offset_s
         keep = (te >= 0) & (te <= t_end)
         tp = float(te[keep][np.argmax(np.abs(xe[keep]))])
@@ -472,7 +472,7 @@ def history_figures(scene, pick: dict, label: str, md: dict | None = None, skipp
     md = md or {"buildings": [{"name": n} for n in names]}
     top = min(floors)
     exp = load_experiment(scene.experiment, floors) if scene.experiment is not None else None
-    codes = list(exp.channels) if exp is not None else []
+    codes = list(exp.displacements) if exp is not None else []  # accelerations are not drawn
     shown = [f"b1f{floors[0]}", f"b2f{floors[1]}"] + [
         c for c in codes if c not in (f"b1f{floors[0]}", f"b2f{floors[1]}")
     ]

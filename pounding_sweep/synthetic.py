@@ -1,5 +1,5 @@
-"""Synthetic "experiments": tracked-displacement tables made by the project itself from stated
-hidden parameters, a perturbed structure and measurement noise, for demos and tests.
+"""Synthetic "experiments": tracked-displacement (and accelerometer) tables made by the project itself
+from stated hidden parameters, a perturbed structure and measurement noise, for demos and tests.
 
 They stand in for the paper's measurements, which are not public. Each table's Parquet
 metadata says that it is synthetic and exactly how it was made.
@@ -49,17 +49,25 @@ def make_experiment(
     time_offset_s: float = 0.0,
     noise_rho: float = 0.0,
     with_table: bool = False,
+    acc_noise_m_s2: float | None = None,
 ):
     """Simulate the hidden parameters on the perturbed structure at a fine dt, sample every floor
     at `fps`, add Gaussian noise of `noise_mm` RMS (AR(1) with lag-1 correlation `noise_rho`: tracking
     errors that persist over frames), put the table's clock `time_offset_s` ahead of the simulation's;
     return (table in mm, provenance dict). With `with_table`, also the table's displacement `table_mm` (as a
     tracked table marker gives it, same noise): A sin(2 pi f t) for a harmonic excitation, the ground
-    acceleration integrated twice from rest for a record."""
+    acceleration integrated twice from rest for a record.
+
+    With `acc_noise_m_s2`, the table also holds every floor's absolute acceleration as an ideal
+    accelerometer would sample it (the truth's at the same instants, interpolated linearly between its
+    steps, no anti-alias filter) plus Gaussian noise of that RMS, in m/s^2, as columns `b<b>f<f>_acc`.
+    The displacement columns are the same with or without them (their noise is drawn first)."""
     truth = perturbed(scene, stiffness_factor, damping_factor)
     floors = (len(scene.building1.masses_kg), len(scene.building2.masses_kg))
     chans = [f"disp_b{b}f{f}" for b, nf in zip((1, 2), floors) for f in range(1, nf + 1)]
-    hist, metrics = simulate(truth, channels=chans + (["ground_acc"] if with_table else []), dt_s=dt_s, **hidden)
+    accs = [f"abs_acc_b{b}f{f}" for b, nf in zip((1, 2), floors) for f in range(1, nf + 1)]
+    extra = (["ground_acc"] if with_table else []) + (accs if acc_noise_m_s2 is not None else [])
+    hist, metrics = simulate(truth, channels=chans + extra, dt_s=dt_s, **hidden)
     t_end = hist.t_s.iloc[-1]
     t = np.arange(0.0, t_end + 1e-12, 1.0 / fps)
     rng = np.random.default_rng(seed)
@@ -72,6 +80,10 @@ def make_experiment(
         table["table_mm"] = table_displacement_m(with_overrides(truth, **hidden), hist, t) * 1e3 + rng.normal(
             0.0, noise_mm, t.size
         )
+    if acc_noise_m_s2 is not None:
+        for ch in accs:
+            acc = np.interp(t, hist.t_s.to_numpy(), hist[f"{ch}_m_s2"].to_numpy())
+            table[f"{ch.removeprefix('abs_acc_')}_acc"] = acc + rng.normal(0.0, acc_noise_m_s2, t.size)
     provenance = {
         "synthetic": True,
         "what": "SYNTHETIC tracked displacement made by pounding_sweep, not a measurement",
@@ -84,12 +96,15 @@ def make_experiment(
         "noise_mm_rms": noise_mm,
         "noise_lag1_correlation": noise_rho,
         "time_offset_s": time_offset_s,
+        **({"acc_noise_m_s2_rms": acc_noise_m_s2} if acc_noise_m_s2 is not None else {}),
         "fps": fps,
         "simulation_dt_s": dt_s,
         "seed": seed,
         "status_of_truth_run": metrics["status"],
-        "units": "displacement relative to the table in mm; t_s in seconds"
-        + ("; table_mm: the table's displacement in mm" if with_table else ""),
+        "units": "displacement relative to the table in mm"
+        + ("; table_mm: the table's displacement in mm" if with_table else "")
+        + ("; absolute acceleration (b<b>f<f>_acc) in m/s^2" if acc_noise_m_s2 is not None else "")
+        + "; t_s in seconds",
         "generator": "pounding_sweep.synthetic.make_experiment (sweeps/experiments/make_synthetic.py)",
         "pounding_sweep_version": __version__,
     }

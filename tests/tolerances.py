@@ -154,3 +154,69 @@ def backward_error_twin(sysarr, seed: int):
         H=rounded(sysarr.H),
         S=rounded(sysarr.S),
     )
+
+
+def interpolation_bound(values, t_end: float, dt: float) -> float:
+    """|difference| of two linear interpolations of the same step values `values` (one per step of dt) at the
+    same instants, computed two ways (the kernel's theta = (t_k - (t - dt)) / dt, np.interp's slope): each theta
+    is off by the rounding of t - dt or of the step's length, (t_end / dt + 3) u relative, times the step's
+    change |values[n + 1] - values[n]|, and each result rounds a product and two sums, 3 u |value|; for the two
+    computations twice that (Higham, Accuracy and Stability of Numerical Algorithms, 2nd ed. 2002, ch. 2:
+    every operation exact times (1 + delta), |delta| <= u)."""
+    v = np.asarray(values, float)
+    return 2.0 * (3.0 * U * np.abs(v).max() + (t_end / dt + 3.0) * U * np.abs(np.diff(v)).max())
+
+
+def sos_rounding_bound(sos, x) -> float:
+    """Largest |error| that filtering x through the second-order sections `sos` in the transposed direct form II
+    (scipy.signal.sosfilt; engine/score.py sos_filter) can commit, to first order in u. Per sample, section s
+    commits at most u (|b0| X + Y) in its output y (a product and a sum), u (2 |b1| X + 2 |a1| Y + Z) in its first
+    state (two products, a difference and a sum) and u (2 |b2| X + 2 |a2| Y) in its second (X, Y, Z: the largest
+    |input|, |output| and |first state| of the section on x; Higham ch. 2). An error committed in a section's
+    state or output enters that section's output as an input to its poles 1 / A_s(z) and then passes the later
+    sections, so the cascade's output is off by at most sum_s E_s ||g_s||_1, g_s the impulse response of
+    1 / A_s followed by sections s + 1.. over the record's length (an error at sample n reaches n..N-1 only)."""
+    from scipy.signal import sosfilt
+
+    x = np.asarray(x, float)
+    n = x.size
+    impulse = np.zeros(n)
+    impulse[0] = 1.0
+    total = 0.0
+    xin = x
+    for s in range(sos.shape[0]):
+        b0, b1, b2, _, a1, a2 = sos[s]
+        y = sosfilt(sos[s : s + 1], xin)
+        z = y[1:] - b0 * xin[1:]  # y[n + 1] = b0 x[n + 1] + z[n]
+        X, Y, Z = np.abs(xin).max(), np.abs(y).max(), (np.abs(z).max() if z.size else 0.0)
+        per_sample = U * (
+            (abs(b0) * X + Y) + (2 * abs(b1) * X + 2 * abs(a1) * Y + Z) + (2 * abs(b2) * X + 2 * abs(a2) * Y)
+        )
+        poles = np.array([[1.0, 0.0, 0.0, 1.0, a1, a2]])
+        g = sosfilt(np.vstack([poles, sos[s + 1 :]]), impulse)
+        total += per_sample * np.abs(g).sum()
+        xin = y
+    return float(total)
+
+
+def filtered_samples_bound(sos, samples, input_bound: float) -> float:
+    """|difference| of two filterings (scipy's and the kernel's) of two sample sequences that differ by at most
+    `input_bound` each: the filter's gain ||h||_1 on the input difference (a linear filter's output moves at most
+    that much) plus both filterings' own rounding (sos_rounding_bound). Without sections: input_bound."""
+    if sos.shape[0] == 0:
+        return float(input_bound)
+    from scipy.signal import sosfilt
+
+    impulse = np.zeros(len(samples))
+    impulse[0] = 1.0
+    gain = np.abs(sosfilt(sos, impulse)).sum()
+    return float(gain * input_bound + 2.0 * sos_rounding_bound(sos, samples))
+
+
+def rel_rms_bound(sample_bound: float, xe, value_pct: float) -> float:
+    """|difference| [%] of two eq. 20 errors of numerical samples that differ by at most `sample_bound` each,
+    against the same experiment xe: 100 sample_bound / rms(xe) (the numerator is a 2-norm: it moves at most by
+    the 2-norm of the difference, sqrt(N) sample_bound), plus the relative rounding of each computation's two
+    N-term sums and square root, 2 (N + 2) u of the value."""
+    xe = np.asarray(xe, float)
+    return float(100.0 * sample_bound / np.sqrt(np.mean(xe**2)) + 2.0 * (xe.size + 2) * U * value_pct)

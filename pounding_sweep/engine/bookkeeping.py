@@ -11,7 +11,7 @@ import numpy as np
 from pounding_sweep import codes
 from pounding_sweep.engine import layout as L
 from pounding_sweep.engine.jit import inline_kernel, njit_inner, njit_kernel
-from pounding_sweep.engine.score import N_SCORES, score_channel
+from pounding_sweep.engine.score import N_SCORES, score_channel, sos_filter
 
 
 @njit_inner
@@ -35,14 +35,29 @@ def samples_at_rest(exp_t, xs):
 
 
 @njit_inner
-def sample_experiment(k, exp_t, exp_dof, xs, ustep, u, t, dt):
-    """Fill the experiment samples inside (t - dt, t] by linear interpolation between the step's ends
-    (ustep, u); returns the next sample to fill."""
+def any_acceleration(exp_kind):
+    """Whether an experiment channel is an absolute acceleration (codes.H_ABS_ACC)."""
+    for c in range(exp_kind.size):
+        if exp_kind[c] == codes.H_ABS_ACC:
+            return True
+    return False
+
+
+@njit_inner
+def sample_experiment(k, exp_t, exp_dof, exp_kind, xs, ustep, u, astep, agstep, a, ag, t, dt):
+    """Fill the experiment samples inside (t - dt, t] by linear interpolation between the step's ends:
+    a displacement channel between ustep and u, an absolute-acceleration channel between astep + agstep
+    and a + ag (relative acceleration plus the table's, at the step's start and end; the abs_acc history
+    channel's values there); returns the next sample to fill."""
     while k < exp_t.size and exp_t[k] <= t + 1e-12 * dt:
         theta = (exp_t[k] - (t - dt)) / dt
         for c in range(exp_dof.size):
             q = exp_dof[c]
-            xs[c, k] = ustep[q] + theta * (u[q] - ustep[q])
+            if exp_kind[c] == codes.H_ABS_ACC:
+                a0 = astep[q] + agstep
+                xs[c, k] = a0 + theta * ((a[q] + ag) - a0)
+            else:
+                xs[c, k] = ustep[q] + theta * (u[q] - ustep[q])
         k += 1
     return k
 
@@ -167,16 +182,21 @@ def close_row(out, pbase, npair, in_comp, comp_acc, durations, nphase, status):
 
 
 @njit_kernel
-def score_run(scores, run, xs, exp_x, exp_t, k_filled, max_lag, exp_dt, status):
-    """Score the run's samples against every experiment channel (engine/score.py); a run that stopped
-    before the experiment's window ended is unscored (NaN, STATUS_UNSCORED). Returns the status."""
+def score_run(scores, run, xs, experiment, k_filled, status):
+    """Score the run's samples against every experiment channel (engine/score.py), the acceleration
+    channels after the experiment's low-pass filter (experiment.sos, as the experiment's samples were
+    filtered); a run that stopped before the experiment's window ended is unscored (NaN,
+    STATUS_UNSCORED). Returns the status."""
+    exp_t, exp_x = experiment.t, experiment.x
     for c in range(exp_x.shape[0]):
         if k_filled < exp_t.size:
             status |= L.STATUS_UNSCORED
             for q in range(N_SCORES):
                 scores[run, c, q] = np.nan
         else:
-            score_channel(xs[c], exp_x[c], exp_t, max_lag, exp_dt, scores[run, c])
+            if experiment.kind[c] == codes.H_ABS_ACC and experiment.sos.shape[0] > 0:
+                sos_filter(experiment.sos, xs[c])
+            score_channel(xs[c], exp_x[c], exp_t, experiment.max_lag, experiment.dt_sample, scores[run, c])
     return status
 
 

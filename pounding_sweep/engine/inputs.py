@@ -95,17 +95,26 @@ class HistorySpec(NamedTuple):
 
 
 class ScoreSpec(NamedTuple):
-    """Experiment samples to score every run against (sweep/scoring.py); no DOFs: no scoring."""
+    """Experiment samples to score every run against (sweep/scoring.py); no DOFs: no scoring.
+
+    A channel is a floor's displacement relative to the table (codes.H_DISP) or its absolute acceleration
+    (codes.H_ABS_ACC). `sos` is the low-pass filter of the acceleration channels: the kernel applies it,
+    causally from rest, to each run's samples of those channels before scoring them (engine/score.py
+    sos_filter); `x` holds the experiment's samples already filtered the same way."""
 
     t: np.ndarray  # (samples,) simulation times [s]
-    x: np.ndarray  # (channels, samples) experimental displacement [m]
+    x: np.ndarray  # (channels, samples) experimental displacement [m] or absolute acceleration [m/s^2]
     dof: np.ndarray  # (channels,) the model DOF each channel tracks
     max_lag: int  # samples searched either side for the best correlation
     dt_sample: float  # the experiment's sample interval [s]
+    kind: np.ndarray  # (channels,) codes.H_DISP or codes.H_ABS_ACC, int64
+    sos: np.ndarray  # (sections, 6) second-order sections [b0, b1, b2, 1, a1, a2]; (0, 6): no filter
 
     @classmethod
     def none(cls) -> ScoreSpec:
-        return cls(np.zeros(0), np.zeros((0, 0)), np.zeros(0, np.int64), 0, 1.0)
+        return cls(
+            np.zeros(0), np.zeros((0, 0)), np.zeros(0, np.int64), 0, 1.0, np.zeros(0, np.int64), np.zeros((0, 6))
+        )
 
     @property
     def active(self) -> bool:

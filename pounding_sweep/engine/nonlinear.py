@@ -275,7 +275,8 @@ def integrate_nonlinear(start, stop, model, opts, runs, records, histories, expe
     ks, cdash, gap, exc_kind, exc_amp, exc_omega, rec_id, nsteps, status_in = runs
     rec_flat, rec_off, rec_len = records
     hist_kind, hist_index, decimate = histories
-    exp_t, exp_x, exp_dof, max_lag, exp_dt = experiment
+    exp_t, exp_dof, exp_kind = experiment.t, experiment.dof, experiment.kind
+    has_acc = bk.any_acceleration(exp_kind)  # then keep the step's starting acceleration too
     metrics, run_time, hist, scores = out
     n = m.shape[0]
     P = i1.shape[0]
@@ -291,6 +292,7 @@ def integrate_nonlinear(start, stop, model, opts, runs, records, histories, expe
     an = np.empty(n)
     u0 = np.empty(n)
     rhs0 = np.empty(n)
+    astep = np.empty(n)  # relative acceleration at the step start (acceleration channels)
     ustep = np.empty(n)
     Cdu = np.empty(n)
     A = np.empty((n, n))
@@ -366,8 +368,12 @@ def integrate_nonlinear(start, stop, model, opts, runs, records, histories, expe
         finite = True
         for step in range(1, nsteps[run] + 1):
             ag = ground_acceleration(kind, amp, om, rec_flat, roff, rlen, step, dt)
+            agstep = ag_prev  # the table's acceleration at the step start
             for i in range(n):
                 ustep[i] = u[i]
+            if has_acc:
+                for i in range(n):
+                    astep[i] = a[i]
             # the contact-free end state (as engine/scalar.py: Newmark's effective load, Keff^-1)
             for i in range(n):
                 s = -m[i] * ag + m[i] * (a1 * u[i] + a2 * v[i] + a[i])
@@ -527,13 +533,13 @@ def integrate_nonlinear(start, stop, model, opts, runs, records, histories, expe
                 break
             ag_prev = ag
             t = step * dt
-            ke_next = bk.sample_experiment(ke_next, exp_t, exp_dof, xs, ustep, u, t, dt)
+            ke_next = bk.sample_experiment(ke_next, exp_t, exp_dof, exp_kind, xs, ustep, u, astep, agstep, a, ag, t, dt)
             steps_done = step
             bk.floor_peaks(row, u, a, ag, t, i2)
             if keep_hist and step % decimate == 0:
                 bk.keep_history(hist, run, step // decimate, hist_kind, hist_index, u, v, a, F, ag)
         status = bk.close_row(row, pbase, P, in_comp, comp_acc, durations, nphase, status)
-        status = bk.score_run(scores, run, xs, exp_x, exp_t, ke_next, max_lag, exp_dt, status)
+        status = bk.score_run(scores, run, xs, experiment, ke_next, status)
         # energy: the spring part's trapezoidal work against the energy k_h delta^2.5 / 2.5 it stores at
         # the end; their difference (the residual) is the quadrature error of the steps across impacts
         e_spring = 0.0

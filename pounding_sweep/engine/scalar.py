@@ -109,7 +109,8 @@ def integrate_batch(start, stop, model, opts, runs, records, histories, experime
     ks, cdash, gap, exc_kind, exc_amp, exc_omega, rec_id, nsteps, status_in = runs
     rec_flat, rec_off, rec_len = records
     hist_kind, hist_index, decimate = histories
-    exp_t, exp_x, exp_dof, max_lag, exp_dt = experiment
+    exp_t, exp_dof, exp_kind = experiment.t, experiment.dof, experiment.kind
+    has_acc = bk.any_acceleration(exp_kind)  # then keep the step's starting acceleration too
     metrics, run_time, hist, scores = out
     n = m.shape[0]
     npair = i1.shape[0]
@@ -149,6 +150,7 @@ def integrate_batch(start, stop, model, opts, runs, records, histories, experime
     Dprev = np.zeros(npair)
     pen_prev = np.zeros(npair)
     Cdu = np.empty(n)
+    astep = np.empty(n)  # relative acceleration at the step start (acceleration channels)
     ustep = np.empty(n)  # state at the step start (experiment sampling)
     just = np.zeros(npair, dtype=np.bool_)  # pairs switched at the event just handled
     thetas = np.empty(npair)
@@ -209,8 +211,12 @@ def integrate_batch(start, stop, model, opts, runs, records, histories, experime
         steps_done = 0
         for step in range(1, nst + 1):
             ag = ground_acceleration(kind, amp, om, rec_flat, roff, rlen, step, dt)
+            agstep = ag_prev  # the table's acceleration at the step start
             for i in range(n):
                 ustep[i] = u[i]
+            if has_acc:
+                for i in range(n):
+                    astep[i] = a[i]
             # Newmark effective load without contact (Chopra Table 5.4.2; paper eq. 13)
             for i in range(n):
                 w[i] = b1 * u[i] + v[i]
@@ -447,13 +453,15 @@ def integrate_batch(start, stop, model, opts, runs, records, histories, experime
             ag_prev = ag
             t = step * dt
             if ke_next < exp_t.size:
-                ke_next = bk.sample_experiment(ke_next, exp_t, exp_dof, xs, ustep, u, t, dt)
+                ke_next = bk.sample_experiment(
+                    ke_next, exp_t, exp_dof, exp_kind, xs, ustep, u, astep, agstep, a, ag, t, dt
+                )
             steps_done = step
             bk.floor_peaks(out, u, a, ag, t, i2)
             if keep_hist and step % decimate == 0:
                 bk.keep_history(hist, run, step // decimate, hist_kind, hist_index, u, v, a, F, ag)
         status = bk.close_row(out, pbase, npair, in_comp, comp_acc, durations, nphase, status)
-        status = bk.score_run(scores, run, xs, exp_x, exp_t, ke_next, max_lag, exp_dt, status)
+        status = bk.score_run(scores, run, xs, experiment, ke_next, status)
         # energy balance at the end: E_in = KE + SE + D_struct + D_contact + E_spring + residual;
         # the residual is the spring work the discrete contact switching did not store
         e_spring = 0.0

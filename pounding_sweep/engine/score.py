@@ -22,6 +22,17 @@ SCORE_NAMES = (
     ("corr_max_{c}", "largest correlation over lags within +/- max_lag_s [-]"),
     ("corr_lag_{c}_s", "the lag of that maximum; > 0: numerical history late [s]"),
 )
+#: the same for an absolute-acceleration channel (c = 'abs_acc_b1f3'), whose signals are compared after
+#: the experiment's low-pass filter, when it has one
+ACC_SCORE_NAMES = (
+    ("rel_rms_{c}_pct", "relative RMS error, eq. 20, of the (filtered) absolute acceleration [%]"),
+    ("peak_num_{c}_m_s2", "largest |numerical absolute acceleration| in the window, filtered [m/s^2]"),
+    ("peak_num_time_{c}_s", "time of that peak [s]"),
+    ("peak_diff_{c}_pct", "(experimental peak - numerical peak) / experimental peak, filtered [%]"),
+    ("corr_{c}", "Pearson correlation at zero lag [-]"),
+    ("corr_max_{c}", "largest correlation over lags within +/- max_lag_s [-]"),
+    ("corr_lag_{c}_s", "the lag of that maximum; > 0: numerical history late [s]"),
+)
 
 
 @njit_kernel
@@ -297,6 +308,25 @@ def _fft(z, tw, rev):
                 z[start + k] = u + v
                 z[start + k + half] = u - v
         half *= 2
+
+
+@njit_kernel
+def sos_filter(sos, x):
+    """Filter x in place through the cascade of second-order sections `sos` (rows [b0, b1, b2, 1, a1, a2]),
+    causally and from rest (zero initial state). Each section in the transposed direct form II,
+    y[n] = b0 x[n] + z1, z1 = b1 x[n] - a1 y[n] + z2, z2 = b2 x[n] - a2 y[n] (Oppenheim & Schafer,
+    Discrete-Time Signal Processing, 3rd ed. 2010, sec. 6.4, transposed forms): the structure of
+    scipy.signal.sosfilt, which the sweep layer applies to the experiment's samples (sweep/scoring.py)."""
+    ns = sos.shape[0]
+    z = np.zeros((ns, 2))
+    for n in range(x.size):
+        xc = x[n]
+        for s in range(ns):
+            y = sos[s, 0] * xc + z[s, 0]
+            z[s, 0] = sos[s, 1] * xc - sos[s, 4] * y + z[s, 1]
+            z[s, 1] = sos[s, 2] * xc - sos[s, 5] * y
+            xc = y
+        x[n] = xc
 
 
 @njit_kernel

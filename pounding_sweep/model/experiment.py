@@ -1,15 +1,17 @@
-"""Tracked experimental displacement: read and check the table (the sweep layer turns it into the
-samples the kernel scores each run against: sweep/scoring.py).
+"""Tracked experimental displacement and measured acceleration: read and check the table (the sweep layer
+turns it into the samples the kernel scores each run against: sweep/scoring.py); the acceleration
+channels' low-pass filter, and each channel's noise floor.
 
 Table format (CSV or Parquet, written by the video tracker too): a time column in seconds
-(default `t_s`), strictly increasing, and one column per tracked channel: the displacement of
-one floor relative to the shaking table, in the units the scene states ('mm' or 'm').
+(default `t_s`), strictly increasing, and one column per channel: the displacement of one floor
+relative to the shaking table, in the units the scene states ('mm' or 'm'), or the absolute
+acceleration of a floor (an accelerometer on it), in `acc_units` ('m/s2' or 'g').
 Extra columns (quality flags, other floors) are ignored unless the scene maps them.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -18,25 +20,34 @@ import numpy as np
 if TYPE_CHECKING:  # pandas costs 0.3 s to import: only where a table is built
     import pandas as pd
 
+from pounding_sweep import codes
 from pounding_sweep.errors import ExperimentError
+from pounding_sweep.model.records import G_STANDARD
 from pounding_sweep.scene import ExperimentConfig
-from pounding_sweep.scene.channels import floor_dof
+from pounding_sweep.scene.channels import experiment_channel
 from pounding_sweep.scene.files import MAX_TABLE_BYTES, open_regular, text_problem
 
 
 @dataclass(frozen=True)
 class Experiment:
-    """Tracked displacement channels on the experiment's own time axis, in metres."""
+    """The experiment's channels on its own time axis, in SI units: displacement [m] relative to the table
+    ('b1f3') and absolute acceleration [m/s^2] ('abs_acc_b1f3')."""
 
     path: str
     time_s: np.ndarray  # experiment clock
-    channels: dict[str, np.ndarray]  # model floor code ('b1f3') -> displacement [m]
-    columns: dict[str, str]  # model floor code -> table column
+    channels: dict[str, np.ndarray]  # channel code ('b1f3', 'abs_acc_b1f3') -> displacement [m] or acceleration [m/s^2]
+    columns: dict[str, str]  # channel code -> table column
     metadata: dict
+    kinds: dict[str, int] = field(default_factory=dict)  # channel code -> codes.H_DISP or codes.H_ABS_ACC
 
     @property
     def dt_sample(self) -> float:
         return float(np.median(np.diff(self.time_s))) if self.time_s.size > 1 else 1.0
+
+    @property
+    def displacements(self) -> dict[str, np.ndarray]:
+        """The displacement channels only ('b1f3' -> [m])."""
+        return {c: x for c, x in self.channels.items() if self.kinds.get(c, codes.H_DISP) == codes.H_DISP}
 
 
 TABLE_SUFFIXES = (".csv", ".parquet")  # read as text or by pyarrow; nothing else (no pickles, no Excel)
@@ -133,25 +144,34 @@ def experiment_from_table(
             f"{where}: column '{cfg.time_column}' is not uniformly sampled: step {float(d[k - 1]):.6g} s at row {k + 1} "
             f"against the median {float(np.median(d)):.6g} s (resample the table to a uniform step first)"
         )
-    factor = 1e-3 if cfg.units == "mm" else 1.0
-    chans, cols = {}, {}
+    chans, cols, kinds = {}, {}, {}
     for col, code in cfg.channels.items():
         if col not in df.columns:
             raise ExperimentError(
                 f"{where}: no column '{col}' (mapped to floor {code}); columns: {', '.join(map(str, df.columns))}"
             )
-        floor_dof(code, floors, f"[experiment] channels.{col}")
+        kinds[code], _ = experiment_channel(code, floors, f"[experiment] channels.{col}")
     for col, code in cfg.channels.items():
         x = _numeric(df[col], where, col)
+        acc = kinds[code] == codes.H_ABS_ACC
+        units = cfg.acc_units if acc else cfg.units
         if np.all(x == x[0]):
-            what = "zero throughout" if x[0] == 0 else f"constant ({float(x[0])!r} {cfg.units} throughout)"
-            raise ExperimentError(
-                f"{where}: column '{col}' (floor {code}) is {what}: a floor that never moves relative to the "
-                "table gives nothing to score against (a marker not tracked, or the wrong column?)"
+            what = "zero throughout" if x[0] == 0 else f"constant ({float(x[0])!r} {units} throughout)"
+            why = (
+                "an accelerometer that reads no motion gives nothing to score against (not recording, or the "
+                "wrong column?)"
+                if acc
+                else "a floor that never moves relative to the table gives nothing to score against (a marker not "
+                "tracked, or the wrong column?)"
             )
-        chans[code] = x * factor
+            raise ExperimentError(f"{where}: column '{col}' (floor {code}) is {what}: {why}")
+        chans[code] = x * UNIT_FACTORS[units]
         cols[code] = col
-    return Experiment(str(where), t, chans, cols, md)
+    return Experiment(str(where), t, chans, cols, md, kinds)
+
+
+#: SI factor of each unit a table's columns may be in (scene/schema.py ExperimentConfig units, acc_units)
+UNIT_FACTORS = {"mm": 1e-3, "m": 1.0, "m/s2": 1.0, "g": G_STANDARD}
 
 
 def _repeated(col: str) -> str:
@@ -172,3 +192,70 @@ def _numeric(series: pd.Series, where: str, col: str) -> np.ndarray:
         v = v.item() if hasattr(v, "item") else v
         raise ExperimentError(f"{where}: column '{col}' row {k + 1}: value {v!r} is not a finite number")
     return x
+
+
+def lowpass_sections(cfg: ExperimentConfig, exp: Experiment) -> np.ndarray:
+    """The acceleration channels' low-pass filter: a Butterworth filter (maximally flat pass band:
+    S. Butterworth, "On the theory of filter amplifiers", Wireless Engineer 7, 1930) of order
+    cfg.lowpass_order and cut-off cfg.lowpass_Hz at the table's sample rate, designed by the bilinear
+    transform with the cut-off pre-warped (scipy.signal.butter), as second-order sections [b0, b1, b2, 1, a1,
+    a2]; (0, 6) when the scene asks for none. The cut-off must lie below the Nyquist frequency 1 / (2 dt)."""
+    if cfg.lowpass_Hz is None:
+        return np.zeros((0, 6))
+    fs = 1.0 / exp.dt_sample
+    if not cfg.lowpass_Hz < fs / 2:
+        raise ExperimentError(
+            f"[experiment] lowpass_Hz = {cfg.lowpass_Hz!r}: at or above the Nyquist frequency {fs / 2:.6g} Hz of "
+            f"{Path(exp.path).name} (a sample every {exp.dt_sample:.6g} s); a digital low-pass filter needs a "
+            "cut-off below it"
+        )
+    from scipy.signal import butter
+
+    sos = np.ascontiguousarray(butter(cfg.lowpass_order, cfg.lowpass_Hz, btype="low", output="sos", fs=fs))
+    assert np.all(sos[:, 3] == 1.0)  # normalised sections: the kernel's sos_filter takes a0 = 1
+    return sos
+
+
+#: the difference orders noise_floor tries
+NOISE_ORDERS = range(1, 9)
+#: differences an order needs to be tried (a median of fewer says little)
+NOISE_MIN_DIFFERENCES = 10
+
+
+def noise_floor(x: np.ndarray) -> tuple[float, int]:
+    """Standard deviation of the white measurement noise in a sampled signal, estimated from its
+    differences, and the difference order that gave it; (nan, 0) when the signal is too short.
+
+    A smooth signal's k-th differences shrink as the sample rate grows (as (2 sin(pi f dt))^k for a
+    sinusoid of frequency f) while white noise's do not: their variance is C(2k, k) sigma^2 (the sum of the
+    squared binomial coefficients). Order 1 is the mean square successive difference of von Neumann,
+    Kent, Bellinson & Hart (Ann. Math. Statist. 12, 1941) that Rice (Ann. Statist. 12, 1984) uses for noise
+    in nonparametric regression, order 2 the pseudo-residuals of Gasser, Sroka & Jennen-Steinmetz
+    (Biometrika 73, 1986). The scale of the differences is taken robustly, as their median absolute value
+    over Phi^-1(3/4) = 0.6745 (Hampel's MAD, J. Amer. Statist. Assoc. 69, 1974; so Donoho & Johnstone,
+    Biometrika 81, 1994, estimate noise from the finest wavelet coefficients), so that the minority of
+    differences spanning an impact (a displacement's kink, an acceleration's spike) does not count; and
+    at the order 1..8 that gives the smallest estimate, since the signal adds to every order and the
+    noise is the same in all.
+
+    Measured (benchmarks/bench_noise_floor.py: the paper's 6 Hz and Duzce runs through simulate() plus known
+    Gaussian noise): displacement at 100 samples/s 1.1-1.25 times the noise (6 Hz Model-2, which pounds
+    every cycle: 1.8); absolute acceleration at 500-1000 samples/s 1.0-1.3 times; pure noise 0.96 (500
+    samples; the smallest of 8 estimates, spread 0.07). Acceleration at 100 samples/s comes out 2-20 times
+    too large: impacts lasting 6-23 ms (k_s/k = 10 to 1: median_compression_phase) are not resolved at that
+    rate, and its signal cannot be told from noise. An estimate too large only lowers that channel's weight
+    (sweep/scoring.py)."""
+    from math import comb
+
+    best, order = np.inf, 0
+    for k in NOISE_ORDERS:
+        if x.size - k < NOISE_MIN_DIFFERENCES:
+            break
+        s = float(np.median(np.abs(np.diff(x, k)))) / (MAD_GAUSSIAN * np.sqrt(comb(2 * k, k)))
+        if s < best:
+            best, order = s, k
+    return (best, order) if order else (float("nan"), 0)
+
+
+#: Phi^-1(3/4): the median of |N(0, 1)| (a Gaussian's MAD is 0.6745 sigma)
+MAD_GAUSSIAN = 0.6744897501960817

@@ -14,17 +14,36 @@ _PATTERNS = {
 }
 
 
-def floor_dof(code: str, floors: tuple[int, int], key: str) -> int:
-    """'b1f3' (building 1, floor 3) -> its DOF index in the coupled model."""
+def floor_dof(code: str, floors: tuple[int, int], key: str, value: str | None = None) -> int:
+    """'b1f3' (building 1, floor 3) -> its DOF index in the coupled model (`value`: what the scene wrote,
+    for the message, when code is a part of it)."""
+    said = repr(code if value is None else value)
     m = re.fullmatch(r"b(0|[1-9]\d*)f(0|[1-9]\d*)", code)
     if not m:
-        raise ConfigError(f"{key} = {code!r}: a model floor is written b<building>f<floor>, e.g. 'b1f3'")
+        raise ConfigError(f"{key} = {said}: a model floor is written b<building>f<floor>, e.g. 'b1f3'")
     b, f = int(m.group(1)), int(m.group(2))
     if b not in (1, 2):
-        raise ConfigError(f"{key} = {code!r}: there is no building {b} (the model has buildings 1 and 2)")
+        raise ConfigError(f"{key} = {said}: there is no building {b} (the model has buildings 1 and 2)")
     if not 1 <= f <= floors[b - 1]:
-        raise ConfigError(f"{key} = {code!r}: building {b} has floors 1..{floors[b - 1]}, so it maps to no floor")
+        raise ConfigError(f"{key} = {said}: building {b} has floors 1..{floors[b - 1]}, so it maps to no floor")
     return (f - 1) if b == 1 else floors[0] + f - 1
+
+
+#: an experiment channel mapped to a floor's absolute acceleration: 'abs_acc_b1f3' (as the history channel)
+ACC_PREFIX = "abs_acc_"
+
+
+def experiment_channel(code: str, floors: tuple[int, int], key: str) -> tuple[int, int]:
+    """An [experiment] channel's model side -> (codes.H_DISP or codes.H_ABS_ACC, its DOF): 'b1f3' is the
+    floor's displacement relative to the table, 'abs_acc_b1f3' its absolute acceleration."""
+    if not re.fullmatch(r"(abs_acc_)?b\d+f\d+", code):
+        raise ConfigError(
+            f"{key} = {code!r}: an experiment channel is a floor's displacement relative to the table, "
+            "b<building>f<floor> (e.g. 'b1f3'), or its absolute acceleration, abs_acc_b<building>f<floor>"
+        )
+    if code.startswith(ACC_PREFIX):
+        return codes.H_ABS_ACC, floor_dof(code[len(ACC_PREFIX) :], floors, key, code)
+    return codes.H_DISP, floor_dof(code, floors, key)
 
 
 def parse_channel(name: str, floors: tuple[int, int]) -> tuple[int, int, str]:

@@ -13,6 +13,12 @@ import hashlib
 import json
 from pathlib import Path
 
+#: [experiment] keys added after scenes were first hashed (acceleration channels), with the values they had
+#: before they existed: at these values they are left out of the canonical form, so a scene that does not
+#: use them keeps its hash (and its results resume). Written out, not read from the schema: were a default
+#: ever changed, a scene at the new default would differ from these values and hash differently, as it must.
+ADDED_EXPERIMENT_KEYS = {"acc_units": "m/s2", "lowpass_Hz": None, "lowpass_order": 4, "use": "both", "weights": "equal"}
+
 
 def canonical(scene) -> dict:
     """Resolved scene as plain JSON data (what the hash covers). How and where it runs ([execution],
@@ -40,6 +46,9 @@ def canonical(scene) -> dict:
     ]
     if scene.experiment is not None:
         x = d["experiment"]
+        for key, before in ADDED_EXPERIMENT_KEYS.items():
+            if x[key] == before:
+                del x[key]
         x["table"] = file(scene.experiment.table)
         if x.get("video") is not None:
             x["video"]["path"] = file(scene.experiment.video.path)

@@ -8,6 +8,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 
+from pounding_sweep import codes
 from pounding_sweep.scene.video import VideoSpec  # plain data; OpenCV stays unimported
 
 
@@ -21,6 +22,15 @@ def _f(doc: str, default=dataclasses.MISSING, when: str | None = None, **kw):
 
 
 EXECUTORS = ("local", "dask")
+#: [experiment] acc_units (model/experiment.py converts them, with records.G_STANDARD for g)
+ACC_UNITS = ("m/s2", "g")
+#: [experiment] use: which kind of channel enters the combined error ('both': every channel)
+USES = {"displacement": codes.H_DISP, "acceleration": codes.H_ABS_ACC, "both": None}
+#: [experiment] weights as a word (or a table column -> weight)
+WEIGHTINGS = ("equal", "noise")
+#: [experiment] lowpass_order: a Butterworth filter in second-order sections is well conditioned at any
+#: order; beyond 12 poles a filter on a few hundred samples is mostly its own start-up transient
+MAX_LOWPASS_ORDER = 12
 MAX_AXIS_VALUES = 10_000_000  # a range longer than this is a typo, not a sweep
 MAX_STEPS = 100_000_000  # steps of one harmonic run (records: the same limit on resampling, records._MAX_SAMPLES)
 MAX_GRID = 50_000_000
@@ -216,20 +226,44 @@ class ExecutionConfig:
 
 @dataclass(frozen=True)
 class ExperimentConfig:
-    """Tracked displacement to score every run against (CSV or Parquet; see the README's format)."""
+    """Tracked displacement, and measured acceleration, to score every run against (CSV or Parquet; see the
+    README's format)."""
 
     table: str | None = _f(
-        "path of the tracked-displacement table (.csv or .parquet)",
+        "path of the table of tracked displacement (and measured acceleration) (.csv or .parquet)",
         None,
         when="required unless an [experiment.video] section names a video to track",
     )
     channels: dict | None = _f(
-        "table column -> model floor, e.g. {model1_floor3 = 'b1f3'}",
+        "table column -> model floor: 'b1f3' for the floor's displacement relative to the table, "
+        "'abs_acc_b1f3' for its absolute acceleration (an accelerometer), e.g. "
+        "{model1_floor3 = 'b1f3', b1f3_acc = 'abs_acc_b1f3'}",
         None,
         when="required with a table; with a video every marker named by a floor",
     )
     time_column: str = _f("name of the time column [s]", "t_s")
     units: str = _f("units of the displacement columns: 'mm' or 'm'", "mm")
+    acc_units: str = _f("units of the acceleration columns: 'm/s2' or 'g' (9.80665 m/s^2)", "m/s2")
+    lowpass_Hz: float | None = _f(
+        "cut-off [Hz] of a Butterworth low-pass filter applied alike to the acceleration channels' samples of "
+        "the experiment (scipy.signal.sosfilt) and of every run (the same sections, in the kernel): causal, from "
+        "rest at the window's start; below the table's Nyquist frequency",
+        None,
+        when="optional; without it accelerations are compared unfiltered",
+    )
+    lowpass_order: int = _f("order of that Butterworth filter (1-12)", 4)
+    use: str = _f(
+        "channels whose eq. 20 errors make the combined error (and the refinement's objective): "
+        "'displacement', 'acceleration' or 'both' (every channel is scored and written either way)",
+        "both",
+    )
+    weights: dict[str, float] | str = _f(
+        "weights of those channels in the combined error: 'equal', 'noise' (each channel by its "
+        "signal-to-noise ratio squared, (RMS / noise floor)^2, the noise floor estimated from the table by "
+        "differences; with combine = 'rms', least squares weighted by the inverse noise variance), or a table "
+        "column -> weight, e.g. {model1_floor3 = 1.0, b1f3_acc = 0.5} ('max' uses only which are > 0)",
+        "equal",
+    )
     window_s: tuple[float, ...] | None = _f(
         "[start, end] of the compared window in simulation time [s]", None, when="default: all overlap"
     )
@@ -237,7 +271,11 @@ class ExperimentConfig:
         "experiment time minus simulation time [s] (the table's t = offset is the simulation's t = 0)", 0.0
     )
     max_lag_s: float = _f("largest lag searched for the best correlation [s]", 0.1)
-    combine: str = _f("how channels combine into one error: 'mean', 'max' or 'rms' of their eq. 20 errors", "mean")
+    combine: str = _f(
+        "how the channels (use) combine into one error: the 'mean', 'max' or 'rms' of their eq. 20 errors, "
+        "weighted by weights",
+        "mean",
+    )
     refine: bool = _f("after the grid, minimise the combined error over continuous k_s/k and r (scipy.optimize)", False)
     refine_max_evals: int = _f("simulations the refinement may spend", 80)
     video: VideoSpec | None = _f(

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 
+from pounding_sweep import codes
 from pounding_sweep.codes import (
     ACCEPTED_UNITS,
     CONTACT_LAWS,
@@ -16,13 +17,17 @@ from pounding_sweep.codes import (
 )
 from pounding_sweep.errors import ConfigError, shown
 from pounding_sweep.scene.axes import STRUCTURE_AXES, check_ks
-from pounding_sweep.scene.channels import floor_dof, parse_channel
+from pounding_sweep.scene.channels import experiment_channel, parse_channel
 from pounding_sweep.scene.schema import (
+    ACC_UNITS,
     EXECUTORS,
     MAX_FLOORS,
     MAX_GRID,
+    MAX_LOWPASS_ORDER,
     MAX_STEPS,
     MAX_THREADS,
+    USES,
+    WEIGHTINGS,
     BuildingConfig,
     Scene,
 )
@@ -250,11 +255,69 @@ def _validate_experiment(s: Scene) -> None:
         )
     floors = (len(s.building1.masses_kg), len(s.building2.masses_kg))
     seen = {}
+    kinds = {}  # column -> codes.H_DISP or codes.H_ABS_ACC
     for col, target in x.channels.items():
-        floor_dof(target, floors, f"[experiment] channels.{col}")
+        kinds[col], _ = experiment_channel(target, floors, f"[experiment] channels.{col}")
         if target in seen:
             raise ConfigError(f"[experiment] channels: '{seen[target]}' and '{col}' both map to floor '{target}'")
         seen[target] = col
+    _validate_acceleration(x, kinds)
+
+
+def _validate_acceleration(x, kinds: dict) -> None:
+    """[experiment]'s acceleration keys (acc_units, lowpass_Hz, lowpass_order) and the combination (use,
+    weights), given each channel's kind. The filter's cut-off against the table's Nyquist frequency is checked
+    where the table is read (model/experiment.py lowpass_sections)."""
+    acc = [c for c, k in kinds.items() if k == codes.H_ABS_ACC]
+    if x.acc_units not in ACC_UNITS:
+        raise ConfigError(f"[experiment] acc_units = {shown(x.acc_units)}: expected one of {list(ACC_UNITS)}")
+    if acc and x.video is not None:
+        raise ConfigError(
+            f"[experiment] channels.{acc[0]} = {x.channels[acc[0]]!r}: a tracked video gives displacements only; "
+            "score accelerations from a table (table = '...')"
+        )
+    if x.lowpass_Hz is not None:
+        if not x.lowpass_Hz > 0:
+            raise ConfigError(f"[experiment] lowpass_Hz = {x.lowpass_Hz!r}: a cut-off frequency must be > 0")
+        if not acc:
+            raise ConfigError(
+                f"[experiment] lowpass_Hz = {x.lowpass_Hz!r}: it filters acceleration channels, and none is mapped "
+                "(map one as 'abs_acc_b1f3', or leave lowpass_Hz out)"
+            )
+    if not 1 <= x.lowpass_order <= MAX_LOWPASS_ORDER:
+        raise ConfigError(f"[experiment] lowpass_order = {x.lowpass_order}: expected 1 to {MAX_LOWPASS_ORDER}")
+    if x.use not in USES:
+        raise ConfigError(f"[experiment] use = {shown(x.use)}: expected one of {list(USES)}")
+    used = [c for c, k in kinds.items() if x.use == "both" or k == USES[x.use]]
+    if not used:
+        raise ConfigError(
+            f"[experiment] use = {x.use!r}: no {x.use} channel is mapped (channels: "
+            f"{', '.join(f'{c} = {t!r}' for c, t in x.channels.items())})"
+        )
+    if isinstance(x.weights, str):
+        if x.weights not in WEIGHTINGS:
+            raise ConfigError(
+                f"[experiment] weights = {shown(x.weights)}: expected one of {list(WEIGHTINGS)} or a table "
+                "column -> weight"
+            )
+        return
+    for col, w in x.weights.items():
+        if col not in x.channels:
+            raise ConfigError(
+                f"[experiment] weights.{col} = {w!r}: '{col}' is not a mapped channel (channels: "
+                f"{', '.join(x.channels)})"
+            )
+        if col not in used:
+            raise ConfigError(
+                f"[experiment] weights.{col} = {w!r}: use = {x.use!r} leaves this channel out of the combined error"
+            )
+        if not w >= 0:
+            raise ConfigError(f"[experiment] weights.{col} = {w!r}: a weight must be >= 0")
+    missing = [c for c in used if c not in x.weights]
+    if missing:
+        raise ConfigError(f"[experiment] weights: no weight for channel '{missing[0]}' (use = {x.use!r} includes it)")
+    if not any(x.weights[c] > 0 for c in used):
+        raise ConfigError(f"[experiment] weights = {shown(x.weights)}: at least one weight must be > 0")
 
 
 def _check_laws(c, axes: dict) -> None:

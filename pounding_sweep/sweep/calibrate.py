@@ -6,15 +6,16 @@ of [calibrate] (contact, structure scales and damping, the experiment's clock, t
 together, and every answer says how certain it is and whether the data can decide it.
 
 Method.
-* Residuals: each scored channel's model displacement at the experiment's sample times (simulation time =
-  experiment time - time_offset_s; cubic Hermite interpolation of the kernel's displacement and velocity at dt,
-  error ~ dt^4 |u''''| / 384, far below any tracking noise) minus the tracked one, divided by the channel's
-  noise floor sigma_c, so channels weigh by their noise.
-* Noise floor sigma_c: the [calibrate] noise_m, else estimated from the table by the difference method: the k-th
-  difference of white noise of variance s^2 has variance C(2k, k) s^2 (von Neumann 1941; Hall, Kay & Titterington
-  1990, Biometrika 77:521), and a smooth signal's k-th difference vanishes as (2 sin(pi f / fs))^k; the median
-  absolute k-th difference / 0.6745 / sqrt(C(2k, k)) (robust to the impacts' kinks), least over k = 2..6. Signal
-  left in the differences can only raise it: an upper bound of the noise.
+* Residuals: each scored channel's model value at the experiment's sample times inside the scored window
+  (simulation time = experiment time - time_offset_s) minus the measured one, divided by the channel's noise
+  floor sigma_c, so channels weigh by their noise. Displacement: cubic Hermite interpolation of the kernel's
+  displacement and velocity at dt (error ~ dt^4 |u^(4)| / 384, far below any tracking noise). Absolute
+  acceleration ([experiment] acceleration channels): linear interpolation between steps, as the kernel's
+  scoring samples it, then the experiment's low-pass filter (lowpass_Hz: the same causal sections from rest at
+  the window's first sample) on both sides. Channels that [experiment] use leaves out are left out here too.
+* Noise floor sigma_c: the [calibrate] noise_m (displacement channels; m), else estimated from the data by the
+  difference method (model/experiment.py noise_floor: an upper bound), times the filter's noise gain for a
+  filtered channel.
 * Global stage: `global_points` Sobol points (scipy.stats.qmc, scrambled, fixed seed) over the bounds (log scale
   for stiffnesses), run as one batch by the grid engine, plus the sweep's best cell when there is one.
 * Local stage: scipy.optimize.least_squares (trust-region reflective, bounds, 2-point Jacobian) from the `starts`
@@ -50,6 +51,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from pounding_sweep import codes as C
+from pounding_sweep.model.experiment import noise_floor
 from pounding_sweep.scene import Scene
 from pounding_sweep.sweep.prepare import Prepared, prepare
 from pounding_sweep.warn import warn
@@ -63,28 +66,17 @@ AIC_TIE = 2.0  # Burnham & Anderson 2002, sec. 2.6: a difference of 2 or less is
 BOUND_FRACTION = 1e-3  # a fitted value this close to a bound (fraction of the fit-coordinate range) is on it
 
 
-def noise_floor(y: np.ndarray) -> float:
-    """Upper-bound estimate of the white noise RMS in a uniformly sampled signal (module docstring)."""
-    best = math.inf
-    for k in range(2, 7):
-        if y.size <= k + 2:
-            break
-        d = np.diff(y, k)
-        s = float(np.median(np.abs(d))) / 0.6744897501960817 / math.sqrt(math.comb(2 * k, k))
-        best = min(best, s)
-    return best
-
-
 @dataclass
 class Target:
-    """The experiment's scored samples: per channel the simulation-clock times (before the offset) and values."""
+    """The experiment's fitted samples: per channel (inside the window at the scene's offset) the experiment-clock
+    times and the measured values (filtered where the channel is), and the channel's noise floor."""
 
-    codes: list[str]  # 'b1f3', ...
-    dof: np.ndarray  # the kernel's DOF of each channel
+    codes: list[str]  # 'b1f3', 'abs_acc_b1f3', ...
+    acc: list[bool]  # an absolute-acceleration channel
     time_exp: list[np.ndarray]  # experiment clock [s]
-    values: list[np.ndarray]  # tracked displacement [m]
-    sigma: np.ndarray  # noise floor per channel [m]
-    window: tuple[float, float]
+    values: list[np.ndarray]  # measured displacement [m] or acceleration [m/s^2]
+    sigma: np.ndarray  # noise floor per channel
+    sos: np.ndarray  # the acceleration channels' low-pass sections ((0, 6): none)
 
     @property
     def n(self) -> int:
@@ -137,8 +129,14 @@ class Problem:
         fixed = dataclasses.replace(scene, sweep=())
         probe = prepare(fixed)
         exp = probe.experiment
-        codes = list(exp.channels)
-        channels = [f"disp_b{c[1]}f{c[3:]}" for c in codes] + [f"vel_b{c[1]}f{c[3:]}" for c in codes]
+        weights = probe.combination.weights if probe.combination is not None else None
+        codes = [c for i, c in enumerate(exp.channels) if weights is None or weights[i] > 0]  # as `use` says
+        acc = [exp.kinds.get(c, C.H_DISP) == C.H_ABS_ACC for c in codes]
+        channels, self.slots = [], []  # the histories kept, and each channel's rows among them
+        for c, a in zip(codes, acc):
+            floor = c.removeprefix("abs_acc_")
+            self.slots.append(tuple(range(len(channels), len(channels) + (1 if a else 2))))
+            channels += [f"abs_acc_{floor}"] if a else [f"disp_{floor}", f"vel_{floor}"]
         self.prep: Prepared = prepare(
             dataclasses.replace(fixed, output=dataclasses.replace(fixed.output, histories=tuple(channels)))
         )
@@ -146,14 +144,30 @@ class Problem:
         cfg = scene.experiment
         duration = self.prep.excitation.max_duration_s
         lo, hi = (0.0, duration) if cfg.window_s is None else cfg.window_s
-        times, values, sig = [], [], []
-        for c in codes:
-            t, y = exp.time_s, exp.channels[c]
-            times.append(t)
-            values.append(y)
-            sig.append(noise_m if noise_m is not None else noise_floor(y))
         self.offset0 = cfg.time_offset_s
-        self.target = Target(codes, self.prep.score.dof.copy(), times, values, np.asarray(sig), (lo, hi))
+        sos = probe.score.sos if any(acc) else np.zeros((0, 6))
+        gain = 1.0
+        if sos.shape[0]:
+            from scipy.signal import sosfilt
+
+            impulse = np.zeros(4096)
+            impulse[0] = 1.0
+            gain = float(np.sqrt(np.sum(sosfilt(sos, impulse) ** 2)))  # white noise's RMS through the filter
+        times, values, sig = [], [], []
+        t_sim = exp.time_s - self.offset0
+        inside = (t_sim >= lo) & (t_sim <= hi)
+        for c, a in zip(codes, acc):
+            y = exp.channels[c][inside]
+            times.append(exp.time_s[inside])
+            if a and sos.shape[0]:
+                from scipy.signal import sosfilt
+
+                values.append(sosfilt(sos, y))
+            else:
+                values.append(y)
+            s0 = noise_m if (noise_m is not None and not a) else noise_floor(y)[0]
+            sig.append(s0 * (gain if a else 1.0))
+        self.target = Target(codes, acc, times, values, np.asarray(sig), sos)
         self.dt = self.prep.dt
         self.floors = floors
 
@@ -192,24 +206,26 @@ class Problem:
         params = self.params(thetas, extra)
         _, _, hist, _, _ = self.prep.run(params, self.threads)
         self.evaluations += thetas.shape[0]
-        n_ch = len(self.target.codes)
-        out = np.empty((thetas.shape[0], self.target.n))
+        T = self.target
+        out = np.empty((thetas.shape[0], T.n))
         offsets = params["time_offset_s"] if "time_offset_s" in self.names else np.full(thetas.shape[0], self.offset0)
         for i in range(thetas.shape[0]):
             parts = []
-            for c in range(n_ch):
-                u, v = hist[i, c], hist[i, n_ch + c]
-                ts = self.target.time_exp[c] - offsets[i]
-                model = _hermite(u, v, self.dt, ts)
-                parts.append((model - self.target.values[c]) / self.target.sigma[c])
+            for c, slot in enumerate(self.slots):
+                ts = T.time_exp[c] - offsets[i]
+                if T.acc[c]:
+                    a = hist[i, slot[0]]
+                    model = np.interp(ts / self.dt, np.arange(a.size), a)
+                    if T.sos.shape[0]:
+                        from scipy.signal import sosfilt
+
+                        model = sosfilt(T.sos, model)
+                else:
+                    model = _hermite(hist[i, slot[0]], hist[i, slot[1]], self.dt, ts)
+                parts.append((model - T.values[c]) / T.sigma[c])
             row = np.concatenate(parts)
             out[i] = np.where(np.isfinite(row), row, 1e6)
         return out
-
-    def window_mask(self, offset: float) -> np.ndarray:
-        """The samples inside the scored window on the simulation clock at this offset."""
-        lo, hi = self.target.window
-        return np.concatenate([(t - offset >= lo) & (t - offset <= hi) for t in self.target.time_exp])
 
 
 def _hermite(u: np.ndarray, v: np.ndarray, dt: float, t: np.ndarray) -> np.ndarray:
@@ -250,11 +266,8 @@ def _calibrate_one(scene: Scene, names: list[str], threads: int, best_cell: dict
     prob = Problem(scene, names, cal.parameters, cal.noise_m, threads)
     lo, hi = prob.z_bounds
     p = len(names)
-    offset_now = prob.offset0
 
-    # masks: samples outside the window at the scene's offset are left out (the same set at every evaluation,
-    # so the residual vector keeps its meaning while the offset is fitted)
-    mask = prob.window_mask(offset_now)
+    mask = np.ones(prob.target.n, bool)  # the window's samples at the scene's offset (Target): fixed while fitting
 
     def rss_rows(thetas):
         r = prob.residuals(thetas)[:, mask]

@@ -49,6 +49,7 @@ class Prepared:
     score_codes: list[str]
     auto: object | None = None  # autodt.AutoDt when dt_s = 'auto'
     kernel: str = "auto"  # engine.driver.KERNELS: which kernel runs the chunks
+    combination: object | None = None  # sweep.scoring.Combination: how the channels' errors combine
     experiment: object | None = None  # the loaded experiment (model.experiment.Experiment), for variants
     variants: dict = field(default_factory=dict, compare=False, repr=False)  # structure values -> Prepared
 
@@ -113,7 +114,7 @@ class Prepared:
 
                 score = score_spec(
                     self.experiment, scene.experiment, model.floors, self.excitation.max_duration_s, self.dt
-                )
+                )[0]  # the same channels and weights: only the samples' clock moved
             self.variants[values] = dataclasses.replace(
                 self, scene=scene, model=model, sysarr=model.system_arrays(self.dt), score=score, variants={}
             )
@@ -150,12 +151,12 @@ def prepare(scene: Scene, kernel: str = "auto") -> Prepared:
         scene.contact.min_impact_speed_m_s,
     )
     hspec, hcols = history_spec(scene, model.floors)
-    score, codes = ScoreSpec.none(), []
+    score, codes, comb = ScoreSpec.none(), [], None
     if scene.experiment is not None:
         from pounding_sweep.sweep.scoring import load_experiment, score_spec
 
         exp = load_experiment(scene.experiment, model.floors)
-        score = score_spec(exp, scene.experiment, model.floors, exc.max_duration_s, dt)
+        score, comb = score_spec(exp, scene.experiment, model.floors, exc.max_duration_s, dt)
         codes = list(exp.channels)
     else:
         exp = None
@@ -177,6 +178,7 @@ def prepare(scene: Scene, kernel: str = "auto") -> Prepared:
         codes,
         auto,
         kernel,
+        comb,
         exp,
     )
 

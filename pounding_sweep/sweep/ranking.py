@@ -10,21 +10,40 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pyarrow as pa
 
+from pounding_sweep.engine.score import ACC_SCORE_NAMES, S_REL_RMS_PCT, SCORE_NAMES
+from pounding_sweep.scene.channels import ACC_PREFIX
+
 if TYPE_CHECKING:  # pandas costs 0.3 s to import: only where a table is built
     import pandas as pd
 
-from pounding_sweep.engine.score import S_REL_RMS_PCT, SCORE_NAMES
+    from pounding_sweep.sweep.scoring import Combination
 
 PARAM_COLUMNS = ("run_id", "ks_ratio", "ks_N_per_m", "r", "gap_m", "amplitude_m", "frequency_Hz", "record", "scale")
 
 
+def score_names(code: str) -> tuple[tuple[str, str], ...]:
+    """The score columns' name templates and meanings of one channel: a displacement's ('b1f3') or an
+    absolute acceleration's ('abs_acc_b1f3', its peak in m/s^2)."""
+    return ACC_SCORE_NAMES if code.startswith(ACC_PREFIX) else SCORE_NAMES
+
+
 def score_columns(codes: list[str]) -> list[tuple[str, str]]:
     """(column name, meaning) of every per-channel score, channel-major."""
-    return [(name.format(c=c), doc) for c in codes for name, doc in SCORE_NAMES]
+    return [(name.format(c=c), doc) for c in codes for name, doc in score_names(c)]
 
 
-def combine_errors(rel_rms: np.ndarray, how: str) -> np.ndarray:
-    """Channels' eq. 20 errors (runs x channels) -> one error per run: mean, max or rms."""
+def combine_errors(rel_rms: np.ndarray, how: str, weights: np.ndarray | None = None) -> np.ndarray:
+    """Channels' eq. 20 errors (runs x channels) -> one error per run: mean, max or rms; with `weights`
+    (per channel, summing to 1; sweep/scoring.py combination) over the channels weighted > 0: the weighted
+    mean sum w_c e_c, the largest e_c, or the weighted rms sqrt(sum w_c e_c^2)."""
+    if weights is not None:
+        sel = weights > 0
+        e, w = rel_rms[:, sel], weights[sel]
+        if how == "mean":
+            return (e * w).sum(axis=1) / w.sum()
+        if how == "max":
+            return e.max(axis=1)
+        return np.sqrt((e**2 * w).sum(axis=1) / w.sum())
     if how == "mean":
         return rel_rms.mean(axis=1)
     if how == "max":
@@ -32,13 +51,13 @@ def combine_errors(rel_rms: np.ndarray, how: str) -> np.ndarray:
     return np.sqrt((rel_rms**2).mean(axis=1))
 
 
-def score_table_columns(scores: np.ndarray, codes: list[str], how: str) -> dict[str, np.ndarray]:
+def score_table_columns(scores: np.ndarray, codes: list[str], comb: Combination) -> dict[str, np.ndarray]:
     """Per-run score columns from the kernel's (runs, channels, scores) array, plus the combined error."""
     cols = {}
     for ci, c in enumerate(codes):
-        for si, (name, _) in enumerate(SCORE_NAMES):
+        for si, (name, _) in enumerate(score_names(c)):
             cols[name.format(c=c)] = scores[:, ci, si]
-    cols["rel_rms_combined_pct"] = combine_errors(scores[:, :, S_REL_RMS_PCT], how)
+    cols["rel_rms_combined_pct"] = combine_errors(scores[:, :, S_REL_RMS_PCT], comb.how, comb.weights)
     return cols
 
 

@@ -32,6 +32,7 @@ from pounding_sweep.model.excitation import Excitation
 from pounding_sweep.model.grid import Grid
 from pounding_sweep.scene import Scene
 from pounding_sweep.scene.axes import STRUCTURE_AXES
+from pounding_sweep.scene.channels import ACC_PREFIX
 from pounding_sweep.scene.hashing import hash_of
 from pounding_sweep.sweep.checks import ContactTally, check_contact, check_time_step
 from pounding_sweep.sweep.prepare import Prepared, drift_ratio_columns, prepare  # noqa: F401
@@ -163,7 +164,6 @@ def _run_claimed(scene, folder, threads, progress, executor, kernel, size, notes
     done = folder.resume(manifest)
     todo = [c for c in chunks if c[0] not in done]
 
-    how = scene.experiment.combine if scene.experiment else "mean"
     facts = _model_facts(prep)
     meta = file_metadata(scene, {**facts, "warnings": notes.messages()})
     names = L.metric_columns(model.floors, model.n_pairs)
@@ -196,7 +196,11 @@ def _run_claimed(scene, folder, threads, progress, executor, kernel, size, notes
             inflight = _InFlight(progress, tally, grid.size)
             for res in exe.map(prep, todo, done=inflight):
                 columns = {"run_id": res.params["run_id"], **_param_columns(exc, res.params, res.derived, grid)}
-                extra = score_table_columns(res.scores, prep.score_codes, how) if res.scores is not None else {}
+                extra = (
+                    score_table_columns(res.scores, prep.score_codes, prep.combination)
+                    if res.scores is not None
+                    else {}
+                )
                 extra.update(drift_ratio_columns(scene, res.metrics, names))
                 table = metrics_table(columns, names, res.metrics, res.run_time, extra)
                 folder.write_manifest(manifest)
@@ -418,8 +422,7 @@ def refine_best(prep: Prepared, best: pd.DataFrame) -> Refinement | None:
         for k, v in p.items():
             params[k][:] = v
         _, _, _, scores, _ = prep.run(params)
-        how = prep.scene.experiment.combine
-        err = score_table_columns(scores, prep.score_codes, how)["rel_rms_combined_pct"][0]
+        err = score_table_columns(scores, prep.score_codes, prep.combination)["rel_rms_combined_pct"][0]
         return float(err) if np.isfinite(err) else 1e300
 
     start = {n: float(start_row[n]) for n in bounds}
@@ -465,7 +468,31 @@ def _model_facts(prep: Prepared) -> dict:
             "samples": int(prep.score.t.size),
             "score_columns": dict(score_columns(prep.score_codes)),
         }
+        facts["experiment"].update(_acceleration_facts(prep))
     return facts
+
+
+def _acceleration_facts(prep: Prepared) -> dict:
+    """The experiment's acceleration channels, filter and channel weights, for the result metadata (nothing
+    for a scene that uses none of them: its metadata stays as it was)."""
+    x, comb = prep.scene.experiment, prep.combination
+    out = {}
+    if any(c.startswith(ACC_PREFIX) for c in prep.score_codes):
+        out["acc_units"] = x.acc_units
+        if x.lowpass_Hz is not None:
+            out["lowpass"] = {
+                "kind": "Butterworth, causal (scipy.signal.sosfilt), from rest at the window's start",
+                "cutoff_Hz": x.lowpass_Hz,
+                "order": x.lowpass_order,
+                "sos": prep.score.sos.tolist(),
+                "applied_to": [c for c in prep.score_codes if c.startswith(ACC_PREFIX)],
+            }
+    if comb is not None and comb.weights is not None:
+        out["use"] = x.use
+        out["weights"] = dict(zip(prep.score_codes, map(float, comb.weights)))
+        if comb.noise:
+            out["noise"] = comb.noise
+    return out
 
 
 def _param_columns(exc: Excitation, params: dict, derived: dict, grid: Grid) -> dict:

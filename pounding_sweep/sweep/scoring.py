@@ -1,17 +1,27 @@
 """The experiment a sweep scores against: its table read (or its video tracked, once per process) and
-turned into the kernel's ScoreSpec, the samples inside the scored window on the simulation clock."""
+turned into the kernel's ScoreSpec, the samples inside the scored window on the simulation clock (the
+acceleration channels low-pass filtered), and the weights that combine the channels' errors."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from pounding_sweep import codes
 from pounding_sweep.engine.inputs import ScoreSpec
 from pounding_sweep.errors import ExperimentError, VideoError
-from pounding_sweep.model.experiment import Experiment, experiment_from_table, read_table
+from pounding_sweep.model.experiment import (
+    Experiment,
+    experiment_from_table,
+    lowpass_sections,
+    noise_floor,
+    read_table,
+)
 from pounding_sweep.scene import ExperimentConfig
-from pounding_sweep.scene.channels import floor_dof
+from pounding_sweep.scene.channels import experiment_channel
+from pounding_sweep.scene.schema import USES
 
 
 def load_experiment(cfg: ExperimentConfig, floors: tuple[int, int]) -> Experiment:
@@ -51,11 +61,27 @@ def _tracked(spec) -> tuple:
 
 def score_spec(
     exp: Experiment, cfg: ExperimentConfig, floors: tuple[int, int], sim_duration_s: float, dt: float
-) -> ScoreSpec:
-    """The samples inside the scored window, on the simulation clock, as kernel arrays.
+) -> tuple[ScoreSpec, Combination]:
+    """The samples inside the scored window, on the simulation clock, as kernel arrays, and how the
+    channels' errors combine (combination).
 
     Simulation time = experiment time - time_offset_s. The window defaults to all of the
     experiment that the simulation covers; a window outside that is an error.
+
+    The acceleration channels' low-pass filter (lowpass_Hz) is a causal one, applied from rest at the
+    window's first sample, here to the experiment's samples (scipy.signal.sosfilt) and in the kernel to each
+    run's samples of the same instants (engine/score.py sos_filter, the same sections in the same
+    transposed direct form): the same linear filter on the same sample instants, so the filtered error is
+    the filter applied to the error, and a run equal to the experiment scores 0 with or without it. A
+    zero-phase filter (forward and backward) would need the whole run before it and scipy's edge padding
+    reproduced in the kernel; a filter run at the integration step instead would be another filter than
+    the experiment's. The causal filter delays both signals alike, at low frequencies by
+    1 / (2 pi f_c sin(pi / (2 n))) for n poles (a Butterworth's group delay at 0 Hz: 14 ms for 4 poles at
+    30 Hz), which the comparison does not see. The model's acceleration is sampled as the displacement is,
+    by linear interpolation between the steps around each sample instant, with no anti-alias filter
+    before it (an accelerometer's own, such as the MPU-6050's digital low-pass, is not modelled): record
+    accelerations at a rate that resolves the impacts, which last 6-23 ms here (500-1000 samples/s; at
+    100 samples/s even their noise floor cannot be told from the signal: noise_floor).
     """
     ts = exp.time_s - cfg.time_offset_s
     lo, hi = (0.0, sim_duration_s) if cfg.window_s is None else cfg.window_s
@@ -71,8 +97,92 @@ def score_spec(
             f"leaves {int(keep.sum())} sample(s) (at least 2 needed) in the simulation 0 .. {sim_duration_s:.6g} s "
             f"within the window [{lo}, {hi}]"
         )
-    codes = list(exp.channels)
-    x = np.ascontiguousarray(np.stack([exp.channels[c][keep] for c in codes]))
-    dof = np.array([floor_dof(c, floors, "channel") for c in codes], dtype=np.int64)
+    codes_ = list(exp.channels)
+    raw = np.ascontiguousarray(np.stack([exp.channels[c][keep] for c in codes_]))
+    kd = [experiment_channel(c, floors, "channel") for c in codes_]
+    kind = np.array([k for k, _ in kd], dtype=np.int64)
+    dof = np.array([q for _, q in kd], dtype=np.int64)
+    sos = lowpass_sections(cfg, exp)
+    x = raw.copy()
+    if sos.shape[0]:
+        from scipy.signal import sosfilt
+
+        for c in np.flatnonzero(kind == codes.H_ABS_ACC):
+            x[c] = sosfilt(sos, raw[c])
     max_lag = int(min(round(cfg.max_lag_s / exp.dt_sample), keep.sum() - 2))  # at most the window
-    return ScoreSpec(np.ascontiguousarray(ts[keep]), x, dof, max_lag, exp.dt_sample)
+    spec = ScoreSpec(np.ascontiguousarray(ts[keep]), x, dof, max_lag, exp.dt_sample, kind, sos)
+    return spec, combination(exp, cfg, spec, raw)
+
+
+@dataclass(frozen=True)
+class Combination:
+    """How the channels' eq. 20 errors make one error per run (rel_rms_combined_pct): `how` ('mean', 'max',
+    'rms') over the channels with a weight > 0 (sweep/ranking.py combine_errors)."""
+
+    how: str
+    weights: np.ndarray | None  # per channel, summing to 1 (0: left out by `use`); None: all, equally
+    noise: dict = field(default_factory=dict)  # weights = 'noise': channel code -> what set its weight
+
+    @classmethod
+    def plain(cls, how: str = "mean") -> Combination:
+        return cls(how, None)
+
+
+def combination(exp: Experiment, cfg: ExperimentConfig, spec: ScoreSpec, raw: np.ndarray) -> Combination:
+    """The channels' weights from [experiment] use and weights (`raw`: the window's samples before any filter).
+
+    'equal' over every channel is the plain mean, max or rms. 'noise' weights channel c by
+    w_c = (RMS_c / sigma_c)^2, its signal-to-noise ratio squared, with RMS_c the root mean square of the
+    experiment's (filtered) samples and sigma_c the noise floor in them: model/experiment.py noise_floor on
+    the raw samples, times sqrt(sum h_k^2) for a filtered channel (white noise through a filter of impulse
+    response h). Why: under independent white Gaussian noise the log-likelihood of a run is
+    -sum_c ||x_num,c - x_exp,c||^2 / (2 sigma_c^2), and ||x_num,c - x_exp,c||^2 = N (eps_c / 100)^2 RMS_c^2
+    (eq. 20, N samples per channel, the same for all on one time axis), so sum_c w_c eps_c^2 orders runs
+    as the likelihood does: combine = 'rms' with these weights is the least-squares fit weighted by the
+    inverse noise variance (Tarantola, Inverse Problem Theory, SIAM 2005, ch. 3, the least-squares criterion). Where model error
+    rather than noise dominates the residuals this is a scale-free weighting, not a likelihood."""
+    kinds = [exp.kinds.get(c, codes.H_DISP) for c in exp.channels]
+    wanted = USES[cfg.use]
+    used = np.array([wanted is None or k == wanted for k in kinds])
+    if isinstance(cfg.weights, dict):
+        w = np.array([cfg.weights.get(exp.columns[c], 0.0) if u else 0.0 for c, u in zip(exp.channels, used)])
+        return Combination(cfg.combine, w / w.sum())
+    if cfg.weights == "equal":
+        if used.all():
+            return Combination.plain(cfg.combine)
+        w = used.astype(float)
+        return Combination(cfg.combine, w / w.sum())
+    w = np.zeros(len(kinds))
+    noise = {}
+    for c, code in enumerate(exp.channels):
+        if not used[c]:
+            continue
+        sigma, order = noise_floor(raw[c])
+        gain = 1.0
+        if kinds[c] == codes.H_ABS_ACC and spec.sos.shape[0]:
+            from scipy.signal import sosfilt
+
+            impulse = np.zeros(raw.shape[1])
+            impulse[0] = 1.0
+            gain = float(np.sqrt(np.sum(sosfilt(spec.sos, impulse) ** 2)))
+        rms = float(np.sqrt(np.mean(spec.x[c] ** 2)))
+        if not sigma > 0:
+            raise ExperimentError(
+                f"[experiment] weights = 'noise': column '{exp.columns[code]}' ({code}) shows no noise to weight it "
+                f"by ({raw.shape[1]} samples in the window; "
+                + ("too few" if order == 0 else "most differences are 0")
+                + "); give weights as column -> weight"
+            )
+        w[c] = (rms / (sigma * gain)) ** 2
+        noise[code] = {
+            "noise_floor": float(sigma * gain),
+            "noise_floor_raw": float(sigma),
+            "difference_order": order,
+            "rms": rms,
+            "snr": float(rms / (sigma * gain)),
+        }
+    w = w / w.sum()
+    for c, code in enumerate(exp.channels):
+        if code in noise:
+            noise[code]["weight"] = float(w[c])
+    return Combination(cfg.combine, w, noise)

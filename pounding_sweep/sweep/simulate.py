@@ -86,6 +86,5 @@ def simulate(scene: Scene, channels: list[str] | None = None, decimate: int = 1,
     if auto is not None:
         m.update(auto)
     if scores is not None:
-        how = s.experiment.combine
-        m.update({k: float(v[0]) for k, v in score_table_columns(scores, prep.score_codes, how).items()})
+        m.update({k: float(v[0]) for k, v in score_table_columns(scores, prep.score_codes, prep.combination).items()})
     return df, m

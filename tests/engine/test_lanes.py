@@ -347,7 +347,9 @@ def test_run_chunk_dispatch_and_the_eligibility_rules():
     why = kernel_lanes.lanes_ineligible_reason
     assert why(sysarr, none_h, opts, none_s) is None
     assert "histories" in why(sysarr, HistorySpec(np.array([codes.H_DISP]), np.array([2]), 1), opts, none_s)
-    score = ScoreSpec(np.array([0.1]), np.zeros((1, 1)), np.array([2]), 0, 0.01)
+    score = ScoreSpec(
+        np.array([0.1]), np.zeros((1, 1)), np.array([2]), 0, 0.01, np.zeros(1, np.int64), np.zeros((0, 6))
+    )
     assert "scoring" in why(sysarr, none_h, opts, score)
     assert "implicit" in why(sysarr, none_h, opts._replace(scheme=kernel.SCHEMES["paper"]), none_s)
     for name, code in kernel.SCHEMES.items():  # every scheme but implicit and event

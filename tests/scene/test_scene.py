@@ -226,3 +226,107 @@ def test_describe_lists_the_top_level_keys_and_marks_what_is_required():
         section = describe().split(f"[{name}]", 1)[1].split("\n[", 1)[0]
         for f in dataclasses.fields(cls):
             assert f"\n  {f.name}: " in section, (name, f.name)
+
+
+# ------------------------------------------------------------------ acceleration channels and weights
+
+SCORED = (SWEEPS / "scored_6hz.toml").read_text().replace('"experiments/', f'"{SWEEPS}/experiments/')
+CHANNELS = 'channels = { model1_floor3_mm = "b1f3", model2_floor3_mm = "b2f3" }'
+ACC = 'channels = { model1_floor3_mm = "b1f3", b1f3_acc = "abs_acc_b1f3" }'
+
+BAD_ACC = {
+    "acc_units": (
+        ACC + '\nacc_units = "cm/s2"',
+        r"\[experiment\] acc_units = 'cm/s2': expected one of \['m/s2', 'g'\]",
+    ),
+    "acc_building_3": (
+        'channels = { b1f3_acc = "abs_acc_b3f1" }',
+        r"channels.b1f3_acc = 'abs_acc_b3f1': there is no building 3",
+    ),
+    "acc_floor_4": (
+        'channels = { b1f3_acc = "abs_acc_b1f4" }',
+        r"channels.b1f3_acc = 'abs_acc_b1f4': building 1 has floors 1..3, so it maps to no floor",
+    ),
+    "acc_misspelled": (
+        'channels = { b1f3_acc = "acc_b1f3" }',
+        r"channels.b1f3_acc = 'acc_b1f3': an experiment channel is .* abs_acc_b<building>f<floor>",
+    ),
+    "lowpass_without_acceleration": (
+        CHANNELS + "\nlowpass_Hz = 20.0",
+        r"lowpass_Hz = 20.0: it filters acceleration channels, and none is mapped",
+    ),
+    "lowpass_zero": (ACC + "\nlowpass_Hz = 0", r"lowpass_Hz = 0.0: a cut-off frequency must be > 0"),
+    "lowpass_order": (ACC + "\nlowpass_Hz = 20.0\nlowpass_order = 0", r"lowpass_order = 0: expected 1 to 12"),
+    "use_unknown": (
+        ACC + '\nuse = "accel"',
+        r"use = 'accel': expected one of \['displacement', 'acceleration', 'both'\]",
+    ),
+    "use_no_such_channel": (
+        CHANNELS + '\nuse = "acceleration"',
+        r"use = 'acceleration': no acceleration channel is mapped",
+    ),
+    "weights_unknown": (ACC + '\nweights = "snr"', r"weights = 'snr': expected one of \['equal', 'noise'\]"),
+    "weights_unmapped": (
+        ACC + "\nweights = { model1_floor3_mm = 1.0, b2f3_acc = 1.0 }",
+        r"weights.b2f3_acc = 1.0: 'b2f3_acc' is not a mapped channel",
+    ),
+    "weights_negative": (
+        ACC + "\nweights = { model1_floor3_mm = 1.0, b1f3_acc = -1 }",
+        r"weights.b1f3_acc = -1.0: a weight must be >= 0",
+    ),
+    "weights_missing": (ACC + "\nweights = { b1f3_acc = 1.0 }", r"weights: no weight for channel 'model1_floor3_mm'"),
+    "weights_unused": (
+        ACC + '\nuse = "acceleration"\nweights = { model1_floor3_mm = 1.0, b1f3_acc = 1.0 }',
+        r"weights.model1_floor3_mm = 1.0: use = 'acceleration' leaves this channel out",
+    ),
+    "weights_all_zero": (
+        ACC + "\nweights = { model1_floor3_mm = 0, b1f3_acc = 0 }",
+        r"at least one weight must be > 0",
+    ),
+    "weights_text": (ACC + '\nweights = { b1f3_acc = "1" }', r"weights.b1f3_acc = '1': expected a number"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_ACC))
+def test_bad_acceleration_keys(tmp_path, case):
+    text, pattern = BAD_ACC[case]
+    path = write(tmp_path, SCORED.replace(CHANNELS, text))
+    with pytest.raises(Exception) as exc:
+        load_scene(path)
+    assert str(path) in str(exc.value) and re.search(pattern, str(exc.value)), str(exc.value)
+
+
+def test_acceleration_keys_in_the_hash_only_when_used(tmp_path):
+    """A scene without the acceleration keys hashes as before they existed (its canonical form has none of
+    them); each one set changes the hash."""
+    from pounding_sweep.scene.hashing import ADDED_EXPERIMENT_KEYS
+
+    plain = load_scene(write(tmp_path, SCORED))
+    assert not set(ADDED_EXPERIMENT_KEYS) & set(plain.canonical()["experiment"])
+    hashes = {plain.config_hash()}
+    for extra in (
+        "",
+        "lowpass_Hz = 20.0",
+        "lowpass_Hz = 20.0\nacc_units = 'g'",
+        "use = 'displacement'",
+        "weights = 'noise'",
+    ):
+        text = SCORED.replace(CHANNELS, ACC + "\n" + extra)
+        hashes.add(load_scene(write(tmp_path, text, f"s{len(hashes)}.toml")).config_hash())
+    assert len(hashes) == 6
+
+
+def test_describe_documents_the_acceleration_keys():
+    text = describe()
+    for key in ("acc_units", "lowpass_Hz", "lowpass_order", "use", "weights", "abs_acc_b1f3"):
+        assert key in text
+
+
+def test_a_video_gives_no_accelerations(tmp_path):
+    head, _, _ = BASE.partition("[sweep]")
+    text = head + (
+        '[experiment]\nunits = "mm"\nchannels = { b1f3 = "abs_acc_b1f3" }\n\n[experiment.video]\npath = "run.mkv"\n'
+        'markers = ["table_left", "table_right", "b1f3"]\nreferences = ["table_left", "table_right"]\nmm_per_px = 5.0\n'
+    )
+    with pytest.raises(Exception, match=r"channels.b1f3 = 'abs_acc_b1f3': a tracked video gives displacements only"):
+        load_scene(write(tmp_path, text))

@@ -109,7 +109,9 @@ def _print_summary(s) -> None:
     elif s.best is not None:
         print(f"\nbest runs against the experiment (lowest relative RMS error, eq. 20; {s.best_path}):")
         show = [
-            c for c in ("criterion", "error_pct", "run_id", "ks_ratio", "r", "gap_m", "record", "status") if c in s.best
+            c
+            for c in ("criterion", "contact_law", "error_pct", "run_id", "ks_ratio", "r", "gap_m", "record", "status")
+            if c in s.best
         ]
         print(s.best[show].to_string(index=False, float_format=lambda x: f"{x:.4g}"))
         if s.refinement is not None:

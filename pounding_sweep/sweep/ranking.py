@@ -11,6 +11,7 @@ import numpy as np
 import pyarrow as pa
 
 from pounding_sweep.engine.score import ACC_SCORE_NAMES, S_REL_RMS_PCT, SCORE_NAMES
+from pounding_sweep.scene.axes import STRUCTURE_AXES
 from pounding_sweep.scene.channels import ACC_PREFIX
 
 if TYPE_CHECKING:  # pandas costs 0.3 s to import: only where a table is built
@@ -18,7 +19,19 @@ if TYPE_CHECKING:  # pandas costs 0.3 s to import: only where a table is built
 
     from pounding_sweep.sweep.scoring import Combination
 
-PARAM_COLUMNS = ("run_id", "ks_ratio", "ks_N_per_m", "r", "gap_m", "amplitude_m", "frequency_Hz", "record", "scale")
+PARAM_COLUMNS = (
+    "run_id",
+    "contact_law",
+    "ks_ratio",
+    "ks_N_per_m",
+    "r",
+    "gap_m",
+    "amplitude_m",
+    "frequency_Hz",
+    "record",
+    "scale",
+    *STRUCTURE_AXES,  # where swept: the structure of the best cell
+)
 
 
 def score_names(code: str) -> tuple[tuple[str, str], ...]:

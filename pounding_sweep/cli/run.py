@@ -182,7 +182,12 @@ def main(argv: list[str] | None = None) -> int:
         return getattr(importlib.import_module(module), func)(argv[1:])
     args = _parser().parse_args(argv)
     if args.describe:
-        print(describe())
+        try:
+            print(describe())
+        except BrokenPipeError:  # `--describe | head`: the reader had enough; no traceback at exit either
+            import os
+
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
     if not args.scene:
         _parser().print_usage(sys.stderr)

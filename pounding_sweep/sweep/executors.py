@@ -109,7 +109,8 @@ class DaskExecutor:
                 n_workers=n,
                 threads_per_worker=1,
                 processes=True,
-                dashboard_address=None,
+                # a free port: None still binds 8787 and warns on stderr when it is taken (dask/distributed#8136)
+                dashboard_address=":0",
                 silence_logs=logging.CRITICAL,
                 preload=["pounding_sweep.sweep.dask_worker"],  # workers ignore Ctrl-C: this process handles it
             )

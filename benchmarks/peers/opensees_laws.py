@@ -432,7 +432,7 @@ def first_apart(a, b, dt) -> str:
 
 
 def counts(a, b, gap) -> str:
-    return "/".join(map(str, impacts(a["u"], gap))) + " | " + "/".join(map(str, impacts(b["u"], gap)))
+    return "/".join(map(str, impacts(a["u"], gap))) + " vs " + "/".join(map(str, impacts(b["u"], gap)))
 
 
 def two_building_tables(quick: bool):
@@ -514,7 +514,7 @@ def two_building_tables(quick: bool):
         + ": engine (implicit scheme: OpenSees' equations; and the default event scheme) against OpenSees.\n"
         "   rel RMS = RMS(engine - OpenSees) / RMS(OpenSees) of the top floor's displacement, building 1 / building 2; "
         "apart = when the top floors first differ by 1 % of their RMS;\n   peak F3 = largest floor-3 force; impacts "
-        "per pair (floor 1/2/3), engine | OpenSees, counted on both histories alike; min F = OpenSees' least force "
+        "per pair (floor 1/2/3), engine vs OpenSees, counted on both histories alike; min F = OpenSees' least force "
         "(< 0: tension);\n   redone = steps OpenSees redid in sub-steps (Newton failed); engine status (implicit).\n"
     )
     table(

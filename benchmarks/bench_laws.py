@@ -1,9 +1,10 @@
 """Time per step of each contact law on the same pounding grid, and the classic law's lane-kernel
 throughput against the checkout before the contact-law work (issue 21: unchanged within 5 %).
 
-    python benchmarks/bench_laws.py                          # section 1, about 3 min on 2 cores
+    python benchmarks/bench_laws.py                          # section 1, about 1 min on 2 cores
     git worktree add /tmp/pre21 47d30d0                      # the commit before the contact-law work
-    python benchmarks/bench_laws.py --before /tmp/pre21      # sections 1 and 2, about 7 min
+    python benchmarks/bench_laws.py --before /tmp/pre21      # sections 1 and 2, about 3.5 min (+30 s the
+                                                             # first time: the old checkout's kernels compile)
     git worktree remove /tmp/pre21
     python benchmarks/bench_laws.py --quick [--before ...]   # 1 s of motion, 2 repeats; 2 rounds of 4 pairs
 

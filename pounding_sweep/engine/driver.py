@@ -122,26 +122,34 @@ def run_chunk(
 
 def _run_by_law(sys, runs, rec, hist, opts, threads, batch_runs, score, kernel, laws, codes_in, done):
     """run_chunk for a chunk mixing laws: each law's runs on their kernel, rows put back in order."""
-    n = runs.n
-    metrics = np.zeros((n, L.n_metrics(sys.m.size, sys.i1.size)))
-    run_time = np.zeros(n)
-    hist_all = scores_all = None
+    parts = []
     for code in codes_in:
         idx = np.flatnonzero(laws == code)
-        part = run_chunk(
-            sys, runs.take(idx), rec, hist, opts._replace(law=int(code)), threads, batch_runs, score, kernel, done=done
+        law_opts = opts._replace(law=int(code))
+        parts.append(
+            (idx, run_chunk(sys, runs.take(idx), rec, hist, law_opts, threads, batch_runs, score, kernel, done=done))
         )
-        metrics[idx] = part[0]
-        run_time[idx] = part[1]
-        if part[2] is not None:
-            if hist_all is None:
-                hist_all = np.full((n,) + part[2].shape[1:], np.nan)
-            hist_all[idx, :, : part[2].shape[2]] = part[2]
-        if part[3] is not None:
-            if scores_all is None:
-                scores_all = np.full((n,) + part[3].shape[1:], np.nan)
-            scores_all[idx] = part[3]
-    return metrics, run_time, hist_all, scores_all
+    return merge_rows(runs.n, parts)
+
+
+def merge_rows(n: int, parts) -> tuple:
+    """A chunk's results computed in groups of its runs, put back in the chunk's order. `parts`: [(run indices,
+    (metrics, run_time, histories or None, scores or None[, a dict of per-run arrays])), ...] as run_chunk (and
+    sweep.prepare's runs, with their derived columns) return them; a slot None in every group stays None,
+    histories shorter than the longest group's are NaN-padded, a dict key missing from a group is NaN there."""
+    first = parts[0][1]
+    out = [np.zeros((n,) + first[0].shape[1:]), np.zeros(n), None, None] + [{} for _ in first[4:]]
+    for idx, part in parts:
+        out[0][idx], out[1][idx] = part[0], part[1]
+        for slot in (2, 3):
+            if part[slot] is not None:
+                if out[slot] is None:
+                    out[slot] = np.full((n,) + part[slot].shape[1:], np.nan)
+                out[slot][idx, ..., : part[slot].shape[-1]] = part[slot]
+        for merged, columns in zip(out[4:], part[4:]):
+            for k, v in columns.items():
+                merged.setdefault(k, np.full(n, np.nan))[idx] = v
+    return tuple(out)
 
 
 def run_chunk_scalar(

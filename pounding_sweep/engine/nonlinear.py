@@ -56,7 +56,7 @@ from pounding_sweep.engine.events import (
     ground_acceleration,
 )
 from pounding_sweep.engine.jit import njit_kernel
-from pounding_sweep.engine.scalar import _equilibrium_acceleration, _first_event, _indicator
+from pounding_sweep.engine.scalar import _equilibrium_acceleration, _first_event, _indicator, gauss_solve
 
 NEWTON_MAX = 60  # Newton iterations per contact solve before the step is kept and flagged
 NEWTON_RTOL = 1e-12  # relative residual of a converged contact solve
@@ -92,31 +92,6 @@ def law_force(law, k, coef, alpha, delta, rate):
 def spring_part(k, delta):
     """The elastic part k_h delta^1.5 of every law here (its dashpot part is F minus this)."""
     return k * delta * np.sqrt(delta) if delta > 0.0 else 0.0
-
-
-@njit_kernel
-def _solve_lu(A, b, n):
-    """Solve A[:n,:n] x = b[:n] in place (Gaussian elimination with partial pivoting)."""
-    for k in range(n):
-        p = k
-        for i in range(k + 1, n):
-            if abs(A[i, k]) > abs(A[p, k]):
-                p = i
-        if p != k:
-            for j in range(n):
-                A[k, j], A[p, j] = A[p, j], A[k, j]
-            b[k], b[p] = b[p], b[k]
-        piv = A[k, k]
-        for i in range(k + 1, n):
-            f = A[i, k] / piv
-            for j in range(k, n):
-                A[i, j] -= f * A[k, j]
-            b[i] -= f * b[k]
-    for i in range(n - 1, -1, -1):
-        s = b[i]
-        for j in range(i + 1, n):
-            s -= A[i, j] * b[j]
-        b[i] = s / A[i, i]
 
 
 @njit_kernel
@@ -169,7 +144,7 @@ def solve_pairs(S, z0, wrel, q, d, law, k, coef, alpha, use, F, z, W):
                 J[j, l] = D[j] * S[j, l]
             J[j, j] += 1.0
             dF[j] = -R[j]
-        _solve_lu(J, dF, P)
+        gauss_solve(J, dF, P, True)
         lam = 1.0
         for _ in range(40):
             for j in range(P):

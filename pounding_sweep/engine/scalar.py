@@ -58,9 +58,19 @@ EN_N = 1
 
 
 @njit_kernel
-def _solve_spd(A, b, n):
-    """Solve A[:n,:n] x = b[:n] in place (Gaussian elimination; A is symmetric positive definite)."""
+def gauss_solve(A, b, n, pivot):
+    """Solve A[:n,:n] x = b[:n] in place by Gaussian elimination; with `pivot`, partial pivoting (the Hertz-type
+    laws' Newton Jacobian I + D S is not symmetric); without, none (A symmetric positive definite)."""
     for k in range(n):
+        if pivot:
+            p = k
+            for i in range(k + 1, n):
+                if abs(A[i, k]) > abs(A[p, k]):
+                    p = i
+            if p != k:
+                for j in range(n):
+                    A[k, j], A[p, j] = A[p, j], A[k, j]
+                b[k], b[p] = b[p], b[k]
         piv = A[k, k]
         for i in range(k + 1, n):
             f = A[i, k] / piv
@@ -76,7 +86,7 @@ def _solve_spd(A, b, n):
 
 @njit_kernel
 def _contact_forces(S, z0, bb, ke, active, n_pairs, idx, Asmall, rhs, F):
-    """Forces of the pairs in `active` (others 0) for the implicit step: the small SPD solve above."""
+    """Forces of the pairs in `active` (others 0) for the implicit step: gauss_solve, symmetric positive definite."""
     na = 0
     for j in range(n_pairs):
         F[j] = 0.0
@@ -91,7 +101,7 @@ def _contact_forces(S, z0, bb, ke, active, n_pairs, idx, Asmall, rhs, F):
             Asmall[p, q] = S[jp, idx[q]]
         Asmall[p, p] += 1.0 / ke[jp]
         rhs[p] = z0[jp] - bb[jp] / ke[jp]
-    _solve_spd(Asmall, rhs, na)
+    gauss_solve(Asmall, rhs, na, False)
     for p in range(na):
         F[idx[p]] = rhs[p]
 
@@ -504,7 +514,7 @@ def _fixed_set_step(h, ag, u, v, a, m, C, K, i1, i2, active, k_s, c, d, A, r, un
             A[q, p] -= kej
             r[p] += bj
             r[q] -= bj
-    _solve_spd(A, r, n)
+    gauss_solve(A, r, n, False)
     for i in range(n):
         un[i] = r[i]
         vn[i] = q3 * (un[i] - u[i]) - v[i]

@@ -365,6 +365,20 @@ def _tolerance(P: Problem, u) -> np.ndarray:
     return 1e-15 + 1e-12 * (np.abs(P.G).T @ np.abs(u))
 
 
+def first_root(phi, h: float, dt: float, scan: int) -> float:
+    """The first s in (0, h] where phi(s) turns >= 0 (phi < 0 at 0): `scan` even points bracket it, brentq
+    refines it to 1e-15 dt. Both references' event schemes locate a contact switch with it."""
+    from scipy.optimize import brentq
+
+    lo = 0.0
+    for i in range(1, scan + 1):
+        hi = h * i / scan
+        if i == scan or phi(hi) >= 0.0:
+            break
+        lo = hi
+    return brentq(phi, lo, hi, xtol=1e-15 * dt, rtol=4 * np.finfo(float).eps, maxiter=200)
+
+
 def _event_step(P: Problem, k: int, u, v, a, active, ag, stats, max_events: int = 16, scan: int = 32):
     """One step of the event scheme from t_k: integrate with the current set; where the end
     contradicts it, find the first switch instant on the sub-step map, take the sub-step, switch
@@ -378,7 +392,6 @@ def _event_step(P: Problem, k: int, u, v, a, active, ag, stats, max_events: int 
     at s = 1e-13 s, as large as the indicator itself near a release). A pair switched at this very
     instant is on the agreeing side by construction (its indicator is zero to rounding), so its start
     is not tested; the kernel does the same (kernel._first_event's `just`)."""
-    from scipy.optimize import brentq
 
     dt = P.dt
     t0 = k * dt
@@ -412,13 +425,7 @@ def _event_step(P: Problem, k: int, u, v, a, active, ag, stats, max_events: int 
             if h <= 1e-9 * dt or (not just[j] and start[j] >= 0.0):
                 times[j] = 0.0  # contradicts already at the start
                 continue
-            lo = 0.0
-            for i in range(1, scan + 1):
-                hi = h * i / scan
-                if i == scan or phi(hi) >= 0.0:
-                    break
-                lo = hi
-            times[j] = brentq(phi, lo, hi, xtol=1e-15 * dt, rtol=4 * np.finfo(float).eps, maxiter=200)
+            times[j] = first_root(phi, h, dt, scan)
         s = times.min()
         if s > 1e-9 * dt:
             if dt - (s0 + s) <= 1e-9 * dt:

@@ -34,7 +34,7 @@ import numpy as np
 from scipy.optimize import brentq, root
 
 from pounding_sweep.model.laws import damping_parameter
-from pounding_sweep.reference.newmark import Problem, resolve
+from pounding_sweep.reference.newmark import Problem, first_root, resolve
 from pounding_sweep.sweep.simulate import with_overrides
 
 LAWS = ("hertz", "hertzdamp", "jankowski")
@@ -298,13 +298,7 @@ def _event_step(Q: LawProblem, k, u, v, a, ag, st, max_events: int = 16, scan: i
             if h <= 1e-9 * dt or (not just[j] and start[j] >= 0.0):
                 times[j] = 0.0
                 continue
-            lo = 0.0
-            for i in range(1, scan + 1):
-                hi = h * i / scan
-                if i == scan or phi(hi) >= 0.0:
-                    break
-                lo = hi
-            times[j] = brentq(phi, lo, hi, xtol=1e-15 * dt, rtol=4 * np.finfo(float).eps, maxiter=200)
+            times[j] = first_root(phi, h, dt, scan)
         s = times.min()
         if s > 1e-9 * dt:
             if dt - (s0 + s) <= 1e-9 * dt:

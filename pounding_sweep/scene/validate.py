@@ -378,6 +378,11 @@ def _check_calibrate(s: Scene) -> None:
         return
     if s.experiment is None:
         raise ConfigError("[calibrate]: fits the model to an experiment, and the scene has no [experiment]")
+    if s.integration.auto:
+        raise ConfigError(
+            "[calibrate] with [integration] dt_s = 'auto': the calibration compares histories at one step; "
+            "give dt_s a number (the auto ladder's choice for this scene, say)"
+        )
     if not cal.parameters:
         raise ConfigError("[calibrate] parameters = {}: name at least one parameter to fit, with its bounds")
     for name, bounds in cal.parameters.items():

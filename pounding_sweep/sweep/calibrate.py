@@ -50,11 +50,12 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.signal import sosfilt
 
 from pounding_sweep import codes as C
 from pounding_sweep.model.experiment import noise_floor
 from pounding_sweep.scene import Scene
-from pounding_sweep.sweep.prepare import Prepared, prepare
+from pounding_sweep.sweep.prepare import Prepared, history_spec, prepare
 from pounding_sweep.warn import warn
 
 #: parameters fitted on a log scale (positive, spanning decades)
@@ -137,9 +138,9 @@ class Problem:
             floor = c.removeprefix("abs_acc_")
             self.slots.append(tuple(range(len(channels), len(channels) + (1 if a else 2))))
             channels += [f"abs_acc_{floor}"] if a else [f"disp_{floor}", f"vel_{floor}"]
-        self.prep: Prepared = prepare(
-            dataclasses.replace(fixed, output=dataclasses.replace(fixed.output, histories=tuple(channels)))
-        )
+        kept = dataclasses.replace(fixed, output=dataclasses.replace(fixed.output, histories=tuple(channels)))
+        hspec, hcols = history_spec(kept, floors)  # the probe with histories: the record and table read once
+        self.prep: Prepared = dataclasses.replace(probe, scene=kept, hist=hspec, hist_columns=hcols)
         self.base = self.prep.grid.chunk(0, 1)
         cfg = scene.experiment
         duration = self.prep.excitation.max_duration_s
@@ -148,8 +149,6 @@ class Problem:
         sos = probe.score.sos if any(acc) else np.zeros((0, 6))
         gain = 1.0
         if sos.shape[0]:
-            from scipy.signal import sosfilt
-
             impulse = np.zeros(4096)
             impulse[0] = 1.0
             gain = float(np.sqrt(np.sum(sosfilt(sos, impulse) ** 2)))  # white noise's RMS through the filter
@@ -160,8 +159,6 @@ class Problem:
             y = exp.channels[c][inside]
             times.append(exp.time_s[inside])
             if a and sos.shape[0]:
-                from scipy.signal import sosfilt
-
                 values.append(sosfilt(sos, y))
             else:
                 values.append(y)
@@ -169,7 +166,6 @@ class Problem:
             sig.append(s0 * (gain if a else 1.0))
         self.target = Target(codes, acc, times, values, np.asarray(sig), sos)
         self.dt = self.prep.dt
-        self.floors = floors
 
     # ------------------------------------------------------------------ coordinates
     def to_z(self, theta: np.ndarray) -> np.ndarray:
@@ -201,7 +197,8 @@ class Problem:
         return p
 
     def residuals(self, thetas: np.ndarray, extra: dict | None = None) -> np.ndarray:
-        """(runs, N) noise-normalised residuals; rows of runs that diverged are +inf."""
+        """(runs, N) noise-normalised residuals; a non-finite one (a run that diverged) counts as 1e6 noise floors,
+        so that least squares stays finite and moves away."""
         thetas = np.atleast_2d(thetas)
         params = self.params(thetas, extra)
         _, _, hist, _, _ = self.prep.run(params, self.threads)
@@ -217,8 +214,6 @@ class Problem:
                     a = hist[i, slot[0]]
                     model = np.interp(ts / self.dt, np.arange(a.size), a)
                     if T.sos.shape[0]:
-                        from scipy.signal import sosfilt
-
                         model = sosfilt(T.sos, model)
                 else:
                     model = _hermite(hist[i, slot[0]], hist[i, slot[1]], self.dt, ts)
@@ -230,7 +225,7 @@ class Problem:
 
 def _hermite(u: np.ndarray, v: np.ndarray, dt: float, t: np.ndarray) -> np.ndarray:
     """Cubic Hermite interpolation of a displacement history u (velocity v) sampled at k dt, at times t; outside
-    the history: its end values (those samples are masked out of the fit)."""
+    the history (a fitted offset moving a window sample past the run's ends): its end values."""
     n = u.size
     x = np.clip(t / dt, 0.0, n - 1)
     k = np.minimum(np.floor(x).astype(np.int64), n - 2)
@@ -267,10 +262,8 @@ def _calibrate_one(scene: Scene, names: list[str], threads: int, best_cell: dict
     lo, hi = prob.z_bounds
     p = len(names)
 
-    mask = np.ones(prob.target.n, bool)  # the window's samples at the scene's offset (Target): fixed while fitting
-
     def rss_rows(thetas):
-        r = prob.residuals(thetas)[:, mask]
+        r = prob.residuals(thetas)
         return np.sum(r * r, axis=1)
 
     # global stage
@@ -290,7 +283,7 @@ def _calibrate_one(scene: Scene, names: list[str], threads: int, best_cell: dict
         progress(f"calibration ({scene.contact.law}): global stage done, {prob.evaluations} runs")
 
     def fun(z):
-        return prob.residuals(prob.to_theta(z)[None, :])[0, mask]
+        return prob.residuals(prob.to_theta(z)[None, :])[0]
 
     best = None
     width = hi - lo
@@ -304,7 +297,8 @@ def _calibrate_one(scene: Scene, names: list[str], threads: int, best_cell: dict
     N = r.size
     rss = float(r @ r)
     # the residuals' lag-1 autocorrelation, pooled over channels (each channel's series on its own)
-    rho = _lag1(r, [v.size for v in prob.target.values], mask)
+    sizes = [v.size for v in prob.target.values]
+    rho = _lag1(r, sizes)
     n_eff = N * (1 - rho) / (1 + rho) if rho > 0 else float(N)
     s2 = rss / max(N - p, 1)
     J = best.jac
@@ -333,11 +327,11 @@ def _calibrate_one(scene: Scene, names: list[str], threads: int, best_cell: dict
             ci[n] = (float(zlo), float(zhi))
 
     # per channel
-    sizes = np.cumsum([0] + [int(mm.sum()) for mm in _split(mask, [v.size for v in prob.target.values])])
+    ends = np.cumsum([0] + sizes)
     rms_m, noise, err_pct = {}, {}, []
     for c, code in enumerate(prob.target.codes):
-        rc = r[sizes[c] : sizes[c + 1]] * prob.target.sigma[c]
-        yc = prob.target.values[c][_split(mask, [v.size for v in prob.target.values])[c]]
+        rc = r[ends[c] : ends[c + 1]] * prob.target.sigma[c]
+        yc = prob.target.values[c]
         rms_m[code] = float(np.sqrt(np.mean(rc * rc)))
         noise[code] = float(prob.target.sigma[c])
         err_pct.append(100.0 * rms_m[code] / float(np.sqrt(np.mean(yc * yc))))
@@ -367,27 +361,18 @@ def _calibrate_one(scene: Scene, names: list[str], threads: int, best_cell: dict
     for n in profiled:
         j = names.index(n)
         fit.profiles[n] = _profile(prob, fun, n, z_opt, lo, hi, cal, s2 * N / n_eff, rss, se_z[j])
-    _identify(fit, prob)
+    _identify(fit)
     _warnings(fit, z_opt, lo, hi, cal)
     fit.evaluations = prob.evaluations
     fit.seconds = time.perf_counter() - t0
     return fit
 
 
-def _split(mask: np.ndarray, sizes: list[int]) -> list[np.ndarray]:
-    out, k = [], 0
-    for s in sizes:
-        out.append(mask[k : k + s])
-        k += s
-    return out
-
-
-def _lag1(r: np.ndarray, sizes: list[int], mask: np.ndarray) -> float:
-    """Pooled lag-1 autocorrelation of the residual series of each channel."""
+def _lag1(r: np.ndarray, sizes: list[int]) -> float:
+    """Pooled lag-1 autocorrelation of the residual series of each channel (`sizes`: their lengths, in order)."""
     num = den = 0.0
     k = 0
-    for m in _split(mask, sizes):
-        n = int(m.sum())
+    for n in sizes:
         x = r[k : k + n] - r[k : k + n].mean()
         k += n
         if n > 2:
@@ -443,27 +428,25 @@ def _profile(prob: Problem, fun, name, z_opt, lo, hi, cal, s2_eff, rss_opt, se) 
     return rows
 
 
-def _identify(fit: Fit, prob: Problem) -> None:
-    """Per profiled parameter: the range the data cannot exclude, and whether that identifies it."""
+def _identify(fit: Fit) -> None:
+    """Per profiled parameter: the range the data cannot exclude, and whether that identifies it (judged in the
+    fit's coordinate: log for stiffnesses)."""
     for name, rows in fit.profiles.items():
-        lo_b, hi_b = fit.bounds[name]
-        tr = (lambda v: math.log(v)) if name in LOG_SCALE else (lambda v: v)
-        a, b = _crossings(rows, fit.estimate[name], tr)
-        span = (tr(b) - tr(a)) / (tr(hi_b) - tr(lo_b))
-        touches_both = tr(a) - tr(lo_b) <= 1e-9 * (tr(hi_b) - tr(lo_b)) and tr(hi_b) - tr(b) <= 1e-9 * (
-            tr(hi_b) - tr(lo_b)
-        )
-        ok = not touches_both and span <= 0.5
-        fit.identified[name] = (ok, a, b)
+        fwd, back = (math.log, math.exp) if name in LOG_SCALE else (float, float)
+        rows = sorted(rows, key=lambda r: r["value"])
+        x = np.array([fwd(r["value"]) for r in rows])
+        y = np.array([r["delta_chi2"] for r in rows])
+        za, zb = _crossings(x, y, fwd(fit.estimate[name]))
+        zlo, zhi = fwd(fit.bounds[name][0]), fwd(fit.bounds[name][1])
+        touches_both = za - zlo <= 1e-9 * (zhi - zlo) and zhi - zb <= 1e-9 * (zhi - zlo)
+        ok = not touches_both and (zb - za) / (zhi - zlo) <= 0.5
+        fit.identified[name] = (ok, back(za), back(zb))
 
 
-def _crossings(rows: list[dict], estimate: float, tr) -> tuple[float, float]:
-    """Where the profile's delta chi^2 crosses CHI2_1_95 on either side of the optimum (linear interpolation in
-    the fit coordinate between ladder points; a bound when it stays below)."""
-    rows = sorted(rows, key=lambda r: r["value"])
-    x = np.array([tr(r["value"]) for r in rows])
-    y = np.array([r["delta_chi2"] for r in rows])
-    i0 = int(np.argmin(np.abs(x - tr(estimate))))
+def _crossings(x: np.ndarray, y: np.ndarray, x_opt: float) -> tuple[float, float]:
+    """Where a profile y(x) (delta chi^2 on an ascending ladder x) crosses CHI2_1_95 on either side of x_opt:
+    linear interpolation between ladder points; the ladder's end where it stays below."""
+    i0 = int(np.argmin(np.abs(x - x_opt)))
     ends = []
     for step in (-1, 1):
         i = i0
@@ -471,12 +454,10 @@ def _crossings(rows: list[dict], estimate: float, tr) -> tuple[float, float]:
             i += step
         if 0 <= i + step < x.size:  # crosses between i and i + step
             w = (CHI2_1_95 - y[i]) / (y[i + step] - y[i]) if y[i + step] != y[i] else 0.0
-            xc = x[i] + max(0.0, min(1.0, w)) * (x[i + step] - x[i])
+            ends.append(x[i] + max(0.0, min(1.0, w)) * (x[i + step] - x[i]))
         else:
-            xc = x[i]
-        ends.append(xc)
-    inv = (lambda v: math.exp(v)) if tr is not None and tr(math.e) == 1.0 else (lambda v: v)
-    return inv(ends[0]), inv(ends[1])
+            ends.append(x[i])
+    return ends[0], ends[1]
 
 
 def _warnings(fit: Fit, z_opt, lo, hi, cal) -> None:

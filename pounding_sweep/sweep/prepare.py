@@ -19,7 +19,7 @@ from pounding_sweep.codes import (
     SCHEMES,
 )
 from pounding_sweep.engine import layout as L
-from pounding_sweep.engine.driver import run_chunk
+from pounding_sweep.engine.driver import merge_rows, run_chunk
 from pounding_sweep.engine.inputs import HistorySpec, KernelOptions, Records, RunArrays, ScoreSpec
 from pounding_sweep.model.contact import contact_period
 from pounding_sweep.model.coupled import CoupledModel, SystemArrays
@@ -85,22 +85,11 @@ class Prepared:
         """run() for runs whose structure differs from the scene's: each distinct structure (and experiment
         clock) as its own group on its own system matrices, the rows put back in order. A group is a plain
         chunk to the engine, so a grid over the structure stays on the lane kernel where the scene allows."""
-        n = params["run_id"].size
-        out = None
+        parts = []
         for values, idx in groups:
             sub = {k: v[idx] for k, v in params.items()}
-            part = self.variant(values).run(sub, threads, batch_runs, done)
-            if out is None:
-                out = [np.zeros((n,) + part[0].shape[1:]), np.zeros(n), None, None, {}]
-            out[0][idx], out[1][idx] = part[0], part[1]
-            for slot in (2, 3):
-                if part[slot] is not None:
-                    if out[slot] is None:
-                        out[slot] = np.full((n,) + part[slot].shape[1:], np.nan)
-                    out[slot][idx, ..., : part[slot].shape[-1]] = part[slot]
-            for k, v in part[4].items():
-                out[4].setdefault(k, np.full(n, np.nan))[idx] = v
-        return tuple(out)
+            parts.append((idx, self.variant(values).run(sub, threads, batch_runs, done)))
+        return merge_rows(params["run_id"].size, parts)
 
     def variant(self, values: tuple) -> Prepared:
         """This scene with the structure values (STRUCTURE_AXES order) of a group of runs: its own model,

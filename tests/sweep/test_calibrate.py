@@ -327,3 +327,11 @@ def test_acceleration_channels_enter_the_calibration_filtered_like_the_kernel(tm
     assert fit.estimate["stiffness_scale_b1"] == pytest.approx(1.02, rel=3e-3)
     assert fit.estimate["stiffness_scale_b2"] == pytest.approx(0.975, rel=3e-3)
     assert fit.misfit_ratio < 1.5
+
+
+def test_calibrate_with_an_automatic_time_step_is_one_error(tmp_path):
+    text = (SWEEPS / "scored_6hz.toml").read_text().replace('"experiments/', f'"{SWEEPS}/experiments/')
+    text = text.replace("dt_s = 1e-4", 'dt_s = "auto"') + "\n[calibrate]\nparameters = { r = [0.1, 0.9] }\n"
+    (tmp_path / "s.toml").write_text(text)
+    with pytest.raises(ConfigError, match="dt_s = 'auto'"):
+        load_scene(tmp_path / "s.toml")

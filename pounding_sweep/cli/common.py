@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
+import signal
+import threading
+
 EXIT_BAD_INPUT = 2
 
 
@@ -27,3 +31,19 @@ class Bad(Exception):
 
     def __init__(self, path, what, value=None):
         super().__init__(f"{path}: {what}" + ("" if value is None else f" ({value})"))
+
+
+@contextlib.contextmanager
+def interruptible():
+    """Ctrl-C raises KeyboardInterrupt while a command runs, even when this process inherited SIGINT ignored
+    (a background job of a non-interactive shell, `nohup ... &`, many batch runners): CPython installs its
+    handler only where SIGINT is not ignored at start-up, and a sweep would otherwise ignore the signal and run
+    to its end. The inherited disposition is restored afterwards (`main()` may be called in a process)."""
+    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) != signal.SIG_IGN:
+        yield
+        return
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)

@@ -13,7 +13,7 @@ import signal
 import sys
 import threading
 
-from pounding_sweep.cli.common import EXIT_BAD_INPUT
+from pounding_sweep.cli.common import EXIT_BAD_INPUT, interruptible
 from pounding_sweep.errors import InputError
 from pounding_sweep.progress import Progress
 from pounding_sweep.scene import describe, load_scene
@@ -177,9 +177,18 @@ def _with_execution(scene, args):
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
-    if argv and argv[0] in SUBCOMMANDS:
-        module, func = SUBCOMMANDS[argv[0]].split(":")
-        return getattr(importlib.import_module(module), func)(argv[1:])
+    with interruptible():
+        if argv and argv[0] in SUBCOMMANDS:
+            module, func = SUBCOMMANDS[argv[0]].split(":")
+            try:
+                return getattr(importlib.import_module(module), func)(argv[1:])
+            except KeyboardInterrupt:  # a subcommand that does not say more itself (track does)
+                print("interrupted", file=sys.stderr)
+                return 130
+        return _sweep_main(argv)
+
+
+def _sweep_main(argv: list[str]) -> int:
     args = _parser().parse_args(argv)
     if args.describe:
         try:

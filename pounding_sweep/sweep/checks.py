@@ -8,8 +8,6 @@ import math
 
 import numpy as np
 
-from pounding_sweep.model.contact import contact_period
-from pounding_sweep.scene.axes import contact_stiffness
 from pounding_sweep.warn import warn
 
 #: sweep axes that are contact parameters: sweeping one says the scene studies pounding
@@ -25,34 +23,55 @@ def round_down_125(x: float) -> float:
     return float(f"{10.0 ** (e - 1) * 5:.0e}")
 
 
+#: the sweep axes that set a run's contact stiffness (and so its contact period)
+STIFFNESS_AXES = ("law", "ks_ratio", "ks_N_per_m", "kh_N_per_m1_5")
+
+
+def contact_stiffness_grid(grid):
+    """The grid's distinct contact stiffnesses as run parameters (Grid.chunk's form): its law and stiffness axes
+    crossed, every other parameter at the scene's value or its axis' first value (they do not set k)."""
+    from pounding_sweep.model.grid import Grid
+
+    axes = tuple((n, v) for n, v in grid.axes if n in STIFFNESS_AXES)
+    fixed = dict(grid.fixed)
+    fixed.update({n: v[0] for n, v in grid.axes if n not in STIFFNESS_AXES})
+    sub = Grid(axes, fixed)
+    return sub.chunk(0, sub.size)
+
+
 def check_time_step(prep) -> None:
     """Warn when the time step leaves every run's contact under-resolved (each run would be flagged
     contact_underresolved): the softest contact of the grid has the longest contact period, so the
-    grid's k_s values decide it before any run. With dt_s = 'auto' the step is chosen per run: no check."""
+    grid's stiffness values decide it before any run (k_s, or for the Hertz-type laws their tangent stiffness
+    at the reference penetration: sweep/prepare.py contact_arrays, whose steps per period this reads). With
+    dt_s = 'auto' the step is chosen per run: no check."""
+    from pounding_sweep.sweep.prepare import contact_arrays
+
     scene = prep.scene
-    if scene.integration.auto:
+    if scene.integration.auto or prep.model.n_pairs == 0:
         return
-    axes = dict(prep.grid.axes)
-    ratios = axes.get("ks_ratio", (prep.grid.fixed.get("ks_ratio"),))
-    newtons = axes.get("ks_N_per_m", (prep.grid.fixed.get("ks_N_per_m"),))
-    k_ref = scene.contact.k_ref_N_per_m
-    ks = np.array([contact_stiffness(r, n, k_ref) for r in ratios for n in newtons], dtype=float)
-    m1, m2 = prep.model.pair_masses()
-    if ks.size == 0 or m1.size == 0:
-        return
+    params = contact_stiffness_grid(prep.grid)
+    k, _, derived, _ = contact_arrays(prep.model, scene, params, prep.dt)
+    steps = derived["steps_per_contact_period"]
     dt = prep.dt
     want = scene.integration.min_steps_per_contact_period
-    period = contact_period(ks[:, None], m1[None, :], m2[None, :]).min(axis=1)  # per k_s: its shortest pair
-    soft, stiff = float(period.max()), float(period.min())
-    if soft / dt >= want:
+    softest = int(np.argmax(steps))
+    if steps[softest] >= want:
         return
+    soft, stiff = float(steps.max()) * dt, float(steps.min()) * dt  # contact periods [s]
     every = round_down_125(stiff / want)
     some = round_down_125(soft / want)
     hint = f"dt_s = {every:g}" if every == some else f"dt_s = {some:g} (the softest contact) or {every:g} (every run)"
+    hertz = "kh_N_per_m1_5" in derived and np.isfinite(derived["kh_N_per_m1_5"][softest])
+    what = (
+        f"the softest k_h = {float(k[softest]):.4g} N/m^1.5 (tangent stiffness 1.5 k_h sqrt(reference_penetration_m))"
+        if hertz
+        else f"the softest k_s = {float(k[softest]):.4g} N/m"
+    )
     warn(
         "contact_underresolved",
-        f"[integration] dt_s = {dt:g} s under-resolves every run's contact: {soft / dt:.3g} steps per contact "
-        f"period 2 pi sqrt(m_eff / k_s) at the softest k_s = {float(ks.min()):.4g} N/m, fewer than "
+        f"[integration] dt_s = {dt:g} s under-resolves every run's contact: {steps[softest]:.3g} steps per contact "
+        f"period 2 pi sqrt(m_eff / k) at {what}, fewer than "
         f"min_steps_per_contact_period = {want:g} (every run is flagged contact_underresolved): "
         f"use {hint}, or dt_s = 'auto'",
     )

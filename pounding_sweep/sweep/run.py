@@ -34,6 +34,7 @@ from pounding_sweep.scene import Scene
 from pounding_sweep.scene.axes import STRUCTURE_AXES
 from pounding_sweep.scene.channels import ACC_PREFIX
 from pounding_sweep.scene.hashing import hash_of
+from pounding_sweep.sweep import gate
 from pounding_sweep.sweep.checks import ContactTally, check_contact, check_time_step
 from pounding_sweep.sweep.prepare import Prepared, drift_ratio_columns, prepare  # noqa: F401
 from pounding_sweep.sweep.ranking import Ranking, Refinement, refine, score_columns, score_table_columns
@@ -215,6 +216,7 @@ def _run_claimed(scene, folder, threads, progress, executor, kernel, size, notes
                     )
                 write_part(out_path, res.index, table, meta)
                 folder.wrote_part()
+                gate.pause(f"part-{folder.parts_written}")
                 inflight.part_done(table)
                 if progress is not None:
                     progress(tally.runs, grid.size)

@@ -23,7 +23,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 from conftest import SWEEPS
-from gates import GatedSweep, run
+from gates import SAFETY_S, GatedSweep, run
 
 from pounding_sweep.errors import ClusterError, OutputError
 from pounding_sweep.scene import Axis, load_scene
@@ -324,7 +324,7 @@ def test_a_lost_dask_node_completes_the_sweep_exactly_once(tmp_path):
     from pounding_sweep.sweep.executors import DaskExecutor
 
     s = small_scene(runs_per_part=2, duration_s=2.0)
-    ex = DaskExecutor(workers=2)
+    ex = DaskExecutor(workers=2, timeout_s=SAFETY_S)  # restarted workers are waited for (a safety net only)
     recovered = []
     original = ex._recover
     ex._recover = lambda *a: (recovered.append(a[-1]), original(*a))
@@ -368,8 +368,11 @@ def test_a_lost_scheduler_is_one_line_and_the_sweep_resumes(tmp_path):
     )
     scene_file = gated_scene_file(tmp_path)
     out = tmp_path / "out.parquet"
-    sweep = gated(tmp_path, scene_file, out, "part-2", "--dask-address", address)
+    sweep = None
     try:
+        with dask_distributed.Client(address, timeout=f"{SAFETY_S}s") as c:  # up and staffed before the sweep
+            c.wait_for_workers(2, timeout=SAFETY_S)
+        sweep = gated(tmp_path, scene_file, out, "part-2", "--dask-address", address)
         sweep.wait_at("part-2")  # 28 of 30 parts still to run: the rest cannot finish without the scheduler
         os.killpg(scheduler.pid, signal.SIGKILL)
         scheduler.wait()
@@ -379,7 +382,8 @@ def test_a_lost_scheduler_is_one_line_and_the_sweep_resumes(tmp_path):
         assert err.count("\n") == 1 and err.startswith(f"error: Dask: lost the scheduler at {address}"), err
         assert "run the same command again to resume" in err
     finally:
-        sweep.kill()
+        if sweep is not None:
+            sweep.kill()
         for p in (scheduler, workers):
             try:
                 os.killpg(p.pid, signal.SIGKILL)

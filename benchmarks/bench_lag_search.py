@@ -47,9 +47,7 @@ def main() -> None:
         t_fast, fast = least_time(best_lag, xd, xe, max_lag)
         t_direct, direct = least_time(best_lag_direct, xd, xe, max_lag)
         assert fast[1] == direct[1], (fast, direct)
-        print(
-            f"{n:>8,} {2 * max_lag + 1:>6} {t_fast * 1e3:>12.2f} {t_direct * 1e3:>10.2f} {t_direct / t_fast:>18.1f}"
-        )
+        print(f"{n:>8,} {2 * max_lag + 1:>6} {t_fast * 1e3:>12.2f} {t_direct * 1e3:>10.2f} {t_direct / t_fast:>18.1f}")
 
 
 if __name__ == "__main__":

@@ -122,24 +122,28 @@ def _print_summary(s) -> None:
                 f"refined from the best cell ({how}{rf.evaluations} runs): {opt}, combined error {rf.error_pct:.3f} % "
                 f"(grid best {rf.start_error_pct:.3f} %)"
             )
-    if s.calibration:
-        _print_calibration(s.calibration)
+    if s.calibration_summary:
+        _print_calibration(s.calibration_summary, s.calibration_reused)
 
 
-def _print_calibration(fits) -> None:
-    """The calibration's answer: per law each fitted value with its 95 % interval and whether the data identify it,
-    the error against the noise floor, and (several laws) the comparison."""
-    from pounding_sweep.sweep.calibrate import fit_table, law_table
+def _print_calibration(md: dict, reused: bool) -> None:
+    """The calibration's answer (calibrate.calibration_metadata: new, or kept from an earlier run): per law each
+    fitted value with its 95 % interval and whether the data identify it, the error against the noise floor, and
+    (several laws) the comparison."""
+    import pandas as pd
 
-    ft = fit_table(fits)
-    print("\ncalibration (contact and structure fitted together; 95 % intervals; stored in the best table's metadata):")
-    for f in fits:
+    ft, lt = pd.DataFrame(md["fits"]), pd.DataFrame(md["laws"])
+    kept = "; kept from an earlier run of this calibration" if reused else ""
+    print(
+        "\ncalibration (contact and structure fitted together; 95 % intervals; stored in the best table's "
+        f"metadata{kept}):"
+    )
+    for f in lt.itertuples():
         print(
-            f"  {f.law}: relative RMS {f.error_pct:.3f} %, residual {f.misfit_ratio:.2f} x the noise floor, "
-            f"{f.evaluations} runs, {f.seconds:.0f} s"
+            f"  {f.contact_law}: relative RMS {f.rel_rms_pct:.3f} %, residual {f.misfit_over_noise:.2f} x the noise "
+            f"floor, {f.evaluations} runs, {f.seconds:.0f} s"
         )
-        rows = ft[ft.contact_law == f.law]
-        for r in rows.itertuples():
+        for r in ft[ft.contact_law == f.contact_law].itertuples():
             ident = (
                 "" if r.identified else f"  NOT IDENTIFIED: any value in [{r.profile_low:.4g}, {r.profile_high:.4g}]"
             )
@@ -147,14 +151,23 @@ def _print_calibration(fits) -> None:
                 f"    {r.parameter:<20} {r.estimate:.5g}  (95 % {r.ci95_low:.5g} .. {r.ci95_high:.5g}; "
                 f"bounds {r.lower_bound:g} .. {r.upper_bound:g}){ident}"
             )
-    if len(fits) > 1:
-        lt = law_table(fits).sort_values("aic")
+    if len(lt) > 1:
+        lt = lt.sort_values("aic")
         print("  laws compared (AIC with the residuals' effective count; within 2: the data cannot decide):")
         print(
             lt[["contact_law", "parameters", "rel_rms_pct", "misfit_over_noise", "delta_aic", "delta_bic"]].to_string(
                 index=False, float_format=lambda x: f"{x:.3g}"
             )
         )
+
+
+class SweepProgress(Progress):
+    """The progress meter, and a line for each stage of the calibration after the grid (which runs for a minute
+    or more between them): on stderr, terminal or not (a log keeps them), not with --quiet."""
+
+    def stage(self, message: str) -> None:
+        if self.announce:
+            print(message, file=sys.stderr, flush=True)
 
 
 def _print_warning(w) -> None:
@@ -222,7 +235,7 @@ def _sweep_main(argv: list[str]) -> int:
                     scene,
                     out_path=args.out,
                     threads=args.threads,
-                    progress=Progress(not args.quiet),
+                    progress=SweepProgress(not args.quiet),
                     overwrite=args.overwrite,
                     confirmed=args.yes,
                 )

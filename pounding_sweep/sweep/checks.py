@@ -4,6 +4,7 @@ contact although the scene is there to study pounding (a gap in mm in a metre fi
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -117,3 +118,74 @@ def check_contact(tally: ContactTally, scene) -> None:
     if swept:
         parts.append(f"the swept {', '.join(swept)} change nothing here")
     warn("no_contact", "; ".join(parts))
+
+
+#: the most memory the calibration's global stage may keep in histories: its Sobol points run as one batch
+GLOBAL_STAGE_BYTES = 2**30
+
+
+def check_calibration(prep) -> None:
+    """Before the grid, what would make the calibration after it fail or mislead, each one ConfigError naming
+    the key: a time offset (a [sweep] value, or a [calibrate] bound) that moves the scored window off the
+    experiment's table; a channel whose noise floor cannot be estimated (too few samples in the window: NaN; or
+    none at all: 0) when [calibrate] gives no noise_m for it; a global stage whose histories would not fit in
+    GLOBAL_STAGE_BYTES."""
+    from pounding_sweep.errors import ConfigError, ExperimentError
+    from pounding_sweep.model.experiment import NOISE_MIN_DIFFERENCES, noise_floor
+    from pounding_sweep.scene.channels import ACC_PREFIX
+    from pounding_sweep.sweep.scoring import score_spec
+
+    scene, exp = prep.scene, prep.experiment
+    if exp is None:
+        return
+    cal = scene.calibrate
+    offsets = [("[sweep] time_offset_s", v) for v in scene.axis_values("time_offset_s")]
+    if cal is not None and "time_offset_s" in cal.parameters:
+        bounds = cal.parameters["time_offset_s"]
+        offsets += [
+            (f"[calibrate] parameters.time_offset_s = [{bounds[0]:g}, {bounds[1]:g}]", float(b)) for b in bounds
+        ]
+    for key, offset in offsets:
+        moved = dataclasses.replace(scene.experiment, time_offset_s=offset)
+        try:
+            score_spec(exp, moved, prep.model.floors, prep.excitation.max_duration_s, prep.dt)
+        except ExperimentError as e:
+            raise ConfigError(f"{key}: at {offset:g} s, {e}") from None
+    if cal is None:
+        return
+    duration = prep.excitation.max_duration_s
+    lo, hi = scene.experiment.window_s or (0.0, duration)
+    t_sim = exp.time_s - scene.experiment.time_offset_s
+    inside = (t_sim >= lo) & (t_sim <= hi)
+    weights = prep.combination.weights if prep.combination is not None else None
+    rows = 0
+    for i, code in enumerate(prep.score_codes):
+        if weights is not None and weights[i] == 0:
+            continue
+        acc = code.startswith(ACC_PREFIX)
+        rows += 1 if acc else 2
+        if cal.noise_m is not None and not acc:
+            continue
+        y = exp.channels[code][inside]
+        sigma, _ = noise_floor(y)
+        if not sigma > 0:
+            why = (
+                f"{y.size} sample(s) in the scored window, fewer than the {NOISE_MIN_DIFFERENCES + 1} its noise floor "
+                "is estimated from"
+                if not np.isfinite(sigma)
+                else "no noise at all (its differences are all 0: quantised or noise-free data)"
+            )
+            fix = "widen [experiment] window_s" if not np.isfinite(sigma) else "give the tracking noise"
+            raise ConfigError(
+                f"[calibrate]: the experiment's channel {code} has {why}; the residuals are weighed by it: {fix}, or "
+                "give [calibrate] noise_m (the tracking noise in m)"
+                + (" (acceleration channels need samples for their own)" if acc else "")
+            )
+    per_run = rows * (prep.excitation.max_steps // scene.output.history_decimate + 1) * 8
+    if cal.global_points * per_run > GLOBAL_STAGE_BYTES:
+        most = max(0, GLOBAL_STAGE_BYTES // per_run)
+        raise ConfigError(
+            f"[calibrate] global_points = {cal.global_points:,}: its runs are made as one batch and keep "
+            f"{cal.global_points * per_run / 2**30:.3g} GiB of histories ({per_run / 2**20:.3g} MiB a run), more than "
+            f"{GLOBAL_STAGE_BYTES / 2**30:g} GiB: use at most {most:,} points"
+        )

@@ -252,7 +252,8 @@ ALLOWED_READERS = {
     # tables; our own parts (read back, and rewritten to store warnings); the track cache
     "pq.read_table": {"model/experiment.py", "sweep/run.py", "sweep/results.py", "video/tracker.py"},
     "pq.read_schema": {"model/experiment.py", "sweep/results.py"},  # a table's column names; our own parts
-    "pq.read_metadata": {"sweep/results.py", "sweep/resume.py"},  # footers: parts, and the best-runs file, as ours
+    # footers: parts, the best-runs file and a tracked table (track --out), as ours
+    "pq.read_metadata": {"sweep/results.py", "sweep/resume.py", "cli/track.py"},
     "cv2.VideoCapture": {"video/io.py"},
 }
 FORBIDDEN = (

@@ -35,7 +35,14 @@ from pounding_sweep.scene.axes import STRUCTURE_AXES
 from pounding_sweep.scene.channels import ACC_PREFIX
 from pounding_sweep.scene.hashing import hash_of
 from pounding_sweep.sweep import gate
-from pounding_sweep.sweep.checks import ContactTally, check_calibration, check_contact, check_time_step
+from pounding_sweep.sweep.checks import (
+    ContactTally,
+    check_calibration,
+    check_contact,
+    check_scale,
+    check_scene,
+    check_time_step,
+)
 from pounding_sweep.sweep.prepare import Prepared, drift_ratio_columns, prepare  # noqa: F401
 from pounding_sweep.sweep.ranking import Ranking, Refinement, refine, score_columns, score_table_columns
 from pounding_sweep.sweep.results import (
@@ -148,6 +155,7 @@ def _run_claimed(scene, folder, threads, progress, executor, kernel, size, notes
     out_path, hpath, ex = folder.out, folder.hpath, scene.execution
     prep = prepare(scene, kernel)
     check_time_step(prep)
+    check_scene(prep)
     check_calibration(prep)
     grid, model, exc = prep.grid, prep.model, prep.excitation
     chunk_runs = ex.chunk_runs
@@ -269,6 +277,7 @@ def _run_claimed(scene, folder, threads, progress, executor, kernel, size, notes
                 best = pd.concat([best, pd.DataFrame([refinement_row(summary.refinement)])], ignore_index=True)
         if not best.empty:
             _grid_edge_warnings(best, grid)
+        check_scale(tally.contact, prep, best)
         summary.best_path = folder.best
         meta = {"kind": "best", "results": out_path.name, "warnings": notes.messages()}
         if scene.calibrate is not None and not best.empty:
@@ -278,6 +287,7 @@ def _run_claimed(scene, folder, threads, progress, executor, kernel, size, notes
         best["run_id"] = best["run_id"].astype("Int64")
         summary.best = best
         _write_best(summary.best_path, best, scene, {**meta, "warnings": notes.messages()})
+        store_warnings(out_path, notes.messages())  # those found from the ranking and the calibration too
     return summary
 
 

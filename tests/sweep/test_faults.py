@@ -408,6 +408,37 @@ def test_an_unreachable_scheduler_is_reported_at_once(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_server_that_is_not_a_dask_scheduler_is_one_line(tmp_path):
+    """Something listens at the address, accepts, and says nothing (a web server waiting for its request): Dask's
+    client would wait for its handshake for ever. The probe waits timeout_s for the server's first bytes, then
+    says so; nothing is written. (A real scheduler writes its handshake at once: the lost-scheduler test.)"""
+    import threading
+
+    from pounding_sweep.sweep.executors import DaskExecutor
+
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen()
+    accepted = []
+    threading.Thread(target=lambda: accepted.append(server.accept()), daemon=True).start()
+    address = f"tcp://127.0.0.1:{server.getsockname()[1]}"
+    try:
+        with pytest.raises(ClusterError) as e:
+            DaskExecutor(address, timeout_s=1.0)
+        assert str(e.value).startswith(
+            f"no Dask scheduler at {address}: something listens there, but no Dask handshake"
+        )
+        s = small_scene()
+        bad = dataclasses.replace(s, execution=dataclasses.replace(s.execution, executor="dask", dask_address=address))
+        with pytest.raises(ClusterError, match="no Dask scheduler at"):
+            run_scene(bad, out_path=tmp_path / "o.parquet")
+        assert list(tmp_path.iterdir()) == []
+    finally:
+        server.close()
+        for conn, _ in accepted:
+            conn.close()
+
+
 @pytest.mark.parametrize(
     "sig, code, line", [(signal.SIGINT, 130, "interrupted:"), (signal.SIGTERM, 143, "terminated (SIGTERM):")]
 )

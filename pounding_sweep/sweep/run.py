@@ -34,7 +34,6 @@ from pounding_sweep.scene import Scene
 from pounding_sweep.scene.axes import STRUCTURE_AXES
 from pounding_sweep.scene.channels import ACC_PREFIX
 from pounding_sweep.scene.hashing import hash_of
-from pounding_sweep.sweep import gate
 from pounding_sweep.sweep.checks import (
     ContactTally,
     check_calibration,
@@ -43,6 +42,7 @@ from pounding_sweep.sweep.checks import (
     check_scene,
     check_time_step,
 )
+from pounding_sweep.sweep.gate import pause
 from pounding_sweep.sweep.prepare import Prepared, drift_ratio_columns, prepare  # noqa: F401
 from pounding_sweep.sweep.ranking import Ranking, Refinement, refine, score_columns, score_table_columns
 from pounding_sweep.sweep.results import (
@@ -230,7 +230,7 @@ def _run_claimed(scene, folder, threads, progress, executor, kernel, size, notes
                     )
                 write_part(out_path, res.index, table, meta)
                 folder.wrote_part()
-                gate.pause(f"part-{folder.parts_written}")
+                pause(f"part-{folder.parts_written}")
                 inflight.part_done(table)
                 if progress is not None:
                     progress(tally.runs, grid.size)
@@ -321,7 +321,7 @@ def _write_best(path: Path, best, scene: Scene, meta: dict) -> None:
         path,
         pa.Table.from_pandas(best, preserve_index=False),
         file_metadata(scene, meta),
-        before_rename=lambda: gate.pause("best"),
+        before_rename=lambda: pause("best"),
     )
 
 
@@ -352,7 +352,7 @@ def _calibrated(scene: Scene, best, meta: dict, summary: SweepSummary, progress,
         summary.calibration_summary, summary.calibration_reused = md, True
         return pd.concat([best, rows], ignore_index=True), {**meta, "calibration": md, "calibration_key": key}
     _write_best(summary.best_path, best, scene, meta)
-    gate.pause("calibrate")
+    pause("calibrate")
     say = getattr(progress, "stage", None)
     grid_best = best[best.criterion == "rel_rms_combined_pct"]
     cell = {n: float(grid_best[n].iloc[0]) for n in scene.calibrate.parameters if n in grid_best}

@@ -105,6 +105,26 @@ def test_a_coarse_time_step_warns_and_suggests_one_that_resolves_every_run(tmp_p
         assert set(pd.read_parquet(tmp_path / f"dt{dt}.parquet").status) == flagged
 
 
+@pytest.mark.parametrize("sweep", ["r = [0.4]", "kh_N_per_m1_5 = [2e5, 4e5]\nr = [0.4]"], ids=["kh fixed", "kh swept"])
+def test_a_hertz_scene_with_kh_alone_runs_and_its_time_step_is_checked(tmp_path, sweep):
+    """k_h given as kh_N_per_m1_5 without ks_ratio (the documented way to set a Hertz stiffness) used to end in a
+    TypeError in the time-step check; it runs, and a coarse dt warns by the law's tangent stiffness 1.5 k_h
+    sqrt(reference_penetration_m) (sweep/prepare.py contact_arrays)."""
+    text = short(SIX_HZ, sweep).replace("ks_ratio = 1.0\n", "").replace('law = "classic"', 'law = "hertzdamp"')
+    if "kh_N_per_m1_5 = [" not in text:
+        text = text.replace('law = "hertzdamp"', 'law = "hertzdamp"\nkh_N_per_m1_5 = 2e5')
+    code, _, stderr = cli(scene_file(tmp_path, text), "--quiet")
+    assert code == 0 and warning_lines(stderr) == [], stderr
+    coarse = scene_file(tmp_path, text.replace("dt_s = 1e-4", "dt_s = 2e-3"), "coarse.toml")
+    code, _, stderr = cli(coarse, "--out", tmp_path / "coarse.parquet", "--quiet")
+    assert code == 0
+    (line,) = warning_lines(stderr)
+    assert line.startswith("warning: [integration] dt_s = 0.002 s under-resolves every run's contact: ")
+    assert ": 19.1 steps per contact period 2 pi sqrt(m_eff / k) at the softest k_h = 2e+05 N/m^1.5" in line
+    df = pd.read_parquet(tmp_path / "coarse.parquet")
+    assert df.status.str.contains("contact_underresolved").all() and df.kh_N_per_m1_5.notna().all()
+
+
 def test_a_record_in_milliseconds_warns_before_it_runs(tmp_path):
     t_ms = np.arange(100) * 5.0  # 200 samples/s written in ms: read as a 5 s step, 495 s long
     acc = 0.5 * np.sin(2 * np.pi * 2.0 * t_ms / 1e3)

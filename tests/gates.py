@@ -96,6 +96,16 @@ class GatedSweep:
         else:
             self.proc.send_signal(sig)
 
+    def stop_at(self, point: str, sig: int, group: bool = False) -> tuple[int, str, str]:
+        """Wait at `point`, send `sig` there (to the whole process group with `group`), and return how the sweep
+        ended: (exit status, stdout, stderr)."""
+        try:
+            self.wait_at(point)
+            self.signal(sig, group)
+            return self.finish()
+        finally:
+            self.kill()
+
     def finish(self) -> tuple[int, str, str]:
         """(exit status, stdout, stderr) once it has ended."""
         out, err = self.proc.communicate(timeout=SAFETY_S)

@@ -22,12 +22,7 @@ def test_a_sweep_started_with_sigint_ignored_still_stops_at_ctrl_c(tmp_path):
     out = tmp_path / "out.parquet"
     argv = (tmp_path / "s.toml", "--out", out, "--quiet", "--threads", "1")
     sweep = GatedSweep(tmp_path / "gate", ["part-1"], *argv, preexec_fn=sigint_ignored)
-    try:
-        sweep.wait_at("part-1")
-        sweep.signal(signal.SIGINT)
-        code, _, err = sweep.finish()
-    finally:
-        sweep.kill()
+    code, _, err = sweep.stop_at("part-1", signal.SIGINT)
     assert code == 130 and err == "interrupted: the finished parts are kept; run the same command again to resume\n"
     assert len(part_files(out)) == 1
 

@@ -110,12 +110,7 @@ def test_ctrl_c_before_the_calibration_is_one_line_and_leaves_the_grids_best_tab
     scene_file = scored_scene(tmp_path)
     out = tmp_path / "r.parquet"
     sweep = GatedSweep(tmp_path / "gate", ["calibrate"], scene_file, "--out", out, "--threads", "1", "--quiet")
-    try:
-        sweep.wait_at("calibrate")
-        sweep.signal(signal.SIGINT)
-        code, _, err = sweep.finish()
-    finally:
-        sweep.kill()
+    code, _, err = sweep.stop_at("calibrate", signal.SIGINT)
     assert code == 130 and err == "interrupted: the finished parts are kept; run the same command again to resume\n"
     best = out.with_name("r.best.parquet")
     assert "calibration" not in read_metadata(best) and "calibrated" not in set(best_rows(best).index)

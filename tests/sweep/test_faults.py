@@ -448,12 +448,7 @@ def test_ctrl_c_and_sigterm_under_a_local_cluster_are_one_line(tmp_path, sig, co
     scene_file = gated_scene_file(tmp_path)
     out = tmp_path / "out.parquet"
     sweep = gated(tmp_path, scene_file, out, "part-2", "--executor", "dask", "--workers", "2", start_new_session=True)
-    try:
-        sweep.wait_at("part-2")
-        sweep.signal(sig, group=True)
-        got, _, err = sweep.finish()
-    finally:
-        sweep.kill()
+    got, _, err = sweep.stop_at("part-2", sig, group=True)
     assert got == code and err.count("\n") == 1 and err.startswith(line), err
     assert "the finished parts are kept; run the same command again to resume" in err
     assert (out / MANIFEST).exists() and len(part_files(out)) == 2
@@ -463,13 +458,7 @@ def test_ctrl_c_and_sigterm_under_a_local_cluster_are_one_line(tmp_path, sig, co
 def test_sigterm_on_the_local_executor_is_one_line(tmp_path):
     scene_file = gated_scene_file(tmp_path)
     out = tmp_path / "out.parquet"
-    sweep = gated(tmp_path, scene_file, out, "part-2", "--threads", "1")
-    try:
-        sweep.wait_at("part-2")
-        sweep.signal(signal.SIGTERM)
-        code, _, err = sweep.finish()
-    finally:
-        sweep.kill()
+    code, _, err = gated(tmp_path, scene_file, out, "part-2", "--threads", "1").stop_at("part-2", signal.SIGTERM)
     assert code == 143 and err == (
         "terminated (SIGTERM): the finished parts are kept; run the same command again to resume\n"
     )

@@ -95,3 +95,29 @@ def relation(x: np.ndarray, y: np.ndarray, fs: float, band: tuple[float, float],
     away = np.abs(np.arange(c.size) - i) > lobe
     runner = float(np.max(np.abs(c[away]))) if away.any() else 0.0
     return Relation(float((lags[i] + p) / fs), 1 if c[i] >= 0 else -1, float(c[i]), runner)
+
+
+#: two floors' records nearly proportional in a band: |correlation| at the best lag at least this
+PROPORTIONAL = 0.9
+
+
+def proportional_band(x: np.ndarray, y: np.ndarray, fs: float) -> tuple[tuple[float, float], Relation] | None:
+    """The widest band [lo, hi] from the lowest frequency upward, hi doubling from 4 lo (the narrow ones skipped
+    while they hold no common motion, e.g. below a harmonic test's forcing), in which y is nearly
+    proportional to x (|correlation| >= PROPORTIONAL at the best lag within half a period of 4 lo, at most 1 s), and the
+    relation there; None when even the lowest band is not. Two floors of a building move together there: below
+    the first resonance rigidly, and at a resonance the first mode's shape puts every floor in phase; the
+    correlation drops where modes mix. No resonance needs to be known (the ratio of two floors' spectra peaks
+    at the lower floor's zeros, not at the building's modes)."""
+    n = min(x.size, y.size)
+    lo = LOW_CYCLES * fs / n
+    best = None
+    hi = 4 * lo
+    while hi < 0.4 * fs:
+        rel = relation(x[:n], y[:n], fs, (lo, hi), min(0.5 / (4 * lo), 1.0))
+        if abs(rel.correlation) >= PROPORTIONAL and (best is None or rel.sign == best[1].sign):
+            best = ((lo, hi), rel)
+        elif best is not None:
+            break
+        hi *= 2
+    return best

@@ -1,0 +1,170 @@
+"""What an experiment's channels and record say about the sensors that made them, as warnings naming the
+channel and the fix: gravity or an offset left in an acceleration, a channel reversed or lagging against the
+floor below it (or the table's record), a sample rate that aliases the model's modes.
+
+Why these tests hold on any shake-table test:
+- offset: a test that starts and ends at rest has zero mean acceleration (the integral of a is the change of
+  velocity, 0), so a mean above 3 noise standard deviations is a sensor offset (tilt puts g sin(angle) on a
+  horizontal axis) or gravity itself (a vertical axis reads about g);
+- sign and lag: below half the first resonance a floor moves with the floor below it and with the table,
+  in phase within a millisecond or so (signals.py): a negative correlation there is a reversed sensor, a lag a
+  clock that is not shared. Floors are compared with floors of the same kind (absolute accelerations with each
+  other and with the table's acceleration; displacements relative to the table with each other);
+- aliasing: a mode above half the sample rate cannot be seen at its frequency; sampled without an anti-alias
+  filter it folds onto another frequency (|f - m fs|), with one it is gone from the measurement but not from the
+  model, which the scoring samples without one.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from pounding_sweep.model.records import G_STANDARD
+from pounding_sweep.model.sensors.signals import physical_delay_bound, proportional_band
+
+#: a mean acceleration above this many noise standard deviations is an offset
+OFFSET_SIGMAS = 3.0
+#: a mean within this share of g of +/- g is gravity
+GRAVITY_SHARE = 0.2
+#: correlations weaker than this in the rigid band decide nothing
+MIN_CORRELATION = 0.5
+#: the fewest samples a sign or lag check uses
+MIN_SAMPLES = 256
+
+
+def offset_problem(name: str, x: np.ndarray, noise: float, unit_factor: float = 1.0, unit: str = "m/s^2") -> str | None:
+    """A warning when the mean of acceleration x [m/s^2] is gravity or an offset above OFFSET_SIGMAS noise
+    standard deviations (`noise` [m/s^2]); values shown in `unit` (SI value / unit_factor)."""
+    m = float(np.mean(x))
+    if not (math.isfinite(noise) and noise > 0) or abs(m) <= OFFSET_SIGMAS * noise:
+        return None
+    shown = f"{m / unit_factor:.4g} {unit}"
+    if abs(abs(m) - G_STANDARD) <= GRAVITY_SHARE * G_STANDARD:
+        return (
+            f"{name}: mean {shown}, about {'+' if m > 0 else '-'}g: gravity is in it (a vertical axis, or raw "
+            "sensor output): use the horizontal shaking axis and subtract the mean of a quiet window "
+            "(python -m pounding_sweep import does both)"
+        )
+    return (
+        f"{name}: mean {shown}, {abs(m) / noise:.0f} times its noise ({noise / unit_factor:.3g} {unit}): a test "
+        "that starts and ends at rest has zero mean acceleration, so this is a sensor offset (tilt puts "
+        "g sin(angle) on a horizontal axis); subtract the mean of a quiet window before the shaking "
+        "(python -m pounding_sweep import --quiet START,END)"
+    )
+
+
+def pair_problems(
+    name: str, x: np.ndarray, below_name: str, below: np.ndarray, fs: float, keep_lag: bool = False
+) -> list[tuple]:
+    """Sign and lag of channel x against the channel below it (same kind, same samples), in the band where the
+    two are nearly proportional (signals.proportional_band): (kind, warning) for each that is wrong (with
+    keep_lag, (kind, warning, value): -1 for a reversal, the lag [s] for a lag)."""
+    n = min(x.size, below.size)
+    if n < MIN_SAMPLES or np.std(x[:n]) == 0 or np.std(below[:n]) == 0:
+        return []
+    x, below = x[:n], below[:n]
+    found = proportional_band(below, x, fs)
+    if found is None:
+        return []
+    band, rel = found
+    out = []
+    where = f"in {band[0]:.3g}-{band[1]:.3g} Hz, where the two move together"
+    if rel.sign < 0:
+        out.append(
+            (
+                "channel_sign",
+                f"{name}: reversed against {below_name}: correlation {rel.correlation:+.2f} {where}; the sensor is "
+                f"mounted the other way round: multiply the column by -1 (python -m pounding_sweep import fixes signs)",
+                -1,
+            )
+        )
+    bound = max(1.5 / fs, 2.0 * physical_delay_bound(2 * band[1]))
+    if abs(rel.lag_s) > bound:
+        out.append(
+            (
+                "channel_lag",
+                f"{name}: lags {below_name} by {1e3 * rel.lag_s:+.1f} ms (cross-correlation {where}; a floor lags "
+                f"by less than {1e3 * bound:.1f} ms there): its clock is not the others'; shift its time by "
+                f"{-rel.lag_s:+.4f} s (python -m pounding_sweep import aligns clocks by cross-correlation)",
+                rel.lag_s,
+            )
+        )
+    return [(k, m) for k, m, *_ in out] if not keep_lag else out
+
+
+def aliasing_problems(where: str, fs: float, modes_Hz: dict[str, list[float]]) -> list[str]:
+    """A warning per building whose modes lie above half the sample rate fs (module docstring)."""
+    out = []
+    nyq = fs / 2
+    for b, fr in modes_Hz.items():
+        high = [(k + 1, f) for k, f in enumerate(fr) if f > nyq]
+        if high:
+            folded = ", ".join(
+                f"mode {k} at {f:.4g} Hz folds onto {abs(f - fs * round(f / fs)):.4g} Hz" for k, f in high
+            )
+            out.append(
+                f"{where}: sampled at {fs:.6g} Hz (Nyquist {nyq:.6g} Hz), below {b}'s modes: {folded}; the scoring "
+                "samples the model without an anti-alias filter, a sensor usually with one: record at more than "
+                f"{2 * max(f for _, f in high):.4g} Hz, or low-pass both (lowpass_Hz) below {nyq:.4g} Hz"
+            )
+    return out
+
+
+def record_problem(rec) -> str | None:
+    """Gravity or an offset in a ground-motion record (records.GroundRecord), against its noise floor estimated
+    by differences (model/experiment.py noise_floor): the fix is the record's, before the scene reads it."""
+    from pounding_sweep.model.experiment import noise_floor
+
+    sigma, _ = noise_floor(rec.acc_m_s2)
+    w = offset_problem(f"{rec.source} (record)", rec.acc_m_s2, sigma)
+    return None if w is None else w + "; the record drives the model as read, offset included"
+
+
+def experiment_problems(exp) -> list[tuple[str, str]]:
+    """(kind, message) for each problem the table's channels show (model/experiment.py Experiment): offsets in
+    its acceleration channels, and each channel's sign and lag against the nearest lower floor of its building
+    with a channel of the same kind."""
+    from pounding_sweep import codes
+    from pounding_sweep.model.experiment import noise_floor
+
+    out = []
+    fs = 1.0 / exp.dt_sample
+    floors: dict[tuple[int, int], list[tuple[int, str]]] = {}
+    for code, x in exp.channels.items():
+        kind = exp.kinds.get(code, codes.H_DISP)
+        name = f"{exp.path}: column '{exp.columns[code]}' ({code})"
+        if kind == codes.H_ABS_ACC:
+            sigma = exp.noise.get(code) or noise_floor(x)[0]
+            if (w := offset_problem(name, x, sigma)) is not None:
+                out.append(("channel_offset", w))
+        b, f = (int(v) for v in code.removeprefix("abs_acc_")[1:].split("f"))
+        floors.setdefault((kind, b), []).append((f, code))
+    for group in floors.values():
+        group.sort()
+        fixed = {}  # a channel found reversed or late is compared on, corrected: one fault, one warning
+        for (_, lower), (_, upper) in zip(group, group[1:]):
+            x, y = exp.channels[upper], fixed.get(lower, exp.channels[lower])
+            found = pair_problems(
+                f"{exp.path}: column '{exp.columns[upper]}' ({upper})",
+                x,
+                f"'{exp.columns[lower]}' ({lower})",
+                y,
+                fs,
+                keep_lag=True,
+            )
+            out += [(kind, w) for kind, w, _ in found]
+            fixed[upper] = _corrected(x, found, fs)
+    return out
+
+
+def _corrected(x: np.ndarray, found: list[tuple], fs: float) -> np.ndarray:
+    """x with the sign and lag pair_problems found undone (the lag to the nearest sample)."""
+    for kind, _, v in found:
+        if kind == "channel_sign":
+            x = -x
+        elif kind == "channel_lag":
+            k = int(round(v * fs))
+            x = np.concatenate([x[k:], np.zeros(k)]) if k > 0 else np.concatenate([np.zeros(-k), x[: x.size + k]])
+    return x

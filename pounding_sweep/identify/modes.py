@@ -50,6 +50,7 @@ NumPy and SciPy only (no OpenCV).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -223,6 +224,7 @@ class Peak:
     frequency_Hz: float
     height: float
     bin: int
+    prominence: float = float("nan")  # scipy.signal.find_peaks' prominence on the spectrum searched
 
 
 def _band(s: Spectrum, fmin: float, fmax: float | None) -> tuple[float, float, np.ndarray]:
@@ -283,8 +285,9 @@ def find_peaks(
             higher = (v[found] > v[found[k]]) & (d > 1.0)
             if np.any(v[found[k]] <= 2.0 * sidelobes(d[higher]) * v[found[higher]]):
                 inside[k] = False
-    order = found[inside][np.argsort(-props["prominences"][inside])]
-    peaks = [Peak(*refine_peak(f, v, int(i)), int(i)) for i in order]
+    prom = props["prominences"][inside]
+    order = np.argsort(-prom)
+    peaks = [Peak(*refine_peak(f, v, int(i)), int(i), float(p)) for i, p in zip(found[inside][order], prom[order])]
     if valid is not None:
         peaks = [p for p in peaks if valid(p)]
     return sorted(peaks[:n], key=lambda p: p.frequency_Hz)
@@ -339,6 +342,7 @@ class LogDecrement:
     peak_times_s: np.ndarray
     peak_values: np.ndarray
     cycles: int
+    damping_std_error: float = float("nan")  # from the line's slope (least squares), nan with 3 peaks
 
 
 def log_decrement(
@@ -389,10 +393,18 @@ def log_decrement(
     if vp.size < 3:
         raise ValueError(f"need at least 3 decaying peaks above the noise, found {vp.size}")
     k = np.arange(vp.size)
-    slope = np.polyfit(k, np.log(vp), 1)[0]
+    (slope, icpt) = np.polyfit(k, np.log(vp), 1)
     delta = -float(slope)
     fd = (vp.size - 1) / (tp[-1] - tp[0])
-    return LogDecrement(float(delta / np.sqrt(4 * np.pi**2 + delta**2)), delta, float(fd), tp, vp, int(vp.size - 1))
+    # the slope's standard error (ordinary least squares), through d zeta / d delta = 4 pi^2 / (4 pi^2 + delta^2)^1.5
+    resid = np.log(vp) - (slope * k + icpt)
+    se_slope = (
+        float(np.sqrt(resid @ resid / (vp.size - 2) / np.sum((k - k.mean()) ** 2))) if vp.size > 3 else float("nan")
+    )
+    se = se_slope * 4 * np.pi**2 / (4 * np.pi**2 + delta**2) ** 1.5
+    return LogDecrement(
+        float(delta / np.sqrt(4 * np.pi**2 + delta**2)), delta, float(fd), tp, vp, int(vp.size - 1), float(se)
+    )
 
 
 def fourier_coefficients(X, fs: float, f: float, window: str = "hann") -> np.ndarray:
@@ -434,6 +446,21 @@ class Mode:
     damping_half_power: float  # NaN when the band is not resolved
     damping_log_decrement: float | None  # free vibration only
     shape: dict  # channel -> signed ratio to the reference channel
+    #: the half-power damping's interval: each half-power frequency known to half a resolution, so the band to
+    #: one resolution: zeta +/- resolution / (2 f) (the lower end clipped at 0)
+    damping_half_power_interval: tuple[float, float] = (float("nan"), float("nan"))
+    damping_log_decrement_se: float | None = None  # its standard error (the log line's slope)
+    merged_Hz: tuple[float, ...] = ()  # other peaks of the same shape merged into this mode (MAC >= MAC_SAME)
+    prominence: float = float("nan")
+
+
+#: two peaks whose shapes have a MAC at least this are one mode (a split peak): Allemang, "The modal assurance
+#: criterion - twenty years of use and abuse", Sound and Vibration 37 (2003): above 0.9, consistent shapes
+MAC_SAME = 0.9
+#: ... and lie within this share of each other's frequency: a split peak (a frequency that drifts with the
+#: amplitude during a record, beating) is a few percent wide; a forced response's peaks (output-only: the
+#: input's spectrum) have the first mode's shape too, and lie further off
+MERGE_SPAN = 0.05
 
 
 @dataclass(frozen=True)
@@ -493,7 +520,7 @@ def identify(
         tot = sum(s.values / max(s.values[1:].max(), 1e-300) for s in specs)
         sumspec = Spectrum(specs[0].frequency_Hz, tot, "amplitude", specs[0].resolution_Hz)
         lobes = hann_sidelobes if win == "hann" else None
-        peaks = find_peaks(sumspec, n_modes, fmin, fmax, min_snr=min_snr, sidelobes=lobes)
+        peaks = find_peaks(sumspec, 2 * n_modes, fmin, fmax, min_snr=min_snr, sidelobes=lobes)
         rect = amplitude_spectrum(Xs[:, reference], fs, window="boxcar")
         method = "output-only"
     else:
@@ -515,7 +542,7 @@ def identify(
             dropped.append(p)
             return False
 
-        peaks = find_peaks(sumspec, n_modes, fmin, fmax, min_snr=min_snr, valid=above_noise)
+        peaks = find_peaks(sumspec, 2 * n_modes, fmin, fmax, min_snr=min_snr, valid=above_noise)
         for p in sorted(dropped[:n_modes], key=lambda p: p.frequency_Hz):
             notes.append(
                 f"{p.frequency_Hz:.3f} Hz: a peak of the transmissibility where the floors' response is at its "
@@ -530,7 +557,7 @@ def identify(
         for p in peaks:
             a, b = max(p.bin - half, 1), min(p.bin + half, f.size - 2)
             i = a + int(np.argmax(rawsum[a : b + 1]))
-            placed.append(Peak(*refine_peak(f, rawsum, i), i) if a < i < b else p)
+            placed.append(Peak(*refine_peak(f, rawsum, i), i, p.prominence) if a < i < b else p)
         peaks = placed
         # damping: the unsmoothed ratio keeps the peak's width (the exponential window's sigma is removed below)
         rect = Spectrum(f, np.abs(tr.raw[:, reference]), "amplitude", fs / Xs.shape[0])
@@ -547,22 +574,36 @@ def identify(
     modes = []
     for p in peaks:
         zhp = half_power_damping(rect, p.frequency_Hz)
+        interval = (float("nan"), float("nan"))
         if np.isfinite(zhp):
             # the band as measured; under the exponential window it is widened by sigma / pi, removed here
             band = 2 * zhp * p.frequency_Hz
             zhp -= sigma / (2 * np.pi * p.frequency_Hz)
-            if band < 2 * rect.resolution_Hz or zhp <= 0:
+            half = rect.resolution_Hz / (2 * p.frequency_Hz)
+            interval = (max(zhp - half, 0.0), zhp + half)
+            if zhp <= 0:
+                notes.append(
+                    f"{p.frequency_Hz:.3f} Hz: half-power damping {100 * zhp:.2f} % after the window's decay "
+                    f"{sigma:.3g} 1/s is removed, not above 0: the peak is no wider than the window makes it (record "
+                    "too short, or not a resonance): damping unreliable"
+                )
+                zhp = float("nan")
+            elif band < 2 * rect.resolution_Hz:
                 notes.append(
                     f"{p.frequency_Hz:.3f} Hz: half-power band {band:.3g} Hz is not wider than twice the resolution "
                     f"{rect.resolution_Hz:.3g} Hz (record too short): damping unreliable"
                 )
-            if zhp <= 0:
-                zhp = float("nan")
-        zld = None
+        zld, zse = None, None
         if free_vibration:
             hi_bp = min(1.25 * p.frequency_Hz, 0.49 * fs)
             try:
-                zld = log_decrement(Xs[:, reference], fs, band_Hz=(0.75 * p.frequency_Hz, hi_bp)).damping_ratio
+                ld = log_decrement(Xs[:, reference], fs, band_Hz=(0.75 * p.frequency_Hz, hi_bp))
+                zld, zse = ld.damping_ratio, ld.damping_std_error
+                if zld <= 0:
+                    notes.append(
+                        f"{p.frequency_Hz:.3f} Hz: logarithmic decrement {100 * zld:.2f} %: the peaks do not decay "
+                        "(forced, or beating of two close modes): damping unreliable"
+                    )
             except ValueError as e:
                 notes.append(f"{p.frequency_Hz:.3f} Hz: no logarithmic decrement ({e})")
         if table is None:
@@ -571,7 +612,46 @@ def identify(
             h = tr.H[p.bin]
             r = h / h[reference] if abs(h[reference]) > 0 else np.full(h.shape, np.nan)
             ratios = np.abs(r) * np.sign(np.cos(np.angle(r)))
-        modes.append(Mode(p.frequency_Hz, zhp, zld, dict(zip(channels, ratios.tolist()))))
+        modes.append(
+            Mode(
+                p.frequency_Hz,
+                zhp,
+                zld,
+                dict(zip(channels, ratios.tolist())),
+                interval,
+                zse,
+                (),
+                p.prominence,
+            )
+        )
+    modes = merge_same_shapes(modes, notes)
+    # the n most prominent of the peaks looked for (twice as many, so that a merged split peak leaves room)
+    if len(modes) > n_modes:
+        order = sorted(range(len(modes)), key=lambda k: -modes[k].prominence if np.isfinite(modes[k].prominence) else 0)
+        modes = sorted((modes[k] for k in order[:n_modes]), key=lambda m: m.frequency_Hz)
     return ModalResult(
         channels, float(fs), channels[reference], tuple(modes), sumspec, tuple(notes), method, sigma, (lo, hi)
     )
+
+
+def merge_same_shapes(modes: list[Mode], notes: list[str]) -> list[Mode]:
+    """Neighbouring peaks (in frequency, within MERGE_SPAN) whose shapes have a MAC of MAC_SAME or more are one mode: the more
+    prominent peak is kept, the other listed in its merged_Hz, and a note says so. With one channel every shape
+    is the same: nothing is merged (a single channel cannot tell a split peak from two modes)."""
+    if not modes or len(modes[0].shape) < 2:
+        return modes
+    out = [modes[0]]
+    for m in modes[1:]:
+        prev = out[-1]
+        a, b = np.array(list(prev.shape.values())), np.array(list(m.shape.values()))
+        near = m.frequency_Hz - prev.frequency_Hz <= MERGE_SPAN * m.frequency_Hz
+        if near and np.all(np.isfinite(a)) and np.all(np.isfinite(b)) and mac(a, b) >= MAC_SAME:
+            keep, drop = (prev, m) if not (m.prominence > prev.prominence) else (m, prev)
+            notes.append(
+                f"{drop.frequency_Hz:.3f} and {keep.frequency_Hz:.3f} Hz have the same shape (MAC {mac(a, b):.3f} >= "
+                f"{MAC_SAME:g}): one mode, a split peak; kept {keep.frequency_Hz:.3f} Hz, the more prominent"
+            )
+            out[-1] = dataclasses.replace(keep, merged_Hz=(*keep.merged_Hz, drop.frequency_Hz, *drop.merged_Hz))
+        else:
+            out.append(m)
+    return out

@@ -173,11 +173,44 @@ def experiment_from_table(
         cols[code] = col
     noise, how = channel_noise(t, chans, cols, kinds, cfg, where)
     exp = Experiment(str(where), t, chans, cols, md, kinds, noise, how)
-    from pounding_sweep.model.sensors.checks import experiment_problems
-
     for kind, msg in experiment_problems(exp):
         warn(kind, msg)
     return exp
+
+
+def experiment_problems(exp) -> list[tuple[str, str]]:
+    """(kind, message) for each problem the table's channels show (model/experiment.py Experiment): offsets in
+    its acceleration channels, and each channel's sign and lag against the nearest lower floor of its building
+    with a channel of the same kind."""
+    from pounding_sweep.model.sensors.checks import corrected, offset_problem, pair_problems
+
+    out = []
+    fs = 1.0 / exp.dt_sample
+    floors: dict[tuple[int, int], list[tuple[int, str]]] = {}
+    for code, x in exp.channels.items():
+        kind = exp.kinds.get(code, codes.H_DISP)
+        name = f"{exp.path}: column '{exp.columns[code]}' ({code})"
+        if kind == codes.H_ABS_ACC:
+            if (w := offset_problem(name, x, exp.dt_sample, exp.noise.get(code, 0.0))) is not None:
+                out.append(("channel_offset", w))
+        b, f = (int(v) for v in code.removeprefix("abs_acc_")[1:].split("f"))
+        floors.setdefault((kind, b), []).append((f, code))
+    for group in floors.values():
+        group.sort()
+        fixed = {}  # a channel found reversed or late is compared on, corrected: one fault, one warning
+        for (_, lower), (_, upper) in zip(group, group[1:]):
+            x, y = exp.channels[upper], fixed.get(lower, exp.channels[lower])
+            found = pair_problems(
+                f"{exp.path}: column '{exp.columns[upper]}' ({upper})",
+                x,
+                f"'{exp.columns[lower]}' ({lower})",
+                y,
+                fs,
+                keep_lag=True,
+            )
+            out += [(kind, w) for kind, w, _ in found]
+            fixed[upper] = corrected(x, found, fs)
+    return out
 
 
 #: a table's sample step beyond which nothing sensible can follow (no structure's mode is resolved) [s]

@@ -186,3 +186,36 @@ def combination(exp: Experiment, cfg: ExperimentConfig, spec: ScoreSpec, raw: np
         if code in noise:
             noise[code]["weight"] = float(w[c])
     return Combination(cfg.combine, w, noise)
+
+
+def sensor_warnings(exp: Experiment, cfg: ExperimentConfig, model, excitation) -> list[tuple[str, str]]:
+    """(kind, message) for what the experiment's sampling and the scene's record say against each other
+    (model/sensors/checks.py): a sample rate below twice a building's modes (aliasing), and the lowest
+    acceleration channel of each building reversed or lagging against the record that drives it (its
+    absolute acceleration follows the table's in the band where the two move together)."""
+    from pounding_sweep.model.sensors.checks import aliasing_problems, pair_problems
+
+    out = []
+    fs = 1.0 / exp.dt_sample
+    modes = {
+        name: list(frame.modes().frequency_Hz) for name, frame in (("building 1", model.b1), ("building 2", model.b2))
+    }
+    out += [("aliasing", w) for w in aliasing_problems(f"{Path(exp.path).name}", fs, modes)]
+    if excitation.kind != "record" or len(excitation.records) != 1:
+        return out
+    rec = excitation.records[0]
+    t_sim = exp.time_s - cfg.time_offset_s
+    inside = (t_sim >= 0) & (t_sim <= rec.duration_s)
+    if inside.sum() < 16:
+        return out
+    ground = np.interp(t_sim[inside], rec.time_s, rec.acc_m_s2)
+    lowest: dict[str, str] = {}
+    for code in exp.channels:
+        if exp.kinds.get(code) == codes.H_ABS_ACC:
+            b = code.removeprefix("abs_acc_").split("f")[0]
+            if b not in lowest or int(code.split("f")[-1]) < int(lowest[b].split("f")[-1]):
+                lowest[b] = code
+    for code in lowest.values():
+        name = f"{exp.path}: column '{exp.columns[code]}' ({code})"
+        out += pair_problems(name, exp.channels[code][inside], f"the record {Path(rec.source).name}", ground, fs)
+    return out

@@ -4,8 +4,9 @@ floor below it (or the table's record), a sample rate that aliases the model's m
 
 Why these tests hold on any shake-table test:
 - offset: a test that starts and ends at rest has zero mean acceleration (the integral of a is the change of
-  velocity, 0), so a mean above 3 noise standard deviations is a sensor offset (tilt puts g sin(angle) on a
-  horizontal axis) or gravity itself (a vertical axis reads about g);
+  velocity, 0), and any stretch of motion a mean of at most twice its peak velocity over its length, so a mean
+  above both that and 3 noise standard deviations is a sensor offset (tilt puts g sin(angle) on a horizontal
+  axis) or gravity itself (a vertical axis reads about g);
 - sign and lag: below half the first resonance a floor moves with the floor below it and with the table,
   in phase within a millisecond or so (signals.py): a negative correlation there is a reversed sensor, a lag a
   clock that is not shared. Floors are compared with floors of the same kind (absolute accelerations with each
@@ -17,8 +18,6 @@ Why these tests hold on any shake-table test:
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from pounding_sweep.model.records import G_STANDARD
@@ -26,6 +25,8 @@ from pounding_sweep.model.sensors.signals import physical_delay_bound, proportio
 
 #: a mean acceleration above this many noise standard deviations is an offset
 OFFSET_SIGMAS = 3.0
+#: |mean| T above this many times the motion's peak velocity: an offset (twice the peak bounds any motion's)
+DRIFT_FACTOR = 4.0
 #: a mean within this share of g of +/- g is gravity
 GRAVITY_SHARE = 0.2
 #: correlations weaker than this in the rigid band decide nothing
@@ -34,24 +35,29 @@ MIN_CORRELATION = 0.5
 MIN_SAMPLES = 256
 
 
-def offset_problem(name: str, x: np.ndarray, noise: float, unit_factor: float = 1.0, unit: str = "m/s^2") -> str | None:
-    """A warning when the mean of acceleration x [m/s^2] is gravity or an offset above OFFSET_SIGMAS noise
-    standard deviations (`noise` [m/s^2]); values shown in `unit` (SI value / unit_factor)."""
+def offset_problem(name: str, x: np.ndarray, dt: float, noise: float = 0.0) -> str | None:
+    """A warning when the mean m of acceleration x [m/s^2, sampled every dt s] is gravity or an offset: the
+    mean of a record of length T is (v(T) - v(0)) / T, at most twice the peak velocity of its (mean-free)
+    motion over T, so |m| T above DRIFT_FACTOR times that peak is no motion's; and, where the channel's noise
+    standard deviation `noise` [m/s^2] is known, above OFFSET_SIGMAS of it."""
     m = float(np.mean(x))
-    if not (math.isfinite(noise) and noise > 0) or abs(m) <= OFFSET_SIGMAS * noise:
+    T = x.size * dt
+    v = np.cumsum(x - m) * dt
+    peak = float(np.max(np.abs(v - v.mean())))
+    if abs(m) * T <= DRIFT_FACTOR * peak or abs(m) <= OFFSET_SIGMAS * noise:
         return None
-    shown = f"{m / unit_factor:.4g} {unit}"
     if abs(abs(m) - G_STANDARD) <= GRAVITY_SHARE * G_STANDARD:
         return (
-            f"{name}: mean {shown}, about {'+' if m > 0 else '-'}g: gravity is in it (a vertical axis, or raw "
-            "sensor output): use the horizontal shaking axis and subtract the mean of a quiet window "
+            f"{name}: mean {m:.4g} m/s^2, about {'+' if m > 0 else '-'}g: gravity is in it (a vertical axis, or "
+            "raw sensor output): use the horizontal shaking axis and subtract the mean of a quiet window "
             "(python -m pounding_sweep import does both)"
         )
     return (
-        f"{name}: mean {shown}, {abs(m) / noise:.0f} times its noise ({noise / unit_factor:.3g} {unit}): a test "
-        "that starts and ends at rest has zero mean acceleration, so this is a sensor offset (tilt puts "
-        "g sin(angle) on a horizontal axis); subtract the mean of a quiet window before the shaking "
-        "(python -m pounding_sweep import --quiet START,END)"
+        f"{name}: mean {m:.4g} m/s^2: over its {T:.4g} s it would change the velocity by {abs(m) * T:.3g} m/s, "
+        f"{abs(m) * T / peak:.0f} times the motion's peak velocity {peak:.3g} m/s; a test that starts and ends at "
+        "rest has zero mean acceleration, so this is a sensor offset (tilt puts g sin(angle) on a horizontal "
+        "axis): subtract the mean of a quiet window before the shaking (python -m pounding_sweep import --quiet "
+        "START,END)"
     )
 
 
@@ -113,53 +119,12 @@ def aliasing_problems(where: str, fs: float, modes_Hz: dict[str, list[float]]) -
 
 
 def record_problem(rec) -> str | None:
-    """Gravity or an offset in a ground-motion record (records.GroundRecord), against its noise floor estimated
-    by differences (model/experiment.py noise_floor): the fix is the record's, before the scene reads it."""
-    from pounding_sweep.model.experiment import noise_floor
-
-    sigma, _ = noise_floor(rec.acc_m_s2)
-    w = offset_problem(f"{rec.source} (record)", rec.acc_m_s2, sigma)
+    """Gravity or an offset in a ground-motion record (records.GroundRecord): the record drives the model as read."""
+    w = offset_problem(f"{rec.source} (record)", rec.acc_m_s2, rec.dt_s)
     return None if w is None else w + "; the record drives the model as read, offset included"
 
 
-def experiment_problems(exp) -> list[tuple[str, str]]:
-    """(kind, message) for each problem the table's channels show (model/experiment.py Experiment): offsets in
-    its acceleration channels, and each channel's sign and lag against the nearest lower floor of its building
-    with a channel of the same kind."""
-    from pounding_sweep import codes
-    from pounding_sweep.model.experiment import noise_floor
-
-    out = []
-    fs = 1.0 / exp.dt_sample
-    floors: dict[tuple[int, int], list[tuple[int, str]]] = {}
-    for code, x in exp.channels.items():
-        kind = exp.kinds.get(code, codes.H_DISP)
-        name = f"{exp.path}: column '{exp.columns[code]}' ({code})"
-        if kind == codes.H_ABS_ACC:
-            sigma = exp.noise.get(code) or noise_floor(x)[0]
-            if (w := offset_problem(name, x, sigma)) is not None:
-                out.append(("channel_offset", w))
-        b, f = (int(v) for v in code.removeprefix("abs_acc_")[1:].split("f"))
-        floors.setdefault((kind, b), []).append((f, code))
-    for group in floors.values():
-        group.sort()
-        fixed = {}  # a channel found reversed or late is compared on, corrected: one fault, one warning
-        for (_, lower), (_, upper) in zip(group, group[1:]):
-            x, y = exp.channels[upper], fixed.get(lower, exp.channels[lower])
-            found = pair_problems(
-                f"{exp.path}: column '{exp.columns[upper]}' ({upper})",
-                x,
-                f"'{exp.columns[lower]}' ({lower})",
-                y,
-                fs,
-                keep_lag=True,
-            )
-            out += [(kind, w) for kind, w, _ in found]
-            fixed[upper] = _corrected(x, found, fs)
-    return out
-
-
-def _corrected(x: np.ndarray, found: list[tuple], fs: float) -> np.ndarray:
+def corrected(x: np.ndarray, found: list[tuple], fs: float) -> np.ndarray:
     """x with the sign and lag pair_problems found undone (the lag to the nearest sample)."""
     for kind, _, v in found:
         if kind == "channel_sign":

@@ -123,6 +123,9 @@ class InputLine:
     fraction: float  # of the acceleration power above the noise floor, in the line's main lobe
     kind: str  # 'displacement', 'velocity' or 'acceleration'
     resolution_Hz: float
+    #: the line's power over the table's noise power in the whole band (the median PSD level times the band's
+    #: width, in the motion's own quantity): a driven table's line stands far above its noise, a quiet one's not
+    over_noise: float = float("inf")
 
 
 def input_line(x, fs: float, kind: str = "displacement") -> InputLine:
@@ -143,14 +146,16 @@ def input_line(x, fs: float, kind: str = "displacement") -> InputLine:
     keep = band & (p > 4.0 * float(np.median(p[band])))
     q = np.where(keep, p * f ** TO_ACCELERATION[kind], 0.0)
     if q.sum() <= 0:
-        return InputLine(float("nan"), 0.0, kind, res)
+        return InputLine(float("nan"), 0.0, kind, res, 0.0)
     i = int(np.argmax(q))
     lobe = np.abs(f - f[i]) <= 2.0 * res
+    noise_power = float(np.median(p[band])) * (f[band][-1] - f[band][0])
+    over = float(np.sum(p[lobe]) * (f[1] - f[0]) / noise_power) if noise_power > 0 else float("inf")
     # the line's frequency, read between bins on the whole record's spectrum
     a = amplitude_spectrum(scipy.signal.detrend(x), fs)
     near = np.nonzero(np.abs(a.frequency_Hz - f[i]) <= 2.0 * res)[0]
     j = int(near[np.argmax(a.values[near])])
-    return InputLine(refine_peak(a.frequency_Hz, a.values, j)[0], float(q[lobe].sum() / q.sum()), kind, res)
+    return InputLine(refine_peak(a.frequency_Hz, a.values, j)[0], float(q[lobe].sum() / q.sum()), kind, res, over)
 
 
 @dataclass(frozen=True)
@@ -580,7 +585,7 @@ def identify(
             band = 2 * zhp * p.frequency_Hz
             zhp -= sigma / (2 * np.pi * p.frequency_Hz)
             half = rect.resolution_Hz / (2 * p.frequency_Hz)
-            interval = (max(zhp - half, 0.0), zhp + half)
+            interval = (max(zhp - half, 0.0), max(zhp + half, 0.0))
             if zhp <= 0:
                 notes.append(
                     f"{p.frequency_Hz:.3f} Hz: half-power damping {100 * zhp:.2f} % after the window's decay "

@@ -106,6 +106,9 @@ def _print_identification(ident, forcing) -> None:
                 hp += f" (within {100 * lo:.2f}-{100 * hi:.2f} %: +/- a resolution on the band)"
             elif np.isfinite(hi):
                 hp += f" (at most {100 * hi:.2f} %: the band less the window's decay, plus a resolution)"
+            if np.isfinite(m.damping_fit):
+                a, b = m.damping_fit_ci95
+                ld += f", fitted {100 * m.damping_fit:.2f} % (95 % {100 * a:.2f} to {100 * b:.2f} %)"
             merged = f"; merged peaks {', '.join(f'{f:.3f}' for f in m.merged_Hz)} Hz" if m.merged_Hz else ""
             shape = ", ".join(f"{c} {v:+.3f}" for c, v in m.shape.items())
             print(f"  mode {k}: {m.frequency_Hz:.4f} Hz, damping half-power {hp}{ld}; shape {shape}{merged}")

@@ -5,6 +5,7 @@ the calibration's residual scale and by 'noise' weights; messages and metadata k
 from __future__ import annotations
 
 import dataclasses
+
 import numpy as np
 import pytest
 from conftest import SWEEPS
@@ -89,7 +90,7 @@ def test_the_misfit_warning_and_metadata_name_each_channel_in_its_unit():
         10,
         5.0,
         0.3,
-        {"b1f3": 2e-3, "abs_acc_b1f3": 1.3875},
+        {"b1f3": 2e-3, "abs_acc_b1f3": 1.387},
         {"b1f3": 1e-4, "abs_acc_b1f3": 0.0249},
         30.0,
         5.0,

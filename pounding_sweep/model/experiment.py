@@ -180,9 +180,9 @@ def experiment_from_table(
 
 def experiment_problems(exp) -> list[tuple[str, str]]:
     """(kind, message) for each problem the table's channels show (model/experiment.py Experiment): offsets in
-    its acceleration channels, and each channel's sign and lag against the nearest lower floor of its building
-    with a channel of the same kind."""
-    from pounding_sweep.model.sensors.checks import corrected, offset_problem, pair_problems
+    its acceleration channels, and each channel's sign and lag against the other floors of its building with a
+    channel of the same kind (checks.consensus_problems)."""
+    from pounding_sweep.model.sensors.checks import consensus_problems, offset_problem
 
     out = []
     fs = 1.0 / exp.dt_sample
@@ -197,19 +197,8 @@ def experiment_problems(exp) -> list[tuple[str, str]]:
         floors.setdefault((kind, b), []).append((f, code))
     for group in floors.values():
         group.sort()
-        fixed = {}  # a channel found reversed or late is compared on, corrected: one fault, one warning
-        for (_, lower), (_, upper) in zip(group, group[1:]):
-            x, y = exp.channels[upper], fixed.get(lower, exp.channels[lower])
-            found = pair_problems(
-                f"{exp.path}: column '{exp.columns[upper]}' ({upper})",
-                x,
-                f"'{exp.columns[lower]}' ({lower})",
-                y,
-                fs,
-                keep_lag=True,
-            )
-            out += [(kind, w) for kind, w, _ in found]
-            fixed[upper] = corrected(x, found, fs)
+        names = [f"{exp.path}: column '{exp.columns[c]}' ({c})" for _, c in group]
+        out += consensus_problems(names, [exp.channels[c] for _, c in group], fs)
     return out
 
 

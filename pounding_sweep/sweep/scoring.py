@@ -203,8 +203,9 @@ def sensor_warnings(exp: Experiment, cfg: ExperimentConfig, model, excitation) -
 
     out = []
     fs = 1.0 / exp.dt_sample
+    seen = {int(c.removeprefix("abs_acc_")[1:].split("f")[0]) for c in exp.channels}  # buildings measured
     modes = {
-        name: list(frame.modes().frequency_Hz) for name, frame in (("building 1", model.b1), ("building 2", model.b2))
+        f"building {b}": list(frame.modes().frequency_Hz) for b, frame in ((1, model.b1), (2, model.b2)) if b in seen
     }
     out += [("aliasing", w) for w in aliasing_problems(f"{Path(exp.path).name}", fs, modes)]
     if excitation.kind != "record" or len(excitation.records) != 1:

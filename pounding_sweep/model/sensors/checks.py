@@ -61,12 +61,9 @@ def offset_problem(name: str, x: np.ndarray, dt: float, noise: float = 0.0) -> s
     )
 
 
-def pair_problems(
-    name: str, x: np.ndarray, below_name: str, below: np.ndarray, fs: float, keep_lag: bool = False
-) -> list[tuple]:
+def pair_problems(name: str, x: np.ndarray, below_name: str, below: np.ndarray, fs: float) -> list[tuple[str, str]]:
     """Sign and lag of channel x against the channel below it (same kind, same samples), in the band where the
-    two are nearly proportional (signals.proportional_band): (kind, warning) for each that is wrong (with
-    keep_lag, (kind, warning, value): -1 for a reversal, the lag [s] for a lag)."""
+    two are nearly proportional (signals.proportional_band): (kind, warning) for each that is wrong."""
     n = min(x.size, below.size)
     if n < MIN_SAMPLES or np.std(x[:n]) == 0 or np.std(below[:n]) == 0:
         return []
@@ -83,7 +80,6 @@ def pair_problems(
                 "channel_sign",
                 f"{name}: reversed against {below_name}: correlation {rel.correlation:+.2f} {where}; the sensor is "
                 f"mounted the other way round: multiply the column by -1 (python -m pounding_sweep import fixes signs)",
-                -1,
             )
         )
     bound = max(1.5 / fs, 2.0 * physical_delay_bound(2 * band[1]))
@@ -94,10 +90,9 @@ def pair_problems(
                 f"{name}: lags {below_name} by {1e3 * rel.lag_s:+.1f} ms (cross-correlation {where}; a floor lags "
                 f"by less than {1e3 * bound:.1f} ms there): its clock is not the others'; shift its time by "
                 f"{-rel.lag_s:+.4f} s (python -m pounding_sweep import aligns clocks by cross-correlation)",
-                rel.lag_s,
             )
         )
-    return [(k, m) for k, m, *_ in out] if not keep_lag else out
+    return out
 
 
 def aliasing_problems(where: str, fs: float, modes_Hz: dict[str, list[float]]) -> list[str]:
@@ -124,12 +119,81 @@ def record_problem(rec) -> str | None:
     return None if w is None else w + "; the record drives the model as read, offset included"
 
 
-def corrected(x: np.ndarray, found: list[tuple], fs: float) -> np.ndarray:
-    """x with the sign and lag pair_problems found undone (the lag to the nearest sample)."""
-    for kind, _, v in found:
-        if kind == "channel_sign":
-            x = -x
-        elif kind == "channel_lag":
-            k = int(round(v * fs))
-            x = np.concatenate([x[k:], np.zeros(k)]) if k > 0 else np.concatenate([np.zeros(-k), x[: x.size + k]])
-    return x
+def consensus_problems(names: list[str], series: list[np.ndarray], fs: float) -> list[tuple[str, str]]:
+    """(kind, warning) for the channels of one building and kind (`names`, floor order, lowest first) that are
+    reversed or late against the others. Each floor is related to the one above it in the band where the two move
+    together (signals.proportional_band); the signs and lags, chained from the lowest, give each channel's sign
+    and lag relative to the lowest; the majority sign and the median lag are the building's, and a channel that
+    departs from them is named. With two channels (or a tie) which one is at fault cannot be told: the pair is
+    named. A pair that does not move together breaks the chain (each part judged on its own)."""
+    out: list[tuple[str, str]] = []
+    parts, part = [], [(0, +1, 0.0, None)]  # (index, sign, lag relative to the part's first, band of the link)
+    for k in range(len(names) - 1):
+        n = min(series[k].size, series[k + 1].size)
+        found = proportional_band(series[k][:n], series[k + 1][:n], fs) if n >= MIN_SAMPLES else None
+        if found is None:
+            parts.append(part)
+            part = [(k + 1, +1, 0.0, None)]
+            continue
+        band, rel = found
+        _, s, lag, _ = part[-1]
+        part.append((k + 1, s * rel.sign, lag + rel.lag_s, band))
+    parts.append(part)
+    for part in (p for p in parts if len(p) >= 2):
+        signs = np.array([s for _, s, _, _ in part])
+        lags = np.array([t for _, _, t, _ in part])
+        bands = [b for *_, b in part if b is not None]
+        top = max(b[1] for b in bands)
+        where = (
+            f"in the band where the floors move together (from {min(b[0] for b in bands):.3g} Hz up to {top:.3g} Hz)"
+        )
+        plus, minus = int(np.sum(signs > 0)), int(np.sum(signs < 0))
+        if plus and minus:
+            if plus != minus:
+                odd = -1 if plus > minus else +1
+                for i, s, _, _ in part:
+                    if s == odd:
+                        out.append(
+                            (
+                                "channel_sign",
+                                f"{names[i]}: reversed against the other floors of its building {where}; the sensor is "
+                                "mounted the other way round: multiply the column by -1 (python -m pounding_sweep "
+                                "import fixes signs against the table)",
+                            )
+                        )
+            else:
+                for (i, s, _, _), (j, t, _, _) in zip(part, part[1:]):
+                    if s != t:
+                        out.append(
+                            (
+                                "channel_sign",
+                                f"{names[j]}: reversed against {names[i]} {where}: one of the two is mounted the other "
+                                "way round, and these channels alone cannot tell which: compare with the table's motion "
+                                "(python -m pounding_sweep import fixes signs against it)",
+                            )
+                        )
+        bound = max(1.5 / fs, 2.0 * physical_delay_bound(2 * top))
+        if len(part) >= 3:
+            ref = float(np.median(lags))
+            for i, _, t, _ in part:
+                if abs(t - ref) > bound:
+                    out.append(
+                        (
+                            "channel_lag",
+                            f"{names[i]}: lags the other floors of its building by {1e3 * (t - ref):+.1f} ms "
+                            f"(cross-correlation {where}; floors lag each other by less than {1e3 * bound:.1f} ms "
+                            f"there): its clock is not the others'; shift its time by {ref - t:+.4f} s (python -m "
+                            "pounding_sweep import aligns clocks by cross-correlation)",
+                        )
+                    )
+        elif abs(lags[1] - lags[0]) > bound:
+            i, j = part[0][0], part[1][0]
+            out.append(
+                (
+                    "channel_lag",
+                    f"{names[j]}: lags {names[i]} by {1e3 * (lags[1] - lags[0]):+.1f} ms (cross-correlation {where}; "
+                    f"floors lag each other by less than {1e3 * bound:.1f} ms there): their clocks differ; shift one by "
+                    "that much (python -m pounding_sweep import aligns clocks by cross-correlation)",
+                )
+            )
+    return out

@@ -640,11 +640,15 @@ def identify(
                 ffit,
             )
         )
+    found = {f"{m.frequency_Hz:.3f}" for m in modes}
     modes = merge_same_shapes(modes, notes)
     # the n most prominent of the peaks looked for (twice as many, so that a merged split peak leaves room)
     if len(modes) > n_modes:
         order = sorted(range(len(modes)), key=lambda k: -modes[k].prominence if np.isfinite(modes[k].prominence) else 0)
         modes = sorted((modes[k] for k in order[:n_modes]), key=lambda m: m.frequency_Hz)
+    # the notes on a peak merged into another or left out are not about a mode reported
+    gone = found - {f"{m.frequency_Hz:.3f}" for m in modes}
+    notes = [n for n in notes if n.split(" Hz: ")[0] not in gone]
     return ModalResult(
         channels, float(fs), channels[reference], tuple(modes), sumspec, tuple(notes), method, sigma, (lo, hi)
     )
@@ -673,10 +677,15 @@ def _fitted_damping(tr: Transmissibility, reference: int, f_peak: float, zhp: fl
     inflate = np.sqrt(1.0 + tr.decay_per_s * T / np.pi)
     q = float(student_t.ppf(0.975, max(2 * fit.points - 6, 1)))
     ci = (z - q * inflate * fit.damping_se, z + q * inflate * fit.damping_se)
-    if z <= 0 or ci[0] <= 0:
+    if z <= 0:
         notes.append(
-            f"{f_peak:.3f} Hz: fitted damping {100 * z:.2f} % (95 % {100 * ci[0]:.2f} to {100 * ci[1]:.2f} %) "
-            "reaches 0 or below once the window's decay is removed: damping unreliable (record too short for it)"
+            f"{f_peak:.3f} Hz: fitted damping {100 * z:.2f} % (95 % {100 * ci[0]:.2f} to {100 * ci[1]:.2f} %) is not "
+            "above 0 once the window's decay is removed: damping unreliable (the record too short for it)"
+        )
+    elif ci[0] <= 0:
+        notes.append(
+            f"{f_peak:.3f} Hz: fitted damping {100 * z:.2f} %, but its 95 % interval ({100 * ci[0]:.2f} to "
+            f"{100 * ci[1]:.2f} %) reaches 0: not told from no damping by this record"
         )
     if fit.rms_misfit > 0.5:
         notes.append(

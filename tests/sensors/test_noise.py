@@ -97,7 +97,8 @@ def test_the_misfit_warning_and_metadata_name_each_channel_in_its_unit():
         1,
         0.1,
     )
-    _warnings(fit, np.array([0.5]), np.array([0.1]), np.array([0.9]), CalibrateConfig(parameters={"r": [0.1, 0.9]}))
+    with pytest.warns(UserWarning, match="times the noise floor"):
+        _warnings(fit, np.array([0.5]), np.array([0.1]), np.array([0.9]), CalibrateConfig(parameters={"r": [0.1, 0.9]}))
     (w,) = [w for w in fit.warnings if "noise floor" in w]
     assert "b1f3 2 mm vs 0.1 mm" in w and "abs_acc_b1f3 1.387 m/s^2 vs 0.0249 m/s^2" in w
     md = calibration_metadata([fit])["per_law"]["classic"]

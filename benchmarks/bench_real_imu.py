@@ -61,20 +61,8 @@ def main(tests):
     for test in tests:
         files = {"ground": IMU / test / "ground.csv", **{f"b1f{k}": IMU / test / f"floor{k}.csv" for k in (1, 2, 3)}}
         im = import_sensors({n: str(p) for n, p in files.items()}, "ground")
-        s = im.settings
-        print(f"\n== {test}: {im.time_s.size} samples at {s['rate_Hz']:.6g} Hz ({im.time_s[-1]:.2f} s)")
-        print(
-            f"first resonance {s['first_resonance_Hz']:.4g} Hz; band {s['band_Hz'][0]:.3g}-{s['band_Hz'][1]:.3g} Hz; "
-            f"quiet window {s['quiet_s'][0]:.2f}-{s['quiet_s'][1]:.2f} s"
-        )
-        print("sensor  axis   sign (corr)     offset m/s^2  noise m/s^2  clock offset s  lag found ms  alignment")
-        for n, i in im.sensors.items():
-            corr = f"({i['sign_correlation']:+.3f})" if "sign_correlation" in i else "(reference)"
-            print(
-                f"{n:7s} {i['axis']:6s} {i['sign']:+d} {corr:12s} {i['offset_removed_m_s2']:+12.4f} "
-                f"{i['noise_m_s2']:12.4f} {i['clock_offset_s']:+15.6f} {1e3 * i.get('lag_found_s', 0):+13.2f}  "
-                f"{i['alignment']}"
-            )
+        print(f"\n== {test}")
+        print("\n".join(im.summary()))
         for w in im.warnings:
             print(f"  warning: {w}")
         df = pd.DataFrame({"t_s": im.time_s, **im.columns})

@@ -143,19 +143,7 @@ def _write(out: Path, im, note: str) -> None:
 
 
 def _summary(im, out: Path) -> None:
-    s = im.settings
-    print(
-        f"imported {len(im.sensors)} sensors, reference {im.reference}: {im.time_s.size} samples at "
-        f"{s['rate_Hz']:.6g} Hz ({im.time_s[-1]:.3f} s); first resonance {s['first_resonance_Hz']:.4g} Hz, band "
-        f"{s['band_Hz'][0]:.3g}-{s['band_Hz'][1]:.3g} Hz; quiet window {s['quiet_s'][0]:.3f}-{s['quiet_s'][1]:.3f} s"
-    )
-    for n, i in im.sensors.items():
-        lag = f", lag found {1e3 * i['lag_found_s']:+.2f} ms" if "lag_found_s" in i else ""
-        print(
-            f"  {n}: axis {i['axis']}, sign {'+1' if i['sign'] > 0 else '-1 (reversed)'}, offset "
-            f"{i['offset_removed_m_s2']:+.4f} m/s^2, noise {i['noise_m_s2']:.4f} m/s^2; {i['alignment']}"
-            f", clock offset {i['clock_offset_s']:.4f} s{lag}"
-        )
+    print("\n".join(im.summary()))
     floors = [n for n in im.sensors if n != im.reference]
     chans = ", ".join(f'{im.column(n)} = "abs_acc_{n}"' for n in floors)
     print(

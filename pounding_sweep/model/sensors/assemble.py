@@ -61,6 +61,25 @@ class Imported:
     def column(self, name: str) -> str:
         return f"{name}_acc_m_s2"
 
+    def summary(self) -> list[str]:
+        """What was found, a line for the whole and one per sensor (the command prints them)."""
+        s = self.settings
+        out = [
+            f"imported {len(self.sensors)} sensors, reference {self.reference}: {self.time_s.size} samples at "
+            f"{s['rate_Hz']:.6g} Hz ({self.time_s[-1]:.3f} s); first resonance {s['first_resonance_Hz']:.4g} Hz, "
+            f"band {s['band_Hz'][0]:.3g}-{s['band_Hz'][1]:.3g} Hz; quiet window {s['quiet_s'][0]:.3f}-"
+            f"{s['quiet_s'][1]:.3f} s"
+        ]
+        for n, i in self.sensors.items():
+            lag = f", lag found {1e3 * i['lag_found_s']:+.2f} ms" if "lag_found_s" in i else ""
+            corr = f" (correlation {i['sign_correlation']:+.3f})" if "sign_correlation" in i else ""
+            out.append(
+                f"  {n}: axis {i['axis']}, sign {'+1' if i['sign'] > 0 else '-1 (reversed)'}{corr}, offset "
+                f"{i['offset_removed_m_s2']:+.4f} m/s^2, noise {i['noise_m_s2']:.4f} m/s^2; {i['alignment']}"
+                f", clock offset {i['clock_offset_s']:.6f} s{lag}"
+            )
+        return out
+
 
 def _axis(sf: SensorFile, choice: str) -> tuple[str, str, dict]:
     """(shaking axis, gravity axis, per-axis statistics) of a sensor's accelerations."""

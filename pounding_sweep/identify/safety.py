@@ -3,8 +3,10 @@ table motion is refused, a peak at a forcing frequency is called the forcing, an
 lands on a forcing frequency or changes a stiffness by more than 30 % is not written unless forced.
 
 Where the forcing frequencies come from:
-- the table channel's largest line, when it holds half of the table's acceleration power or more
-  (a line holding 80 % or more is a harmonic test, refused before any peak is picked);
+- the table channel's largest line, when it holds half of the table's acceleration power or more and stands
+  HARMONIC_OVER_NOISE times above the table's noise (a line holding 80 % or more is a harmonic test, refused
+  before any peak is picked; a quiet table's line, in free vibration, is no forcing); a broadband table shows
+  no forcing, and then no harmonic series is looked for among the peaks;
 - without a table channel, the scene's harmonic excitation (the record is taken to be its response)
   and the fundamental of any harmonic series among a building's peaks (f, 2f, 3f ...: a periodic,
   i.e. forced, response; pounding under harmonic forcing makes exactly such series). A shear frame's

@@ -15,7 +15,6 @@ import numpy as np
 
 from pounding_sweep.codes import EXC_HARMONIC, EXC_RECORD
 from pounding_sweep.model.records import GroundRecord, implausible_timing, read_record, resample, similitude_scale
-from pounding_sweep.model.sensors.checks import record_problem
 from pounding_sweep.scene import Scene
 from pounding_sweep.warn import warn
 
@@ -55,6 +54,8 @@ class Excitation:
             if odd is not None:
                 steps = "" if scene.integration.auto else f" A run takes {arrays[-1].size - 1:,} steps of {dt:g} s."
                 warn("record_timing", odd + steps)
+            from pounding_sweep.model.sensors.checks import record_problem  # SciPy: only where a record is read
+
             if (offset := record_problem(recs[-1])) is not None:
                 warn("record_offset", offset)
         lens = np.array([a.size for a in arrays], dtype=np.int64)

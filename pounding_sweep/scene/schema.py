@@ -324,7 +324,10 @@ class CalibrateConfig:
         "the parameters to profile", (), when="optional; by default the fitted contact parameters (k_s or k_h, r)"
     )
     noise_m: float | None = _f(
-        "the tracking noise (RMS) of every channel [m]", None, when="optional; by default estimated from the data"
+        "the tracking noise (RMS) of every displacement channel [m] (an acceleration channel's: [experiment] noise "
+        "or noise_window_s)",
+        None,
+        when="optional; by default estimated from the data",
     )
     misfit_factor: float = _f("warn when the best fit's residual exceeds this many times the noise floor", 3.0)
 

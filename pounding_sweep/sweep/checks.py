@@ -203,8 +203,8 @@ def check_calibration(prep) -> None:
             continue
         acc = code.startswith(ACC_PREFIX)
         rows += 1 if acc else 2
-        if cal.noise_m is not None and not acc:
-            continue
+        if code in getattr(exp, "noise", {}) or (cal.noise_m is not None and not acc):
+            continue  # given: [experiment] noise or noise_window_s, or [calibrate] noise_m for a displacement
         y = exp.channels[code][inside]
         sigma, _ = noise_floor(y)
         if not sigma > 0:
@@ -214,11 +214,15 @@ def check_calibration(prep) -> None:
                 if not np.isfinite(sigma)
                 else "no noise at all (its differences are all 0: quantised or noise-free data)"
             )
-            fix = "widen [experiment] window_s" if not np.isfinite(sigma) else "give the tracking noise"
+            fix = "widen [experiment] window_s, or give" if not np.isfinite(sigma) else "give"
+            given = (
+                "[experiment] noise for it (in its own unit) or noise_window_s"
+                if acc
+                else "[calibrate] noise_m (the tracking noise in m) or [experiment] noise"
+            )
             raise ConfigError(
-                f"[calibrate]: the experiment's channel {code} has {why}; the residuals are weighed by it: {fix}, or "
-                "give [calibrate] noise_m (the tracking noise in m)"
-                + (" (acceleration channels need samples for their own)" if acc else "")
+                f"[calibrate]: the experiment's channel {code} has {why}; the residuals are weighed by it: {fix} "
+                f"{given}"
             )
     per_run = rows * (prep.excitation.max_steps // scene.output.history_decimate + 1) * 8
     if cal.global_points * per_run > GLOBAL_STAGE_BYTES:

@@ -347,7 +347,7 @@ def _calibrated(scene: Scene, best, meta: dict, summary: SweepSummary, progress,
     stored = _stored_calibration(summary.best_path, key)
     if stored is not None:
         rows, md, said = stored
-        for w in said:  # its warnings, said again as the stored refinement's would be
+        for w in said:  # its warnings, said (and stored) again as on the run that made it
             warn("calibration", w)
         summary.calibration_summary, summary.calibration_reused = md, True
         return pd.concat([best, rows], ignore_index=True), {**meta, "calibration": md, "calibration_key": key}

@@ -187,7 +187,7 @@ def vanmarcke_rate(b, var_x, var_v, delta, cov_xv=0.0) -> np.ndarray:
     nu = upcrossing_rate(b, var_x, var_v, cov_xv)
     with np.errstate(divide="ignore", invalid="ignore"):
         r = b / np.sqrt(np.asarray(var_x, dtype=float))
-        factor = -np.expm1(-math.sqrt(math.pi / 2.0) * delta**1.2 * r) / -np.expm1(-0.5 * r * r)
+        factor = -np.expm1(-math.sqrt(2.0 * math.pi) * delta**1.2 * r) / -np.expm1(-0.5 * r * r)
     return np.where(np.isfinite(factor), nu * factor, 0.0)
 
 

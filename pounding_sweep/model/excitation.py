@@ -114,9 +114,10 @@ class Excitation:
             "record", dt, e.duration_s, tuple(recs), tuple(paths), flat, offs, lens, e.intensity, e.scaling, period, im
         )
 
-    def chunk_inputs(self, params: dict[str, np.ndarray]) -> tuple[dict[str, np.ndarray], tuple]:
+    def chunk_inputs(self, params: dict[str, np.ndarray], threads: int = 1) -> tuple[dict[str, np.ndarray], tuple]:
         """run_arrays(params) (with 'intensity_g', each run's intensity in g, when the scene names one) and the
-        records the chunk uses, (flat, off, len): the stored ones, or a stochastic chunk's realisations."""
+        records the chunk uses, (flat, off, len): the stored ones, or a stochastic chunk's realisations
+        (generated on `threads` threads)."""
         if self.kind != "stochastic":
             ex = self.run_arrays(params)
             if self.rec_intensity is not None:
@@ -126,7 +127,7 @@ class Excitation:
                     ex["exc_amp"] = params["scale"] * G_STANDARD / im
             return ex, (self.rec_flat, self.rec_off, self.rec_len)
         seeds, rec_id = np.unique(np.asarray(params["seed"], dtype=np.int64), return_inverse=True)
-        acc = self.motion.generate(seeds)  # (distinct seeds, samples) at the motion's own step
+        acc = self.motion.generate(seeds, threads)  # (distinct seeds, samples) at the motion's own step
         scale = np.asarray(params["scale"], dtype=float)
         ex = {}
         if self.intensity != "none":

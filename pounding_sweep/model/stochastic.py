@@ -158,30 +158,75 @@ class StochasticMotion:
     def duration_s(self) -> float:
         return (self.n_samples - 1) * self.dt_s
 
-    def generate(self, seeds) -> np.ndarray:
+    def generate(self, seeds, threads: int = 1) -> np.ndarray:
         """The realisations of `seeds` (non-negative integers): (len(seeds), n_samples) ground accelerations
-        [m/s^2]. Each row depends only on its seed (module docstring); the rows are computed together."""
+        [m/s^2]. Each row depends only on its seed (module docstring), whatever the other rows and `threads`
+        (the normals are drawn on that many threads: numpy.random releases the GIL while it fills an array)."""
         phi, L, C, lp = self.discrete()
         seeds = [int(s) for s in np.atleast_1d(seeds)]
         s, n, r = phi.shape[0], self.n_samples, len(seeds)
         z = np.empty((r, s))
         noise = np.empty((r, n, s))
-        for i, seed in enumerate(seeds):
-            rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed)))
-            z[i] = lp @ rng.standard_normal(s)
-            rng.standard_normal(out=noise[i])
-        noise = np.ascontiguousarray(noise.transpose(1, 0, 2) @ L.T)  # time-major, L e[k] of every row
-        out = np.empty((n, r))
-        phi_t = phi.T.copy()
-        for k in range(n):
-            out[k] = z @ C
-            if k + 1 < n:
-                z = z @ phi_t
-                z += noise[k]
-        out = np.ascontiguousarray(out.T)
+
+        def draw(rows) -> None:
+            for i in rows:
+                rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence(seeds[i])))
+                z0 = rng.standard_normal(s)
+                z[i] = [sum(lp[a, b] * z0[b] for b in range(s)) for a in range(s)]
+                rng.standard_normal(out=noise[i])
+
+        threads = max(1, min(int(threads), r))
+        if threads == 1:
+            draw(range(r))
+        else:
+            from concurrent.futures import ThreadPoolExecutor
+
+            with ThreadPoolExecutor(max_workers=threads) as pool:
+                list(pool.map(draw, [range(t, r, threads) for t in range(threads)]))
+        out = np.empty((r, n))
+        _recursion()(np.ascontiguousarray(phi), np.ascontiguousarray(L), np.ascontiguousarray(C), z, noise, out)
         if self.envelope.kind != "none":
             out *= self.envelope(self.times)
         return out
+
+
+_RECURSION = []
+
+
+def _recursion():
+    """The sampled recursion a[k] = C z[k], z[k+1] = Phi z[k] + L e[k], compiled once (Numba, cached; serial
+    and row by row, so a row's rounding never depends on the other rows of the chunk: a matrix product's
+    blocking would, BLAS kernels differ with the row count)."""
+    if not _RECURSION:
+        import numba
+
+        @numba.njit(cache=True, nogil=True)
+        def run(phi, L, C, z0, noise, out):  # pragma: no cover - compiled
+            r, n = out.shape
+            s = phi.shape[0]
+            z = np.empty(s)
+            w = np.empty(s)
+            for row in range(r):
+                for i in range(s):
+                    z[i] = z0[row, i]
+                for k in range(n):
+                    acc = 0.0
+                    for i in range(s):
+                        acc += C[i] * z[i]
+                    out[row, k] = acc
+                    if k + 1 < n:
+                        for i in range(s):
+                            v = 0.0
+                            for j in range(s):
+                                v += phi[i, j] * z[j]
+                            for j in range(s):
+                                v += L[i, j] * noise[row, k, j]
+                            w[i] = v
+                        for i in range(s):
+                            z[i] = w[i]
+
+        _RECURSION.append(run)
+    return _RECURSION[0]
 
 
 def from_config(cfg, dt_s: float, duration_s: float) -> StochasticMotion:

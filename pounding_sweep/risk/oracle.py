@@ -92,6 +92,45 @@ def linear_system(model: CoupledModel, ground) -> LinearSystem:
     return LinearSystem(A, B, 2.0 * math.pi * ground.s0, out_d, out_v, 2 * n, couple)
 
 
+def newmark_covariance_history(model: CoupledModel, motion, n_steps: int) -> np.ndarray:
+    """The exact covariance of what the engine computes: Newmark average acceleration (h = the motion's sample
+    step, the load linear between samples) driven by the exact sampled filter, from rest. The state is
+    (u, u', u'', z); one step is the linear map of Newmark's two update equations and equilibrium at the step's
+    end (Chopra, Dynamics of Structures, Table 5.4.2, in matrix form), and u''(0) = -1 a_g(0) from equilibrium
+    at rest. Returns (n_steps + 1, pairs, 2): var d and var v of each pair at every step. Its difference from
+    covariance_history is the discretisation error of the scheme and of the linear interpolation of the input."""
+    phi, L, Cf, lp = motion.discrete()
+    h = motion.dt_s
+    M, C, K = model.matrices()
+    n = M.shape[0]
+    eye, zero = np.eye(n), np.zeros((n, n))
+    lhs = np.block([[eye, zero, -h * h / 4 * eye], [zero, eye, -h / 2 * eye], [K, C, M]])
+    rhs = np.block([[eye, h * eye, h * h / 4 * eye], [zero, eye, h / 2 * eye], [zero, zero, zero]])
+    step = np.linalg.solve(lhs, rhs)
+    load = np.linalg.solve(lhs, np.concatenate([np.zeros(2 * n), -M @ np.ones(n)]))  # per unit a_g(t + h)
+    s = phi.shape[0]
+    F = np.zeros((3 * n + s, 3 * n + s))
+    F[: 3 * n, : 3 * n] = step
+    F[: 3 * n, 3 * n :] = np.outer(load, Cf @ phi)  # a_g(t + h) = C (Phi z + L e)
+    F[3 * n :, 3 * n :] = phi
+    G = np.zeros((3 * n + s, s))
+    G[: 3 * n] = np.outer(load, Cf @ L)
+    G[3 * n :] = L
+    T = np.zeros((3 * n + s, s))
+    T[2 * n : 3 * n] = -np.outer(np.ones(n), Cf)
+    T[3 * n :] = np.eye(s)
+    S = T @ (lp @ lp.T) @ T.T
+    Q = G @ G.T
+    Gc = model.contact_matrix()
+    out = np.empty((n_steps + 1, Gc.shape[1], 2))
+    for k in range(n_steps + 1):
+        if k:
+            S = F @ S @ F.T + Q
+        out[k, :, 0] = np.einsum("ip,ij,jp->p", Gc, S[:n, :n], Gc)
+        out[k, :, 1] = np.einsum("ip,ij,jp->p", Gc, S[n : 2 * n, n : 2 * n], Gc)
+    return out
+
+
 def stationary_covariance(sys: LinearSystem) -> np.ndarray:
     """P with A P + P A' + q B B' = 0."""
     from scipy.linalg import solve_continuous_lyapunov
@@ -238,6 +277,7 @@ def bandwidth(moments: dict[int, float]) -> float:
 __all__ = [
     "LinearSystem",
     "linear_system",
+    "newmark_covariance_history",
     "stationary_covariance",
     "initial_covariance",
     "covariance_history",

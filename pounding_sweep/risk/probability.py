@@ -80,9 +80,12 @@ def order_statistic_interval(n: int, q: float, confidence: float = 0.95) -> tupl
 
 def required_gap_empirical(demand, p: float, confidence: float = 0.95) -> tuple[float, float, float]:
     """(g_p, low, high): the gap that leaves a fraction p of the motions pounding, and its distribution-free
-    interval (module docstring; NaN where n is too small for that level)."""
+    interval (module docstring; the interval NaN where n is too small for that level, all three NaN where
+    n p < 1: a sample without one expected exceedance does not reach that quantile)."""
     d = np.sort(np.asarray(demand, dtype=float))
     n = d.size
+    if n * p < 1.0:  # fewer than one motion expected beyond it: the largest value says nothing of that quantile
+        return math.nan, math.nan, math.nan
     r = quantile_rank(n, p)
     l, u = order_statistic_interval(n, 1.0 - p, confidence)
     if l is None:

@@ -65,7 +65,7 @@ class Prepared:
         groups = structure_groups(self.scene, params)
         if groups is not None:
             return self._run_groups(groups, params, threads, batch_runs, done)
-        runs, rec, derived = self.kernel_inputs(params)
+        runs, rec, derived = self.kernel_inputs(params, threads)
         metrics, run_time, hist, scores = run_chunk(
             self.sysarr,
             runs,
@@ -109,11 +109,11 @@ class Prepared:
             )
         return self.variants[values]
 
-    def kernel_inputs(self, params: dict[str, np.ndarray]):
+    def kernel_inputs(self, params: dict[str, np.ndarray], threads: int = 1):
         """The kernel's inputs for `params` at the scene's dt: (RunArrays, record arrays, the derived
         contact columns). Each run's law: law_codes(params)."""
         k, c, derived, status = contact_arrays(self.model, self.scene, params, self.dt)
-        ex, rec = self.excitation.chunk_inputs(params)  # a stochastic chunk's motions are generated here
+        ex, rec = self.excitation.chunk_inputs(params, threads)  # a stochastic chunk's motions are generated here
         runs = RunArrays(
             k, c, params["gap_m"], ex["exc_kind"], ex["exc_amp"], ex["exc_omega"], ex["rec_id"], ex["nsteps"], status
         )

@@ -33,12 +33,15 @@ MAX_ITER = 100
 TOL = 1e-10
 #: a fit whose beta falls below this is separated data (the MLE is at beta = 0): not identified
 MIN_BETA = 1e-3
+#: the probit argument is clipped here in the iterations (Phi(-40) underflows to 1e-350: saturated either way)
+EDGE = 40.0
 
 
 @dataclass(frozen=True)
 class Fit:
     """Lognormal fragilities, elementwise over the leading shape: median theta (in the intensity's unit),
-    dispersion beta, log-likelihood, and whether the data identify them ('ok', 'separated', 'none', 'all')."""
+    dispersion beta, log-likelihood, and whether the data identify them: 'ok'; 'separated' (beta -> 0);
+    'none' or 'all' (no point pounded, every point did); 'flat' (pounding does not grow with x)."""
 
     theta: np.ndarray
     beta: np.ndarray
@@ -52,12 +55,13 @@ class Fit:
 
         x = np.asarray(x, dtype=float)
         th, be = self.theta[..., None], self.beta[..., None]
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             z = np.log(x / th) / be
         out = ndtr(z)
         out = np.where(self.status[..., None] == "none", 0.0, out)
         out = np.where(self.status[..., None] == "all", 1.0, out)
-        return np.where(self.status[..., None] == "separated", np.nan, out)  # not identified: no curve to give
+        bad = (self.status[..., None] == "separated") | (self.status[..., None] == "flat")
+        return np.where(bad, np.nan, out)  # not identified: no curve to give
 
 
 def fit_lognormal(x, k, n, weights=None) -> Fit:
@@ -101,8 +105,13 @@ def fit_lognormal(x, k, n, weights=None) -> Fit:
     b = np.where(sxx > 0, sxz / np.where(sxx > 0, sxx, 1.0), 1.0)
     b = np.where(b > 0.1, b, 1.0)
     a = mz - b * mx
+    def loglik(a, b):
+        eta = np.clip(a[..., None] + b[..., None] * lx, -EDGE, EDGE)
+        return np.where(ok, (k * log_ndtr(eta) + (n - k) * log_ndtr(-eta)).sum(-1), 0.0)
+
+    ll = loglik(a, b)
     for _ in range(MAX_ITER):
-        eta = a[..., None] + b[..., None] * lx
+        eta = np.clip(a[..., None] + b[..., None] * lx, -EDGE, EDGE)
         mu = np.clip(ndtr(eta), 1e-300, 1 - 1e-16)
         dens = np.exp(-0.5 * eta * eta) / math.sqrt(2.0 * math.pi)
         w = n * dens * dens / (mu * (1.0 - mu))
@@ -111,18 +120,29 @@ def fit_lognormal(x, k, n, weights=None) -> Fit:
         haa, hab, hbb = w.sum(-1), (w * lx).sum(-1), (w * lx * lx).sum(-1)
         det = haa * hbb - hab * hab
         det = np.where(np.abs(det) > 0, det, 1.0)
-        da = (hbb * ga - hab * gb) / det
-        db = (haa * gb - hab * ga) / det
-        da, db = np.where(ok, da, 0.0), np.where(ok, db, 0.0)
-        a, b = a + da, b + db
+        da = np.where(ok, (hbb * ga - hab * gb) / det, 0.0)
+        db = np.where(ok, (haa * gb - hab * ga) / det, 0.0)
+        # step halving: the likelihood never decreases (Fisher scoring from a poor start can overshoot)
+        for _ in range(40):
+            trial = loglik(a + da, b + db)
+            worse = trial < ll - 1e-12 * np.abs(ll)
+            if not worse.any():
+                break
+            da, db = np.where(worse, 0.5 * da, da), np.where(worse, 0.5 * db, db)
+        a, b, ll = a + da, b + db, loglik(a + da, b + db)
         if np.all(np.abs(da) + np.abs(db) <= TOL * (1.0 + np.abs(a) + np.abs(b))):
             break
-    ok_fit = ok & (b > 1.0 / 1e6)
-    beta = np.where(ok_fit, 1.0 / np.where(ok_fit, b, 1.0), np.nan)
-    theta = np.where(ok_fit, np.exp(-a / np.where(ok_fit, b, 1.0)), np.nan)
+    # a slope at or below 0 (pounding not growing with x) or a median beyond any intensity: no fragility
+    log_theta = np.where(ok & (b > 0), -a / np.where(ok & (b > 0), b, 1.0), np.inf)
+    flat = ok & ~((b > 0) & (np.abs(log_theta) < 700.0))
+    status[flat] = "flat"
+    ok = ok & ~flat
+    beta = np.where(ok, 1.0 / np.where(ok, b, 1.0), np.nan)
+    theta = np.where(ok, np.exp(np.where(ok, log_theta, 0.0)), np.nan)
     status[ok & ~(beta >= MIN_BETA)] = "separated"
     # the separated and degenerate fits: where the data put them, for what they are
-    theta = np.where(status == "separated", np.exp(0.5 * (lo_k + np.where(np.isfinite(hi_not), hi_not, lo_k))), theta)
+    mid = 0.5 * (np.where(np.isfinite(lo_k), lo_k, 0.0) + np.where(np.isfinite(hi_not), hi_not, 0.0))
+    theta = np.where(status == "separated", np.exp(np.where(status == "separated", mid, 0.0)), theta)
     theta = np.where(status == "none", np.inf, np.where(status == "all", 0.0, theta))
     beta = np.where(status == "ok", beta, np.where(status == "separated", 0.0, np.nan))
     eta = np.log(x / np.where(status == "ok", theta, 1.0)[..., None]) / np.where(status == "ok", beta, 1.0)[..., None]

@@ -105,6 +105,7 @@ def fit_lognormal(x, k, n, weights=None) -> Fit:
     b = np.where(sxx > 0, sxz / np.where(sxx > 0, sxx, 1.0), 1.0)
     b = np.where(b > 0.1, b, 1.0)
     a = mz - b * mx
+
     def loglik(a, b):
         eta = np.clip(a[..., None] + b[..., None] * lx, -EDGE, EDGE)
         return np.where(ok, (k * log_ndtr(eta) + (n - k) * log_ndtr(-eta)).sum(-1), 0.0)

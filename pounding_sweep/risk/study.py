@@ -148,15 +148,16 @@ def claim_folder(folder: Path) -> None:
         raise OutputError(f"{folder}: cannot write the study here ({e.strerror or e})") from None
 
 
-def run_runs(scene: Scene, threads=None, executor=None, progress=None, overwrite=False, confirmed=False) -> dict:
-    """Run (or resume) the study's contact-free and contact runs; their sweep summaries by name."""
+def run_runs(scene: Scene, threads=None, executor=None, progress_for=None, overwrite=False, confirmed=False) -> dict:
+    """Run (or resume) the study's contact-free and contact runs; their sweep summaries by name ('free',
+    'contact'). `progress_for(name)` gives each sweep's progress callback (run_scene's `progress`)."""
     from pounding_sweep.sweep.run import run_scene
 
     out = {}
     for name, sub in (("free", free_scene(scene)), ("contact", contact_scene(scene))):
         if sub is None:
             continue
-        p = progress(name) if callable(progress) and not hasattr(progress, "restart") else progress
+        p = progress_for(name) if progress_for is not None else None
         out[name] = run_scene(
             sub, threads=threads, progress=p, executor=executor, overwrite=overwrite, confirmed=confirmed
         )
@@ -280,11 +281,14 @@ def analyse(scene: Scene, summaries: dict | None = None) -> RiskStudy:
     return RiskStudy(scene, folder, facts, demand, prob, frag, req, rules, cons, annual, dict(summaries or {}), boot)
 
 
-def risk_study(scene: Scene, threads=None, executor=None, progress=None, overwrite=False, confirmed=False) -> RiskStudy:
-    """Run (or resume) a scene's risk study and compute its tables (write them with write_study)."""
+def risk_study(
+    scene: Scene, threads=None, executor=None, progress_for=None, overwrite=False, confirmed=False
+) -> RiskStudy:
+    """Run (or resume) a scene's risk study and compute its tables (write them with write_study). `executor`:
+    sweep.executors' (default: the scene's [execution]); `progress_for(name)`: a progress callback per sweep."""
     check_risk_scene(scene)
     claim_folder(study_folder(scene))
-    summaries = run_runs(scene, threads, executor, progress, overwrite, confirmed)
+    summaries = run_runs(scene, threads, executor, progress_for, overwrite, confirmed)
     return analyse(scene, summaries)
 
 

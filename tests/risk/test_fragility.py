@@ -170,7 +170,9 @@ def test_annual_rate_matches_the_power_law_closed_form(tmp_path):
     k0, k, theta, beta = 1.2e-3, 2.5, 0.6, 0.45
     x = np.geomspace(1e-3, 1e2, 30)
     path = tmp_path / "h.csv"
-    path.write_text("# a test curve\nintensity_g,annual_rate\n" + "".join(f"{float(a)!r},{float(k0 * a**-k)!r}\n" for a in x))
+    path.write_text(
+        "# a test curve\nintensity_g,annual_rate\n" + "".join(f"{float(a)!r},{float(k0 * a**-k)!r}\n" for a in x)
+    )
     hz = read_hazard(str(path))
     numeric = annual_rate(hz, lambda xs: ndtr(np.log(xs / theta) / beta))
     assert numeric == pytest.approx(power_law_rate(k0, k, theta, beta), rel=1e-4)

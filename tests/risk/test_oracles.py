@@ -177,4 +177,6 @@ def test_lyapunov_variance_is_the_spectral_integral():
 def test_rice_rate_stationary_limit():
     """With cov(x, x') = 0 the general formula is Rice's classical nu+ = sv / (2 pi sx) exp(-b^2 / (2 sx^2))."""
     for b in (0.0, 0.5, 2.0):
-        assert O.upcrossing_rate(b, 0.25, 9.0) == pytest.approx(3 / (2 * math.pi * 0.5) * math.exp(-2 * b * b), rel=1e-14)
+        assert O.upcrossing_rate(b, 0.25, 9.0) == pytest.approx(
+            3 / (2 * math.pi * 0.5) * math.exp(-2 * b * b), rel=1e-14
+        )

@@ -35,19 +35,14 @@ def _parser() -> argparse.ArgumentParser:
 
 def risk_main(argv: list[str]) -> int:
     args = _parser().parse_args(argv)
+    from pounding_sweep.cli.run import _with_execution, check_execution_options  # the main command's rules
     from pounding_sweep.errors import InputError
     from pounding_sweep.progress import Progress
     from pounding_sweep.scene import load_scene
-    from pounding_sweep.scene.validate import check_dask_address, check_workers
     from pounding_sweep.warn import collecting
 
     try:
-        if args.threads is not None:
-            check_workers(args.threads, "--threads")
-        if args.workers is not None:
-            check_workers(args.workers, "--workers")
-        if args.dask_address:
-            check_dask_address(args.dask_address, "--dask-address")
+        check_execution_options(args)
         scene = load_scene(args.scene)
         from pounding_sweep.risk.study import check_risk_scene, risk_study, write_study
 
@@ -83,17 +78,6 @@ def risk_main(argv: list[str]) -> int:
     if not args.quiet:
         print_study(study, written)
     return 0
-
-
-def _with_execution(scene, args):
-    changes = {
-        k: v
-        for k, v in (("executor", args.executor), ("dask_address", args.dask_address), ("dask_workers", args.workers))
-        if v is not None
-    }
-    if args.dask_address and "executor" not in changes:
-        changes["executor"] = "dask"
-    return dataclasses.replace(scene, execution=dataclasses.replace(scene.execution, **changes)) if changes else scene
 
 
 def print_study(study, written) -> None:

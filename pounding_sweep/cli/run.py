@@ -163,6 +163,16 @@ def _print_warning(w) -> None:
     print(f"warning: {w.message}", file=sys.stderr, flush=True)
 
 
+def check_execution_options(args) -> None:
+    """--threads, --workers and --dask-address, checked before anything is read (shared by the subcommands)."""
+    if args.threads is not None:
+        check_workers(args.threads, "--threads")
+    if args.workers is not None:
+        check_workers(args.workers, "--workers")
+    if args.dask_address:
+        check_dask_address(args.dask_address, "--dask-address")
+
+
 def _with_execution(scene, args):
     """The scene with the command line's executor choices in place of its [execution] ones."""
     import dataclasses
@@ -198,12 +208,7 @@ def main(argv: list[str] | None = None) -> int:
     scene = None
     try:
         with _terminated_as_interrupt():
-            if args.threads is not None:
-                check_workers(args.threads, "--threads")
-            if args.workers is not None:
-                check_workers(args.workers, "--workers")
-            if args.dask_address:
-                check_dask_address(args.dask_address, "--dask-address")
+            check_execution_options(args)
             scene = load_scene(args.scene)
             from pounding_sweep.sweep.run import (
                 run_scene,

@@ -67,12 +67,13 @@ def group_intensity(d: pd.DataFrame, scaling: str) -> float:
     return float(d.scale.iloc[0]) if scaling == "intensity" else float(np.median(d.intensity_g))
 
 
-def default_gaps(demand: pd.DataFrame, count: int = 80) -> np.ndarray:
-    """Geometric gaps from 1 % to 150 % of the largest required gap of the ensemble [m]."""
+def default_gaps(demand: pd.DataFrame, count: int = 100) -> np.ndarray:
+    """Geometric gaps from 1 % to 250 % of the largest required gap of the ensemble [m] (beyond the largest: the
+    lognormal fragilities' answer for small targets, and bootstrap replicates, may lie there)."""
     top = float(demand.required_gap_m.max())
     if not top > 0:
         return np.geomspace(1e-4, 1e-2, count)
-    return np.geomspace(0.01 * top, 1.5 * top, count)
+    return np.geomspace(0.01 * top, 2.5 * top, count)
 
 
 def probability_table(demand: pd.DataFrame, gaps, scaling: str, confidence: float) -> pd.DataFrame:

@@ -76,6 +76,10 @@ def check_risk_scene(scene: Scene) -> None:
     """A scene a risk study can run: a [risk] section and only ensemble axes."""
     if scene.risk is None:
         raise ConfigError(f"{scene.source}: no [risk] section: nothing to study (python -m pounding_sweep --describe)")
+    if scene.risk.hazard is not None:  # read before any run: a bad table is refused with nothing written
+        from pounding_sweep.risk.hazard import read_hazard
+
+        read_hazard(scene.risk.hazard)
     extra = [a.name for a in scene.sweep if a.name not in ENSEMBLE_AXES]
     if extra:
         raise ConfigError(
@@ -89,23 +93,32 @@ def _levels(scene: Scene) -> tuple:
     return scene.axis_values("scale") or (scene.excitation.scale,)
 
 
-def free_scene(scene: Scene) -> Scene:
-    """The contact-free runs: one per motion and level, the gap no motion closes (no contact, so no contact
-    period to resolve: min_steps_per_contact_period 0)."""
-    axes = (motion_axis(scene), Axis("scale", tuple(_levels(scene))))
+def _derived(scene: Scene, kind: str, axes: tuple, **changes) -> Scene:
+    """The scene of the study's `kind` runs ('free', 'contact'): its axes, its folder, nothing else of the study."""
     out = dataclasses.replace(
         scene,
-        name=f"{scene.name}.free",
-        contact=dataclasses.replace(scene.contact, gap_m=SEPARATED_GAP_M),
-        integration=dataclasses.replace(scene.integration, min_steps_per_contact_period=0.0),
+        name=f"{scene.name}.{kind}",
         experiment=None,
         calibrate=None,
         risk=None,
         sweep=axes,
-        output=dataclasses.replace(scene.output, path=str(study_folder(scene) / "runs_free.parquet"), histories=()),
+        output=dataclasses.replace(scene.output, path=str(study_folder(scene) / f"runs_{kind}.parquet"), histories=()),
+        **changes,
     )
     validate(out)
     return out
+
+
+def free_scene(scene: Scene) -> Scene:
+    """The contact-free runs: one per motion and level, the gap no motion closes (no contact, so no contact
+    period to resolve: min_steps_per_contact_period 0)."""
+    return _derived(
+        scene,
+        "free",
+        (motion_axis(scene), Axis("scale", tuple(_levels(scene)))),
+        contact=dataclasses.replace(scene.contact, gap_m=SEPARATED_GAP_M),
+        integration=dataclasses.replace(scene.integration, min_steps_per_contact_period=0.0),
+    )
 
 
 def contact_scene(scene: Scene) -> Scene | None:
@@ -116,15 +129,40 @@ def contact_scene(scene: Scene) -> Scene | None:
     levels = _levels(scene)
     if scene.excitation.scaling == "intensity":
         levels = tuple(r.contact_intensities_g or r.intensities_g or levels)
-    axes = (motion_axis(scene), Axis("scale", tuple(levels)), Axis("gap_m", tuple(r.contact_gaps_m)))
+    return _derived(
+        scene, "contact", (motion_axis(scene), Axis("scale", tuple(levels)), Axis("gap_m", tuple(r.contact_gaps_m)))
+    )
+
+
+def resized(
+    scene: Scene,
+    motions: int | None = None,
+    levels=None,
+    duration_s: float | None = None,
+    filter: str | None = None,
+    stationary: bool = False,
+    **risk,
+) -> Scene:
+    """A stochastic study's scene with another number of motions (seeds 0 .. motions - 1), other levels, motion
+    length, filter ('kanai_tajimi' drops the high-pass), without its envelope (stationary), and [risk] keys
+    changed: for trying a study small, tests and benchmarks."""
+    st, exc, sweep = scene.stochastic, scene.excitation, dict((a.name, a.values) for a in scene.sweep)
+    if filter == "kanai_tajimi":
+        st = dataclasses.replace(st, filter=filter, highpass_frequency_Hz=None, highpass_damping=None)
+    if stationary:
+        st = dataclasses.replace(st, envelope="none", rise_s=None, strong_end_s=None, decay_per_s=None)
+    if motions is not None:
+        sweep["seed"] = tuple(float(i) for i in range(motions))
+    if levels is not None:
+        sweep["scale"] = tuple(levels)
+    if duration_s is not None:
+        exc = dataclasses.replace(exc, duration_s=duration_s)
     out = dataclasses.replace(
         scene,
-        name=f"{scene.name}.contact",
-        experiment=None,
-        calibrate=None,
-        risk=None,
-        sweep=axes,
-        output=dataclasses.replace(scene.output, path=str(study_folder(scene) / "runs_contact.parquet"), histories=()),
+        stochastic=st,
+        excitation=exc,
+        sweep=tuple(Axis(k, v) for k, v in sweep.items()),
+        risk=dataclasses.replace(scene.risk, **risk) if scene.risk is not None and risk else scene.risk,
     )
     validate(out)
     return out
@@ -363,6 +401,7 @@ __all__ = [
     "check_risk_scene",
     "free_scene",
     "contact_scene",
+    "resized",
     "claim_folder",
     "run_runs",
     "analyse",

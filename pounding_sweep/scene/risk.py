@@ -31,7 +31,7 @@ class RiskConfig:
     gaps_m: tuple[float, ...] | None = _f(
         "gaps at which P(pounding) is tabulated [m] (every gap comes from the same contact-free runs)",
         None,
-        "default: 80 gaps, geometric, from 1 % to 150 % of the largest gap the ensemble needs",
+        "default: 100 gaps, geometric, from 1 % to 250 % of the largest gap the ensemble needs",
     )
     intensities_g: tuple[float, ...] | None = _f(
         "intensities [g] of the required-gap and code-rule tables (with scaling = 'intensity': [sweep] scale values)",

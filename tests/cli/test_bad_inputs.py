@@ -67,6 +67,7 @@ def test_corpus_covers_the_issue():
         "output",  # issue 17: where results go,
         "resume",  # what an existing result folder holds,
         "execution",  # and how the sweep runs
+        "risk",  # issue 29: ensembles, [stochastic], [risk] and the risk subcommand
     }
     assert min(counts.values()) >= 5, counts
     assert 10 <= sum(c.subprocess for c in CASES) <= 16  # the real-process dozen

@@ -47,7 +47,10 @@ def stochastic(seeds: int, levels=None, duration=None, filt=None, envelope=True,
     S0 level (no scaling); with `gap`, a plain sweep scene at that gap (no contact period to resolve)."""
     from pounding_sweep.risk.study import resized
 
-    s = resized(load_scene(SWEEPS / "risk_stochastic.toml"), seeds, levels or (1.0,), duration, filt, not envelope)
+    s = load_scene(SWEEPS / "risk_stochastic.toml")
+    s = resized(
+        s if levels else dataclasses.replace(s, risk=None), seeds, levels or (1.0,), duration, filt, not envelope
+    )
     if levels is None:
         s = dataclasses.replace(
             s,

@@ -32,7 +32,8 @@ from pounding_sweep.model.coupled import CoupledModel
 from pounding_sweep.model.excitation import intensity_period
 from pounding_sweep.scene import Axis, Scene, validate
 
-#: the study folder's manifest: a folder holding it is a risk study's (its tables and figures may be replaced)
+#: the study folder's manifest, written after its runs: a folder holding it is a risk study's (its tables and
+#: figures may be replaced)
 MANIFEST = "_risk.json"
 TABLES = ("demand", "probability", "fragility", "required_gap", "code_rules", "consequences", "annual_rate")
 FIGURES = ("probability_vs_gap.png", "fragility.png", "required_gap.png")
@@ -168,17 +169,28 @@ def resized(
     return out
 
 
-def claim_folder(folder: Path) -> None:
-    """The study folder: made, or found holding this package's manifest (a folder of something else, or a file
-    at that path, is refused, never written into)."""
+RUN_FOLDERS = ("runs_free.parquet", "runs_contact.parquet")
+
+
+def check_folder(folder: Path) -> None:
+    """The study folder may be used: absent, empty, a risk study's (its manifest), or holding only the study's
+    run datasets (an interrupted first study: run_scene guards those itself). A file at that path, or a folder of
+    something else, is refused, never written into."""
     if folder.exists() and not folder.is_dir():
         raise OutputError(f"{folder}: a file, not a risk study folder: give another --out, or move it away")
-    if folder.is_dir() and any(folder.iterdir()) and not (folder / MANIFEST).is_file():
+    if not folder.is_dir() or (folder / MANIFEST).is_file():
+        return
+    foreign = sorted(p.name for p in folder.iterdir() if p.name not in RUN_FOLDERS)
+    if foreign:
         raise OutputError(
-            f"{folder} exists and is not a risk study folder (no {MANIFEST}): give another --out, or move it away"
+            f"{folder} exists and is not a risk study folder (no {MANIFEST}; it holds {', '.join(foreign[:3])}"
+            f"{' ...' if len(foreign) > 3 else ''}): give another --out, or move it away"
         )
+
+
+def mark_folder(folder: Path) -> None:
+    """Write the study folder's manifest (after its runs: a study refused before them leaves nothing behind)."""
     try:
-        folder.mkdir(parents=True, exist_ok=True)
         tmp = folder / f".{MANIFEST}.tmp"
         tmp.write_text(json.dumps({"package": "pounding_sweep", "kind": "risk_study", "version": __version__}))
         tmp.replace(folder / MANIFEST)
@@ -325,8 +337,9 @@ def risk_study(
     """Run (or resume) a scene's risk study and compute its tables (write them with write_study). `executor`:
     sweep.executors' (default: the scene's [execution]); `progress_for(name)`: a progress callback per sweep."""
     check_risk_scene(scene)
-    claim_folder(study_folder(scene))
+    check_folder(study_folder(scene))
     summaries = run_runs(scene, threads, executor, progress_for, overwrite, confirmed)
+    mark_folder(study_folder(scene))
     return analyse(scene, summaries)
 
 
@@ -402,7 +415,8 @@ __all__ = [
     "free_scene",
     "contact_scene",
     "resized",
-    "claim_folder",
+    "check_folder",
+    "mark_folder",
     "run_runs",
     "analyse",
     "risk_study",

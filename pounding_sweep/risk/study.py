@@ -77,6 +77,9 @@ def check_risk_scene(scene: Scene) -> None:
     """A scene a risk study can run: a [risk] section and only ensemble axes."""
     if scene.risk is None:
         raise ConfigError(f"{scene.source}: no [risk] section: nothing to study (python -m pounding_sweep --describe)")
+    from pounding_sweep.scene.risk import check_ensemble
+
+    check_ensemble(scene)
     if scene.risk.hazard is not None:  # read before any run: a bad table is refused with nothing written
         from pounding_sweep.risk.hazard import read_hazard
 

@@ -68,7 +68,7 @@ def _positive_list(values, key: str) -> None:
 
 
 def validate_risk(scene) -> None:
-    """[risk]'s own values, and an ensemble to study in the scene."""
+    """[risk]'s own values, and ground motions with an intensity measure."""
     r = scene.risk
     if r is None:
         return
@@ -90,6 +90,13 @@ def validate_risk(scene) -> None:
         raise ConfigError("[risk]: needs ground motions (type = 'record' or 'stochastic'), not a harmonic excitation")
     if e.intensity == "none":
         raise ConfigError("[risk]: needs [excitation] intensity = 'pga' or 'sa' (the intensity measure of the study)")
+
+
+def check_ensemble(scene) -> None:
+    """What a risk study needs of the scene's [sweep] (checked by the study, not when the scene is read: the
+    same scene runs as a plain sweep, or one point of it with simulate): an ensemble of motions, [risk]'s
+    intensities among the levels, no gap axis."""
+    r, e = scene.risk, scene.excitation
     motions = len(scene.axis_values("record") or scene.axis_values("seed"))
     if motions < MIN_MOTIONS:
         raise ConfigError(

@@ -2009,6 +2009,7 @@ CASES += [
         [S, "[risk] intensities_g"],
         "0.3",
         edit(STOCHASTIC, "intensities_g = [0.4]", "intensities_g = [0.3]"),
+        argv=RISK,
     ),
     _c(
         "risk_gap_axis",
@@ -2017,6 +2018,7 @@ CASES += [
         [S, "[sweep] gap_m"],
         "sets the gaps itself",
         edit(STOCHASTIC, "scale = [0.2, 0.4]", "scale = [0.2, 0.4]\ngap_m = [0.1, 0.2]"),
+        argv=RISK,
     ),
     _c(
         "risk_hazard_missing",

@@ -22,7 +22,7 @@ from pounding_sweep.errors import ConfigError
 from pounding_sweep.model.excitation import Excitation
 from pounding_sweep.model.intensity import intensity
 from pounding_sweep.model.records import G_STANDARD
-from pounding_sweep.risk.study import FIGURES, TABLES, analyse, free_scene, risk_study, write_study
+from pounding_sweep.risk.study import FIGURES, TABLES, analyse, check_risk_scene, free_scene, risk_study, write_study
 from pounding_sweep.scene import Axis, load_scene, scene_from_dict
 from pounding_sweep.sweep.results import part_files
 
@@ -182,6 +182,7 @@ def test_dask_gives_the_same_study_bit_for_bit(tmp_path):
         ({"sweep": {"seed": [0.5, 1.0]}}, "a seed is a whole number"),
         ({"sweep": {"gap_m": [0.1, 0.2]}}, "a risk study sets the gaps itself"),
         ({"risk": {"intensities_g": [0.33]}}, "is not an intensity level"),
+        ({"sweep": {"r": [0.2, 0.4]}}, "holds its ensemble"),
         ({"risk": {"targets": [1.5]}}, "probabilities lie in"),
         ({"stochastic": {"filter": "kanai"}}, "expected one of"),
         ({"stochastic": {"highpass_frequency_Hz": None}}, "missing key 'highpass_frequency_Hz'"),
@@ -197,8 +198,18 @@ def test_bad_risk_scenes_are_refused(change, message):
                 raw[section].pop(k)
             else:
                 raw[section][k] = v
-    with pytest.raises(ConfigError, match=message):
-        scene_from_dict(raw, base_dir=SWEEPS, source=str(SWEEPS / "x.toml"))
+    with pytest.raises(ConfigError, match=message):  # when the scene is read, or when a study would start
+        check_risk_scene(scene_from_dict(raw, base_dir=SWEEPS, source=str(SWEEPS / "x.toml")))
+
+
+def test_a_risk_scene_runs_as_a_plain_sweep_and_as_one_point():
+    """[risk] is the study's: the scene still runs one point (simulate) and a gap study."""
+    from pounding_sweep.sweep import simulate
+
+    s = load_scene(SWEEPS / "risk_stochastic.toml")
+    s = dataclasses.replace(s, excitation=dataclasses.replace(s.excitation, duration_s=2.0))
+    h, m = simulate(s, channels=["disp_b1f3"], seed=3, scale=0.4)
+    assert m["status"] == "ok" and len(h) == 401
 
 
 def test_cli_on_a_scene_without_risk_is_one_error_line(tmp_path):

@@ -27,6 +27,7 @@ SUBCOMMANDS = {
     "track": "pounding_sweep.cli.track:track_main",
     "identify": "pounding_sweep.cli.identify:identify_main",
     "gaps": "pounding_sweep.cli.gaps:gaps_main",
+    "import": "pounding_sweep.cli.import_:import_main",
     "risk": "pounding_sweep.cli.risk:risk_main",
 }
 #: one line per subcommand for --help (each has its own: python -m pounding_sweep NAME --help)
@@ -35,6 +36,7 @@ SUBCOMMAND_HELP = {
     "identify": "identify TABLE [--scene S --out T]: frequencies, damping and mode shapes; the model update",
     "plot": "plot RESULTS: PNG figures of a result file (heatmaps, best run's histories, error vs run time)",
     "gaps": "gaps SCENE [--out T]: the seismic gap each floor pair needs, by rule and from the histories",
+    "import": "import NAME=FILE ... --out DIR: raw sensor exports -> an experiment table, a record, provenance",
     "risk": "risk SCENE [--out D]: probability of pounding against the gap, fragility, required gap ([risk])",
 }
 
@@ -42,7 +44,7 @@ SUBCOMMAND_HELP = {
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="python -m pounding_sweep",
-        usage="%(prog)s [options] SCENE.toml\n       %(prog)s {track,identify,plot,gaps,risk} ... (see below)",
+        usage="%(prog)s [options] SCENE.toml\n       %(prog)s {track,identify,plot,gaps,import,risk} ... (see below)",
         description="Run a pounding scene: every grid point of its [sweep] through the Newmark/Kelvin-Voigt "
         "kernel, one Parquet row per run (metrics with units in the column names; the scene, its hash and "
         "the package versions in the file metadata).",

@@ -85,6 +85,10 @@ class Excitation:
             if odd is not None:
                 steps = "" if scene.integration.auto else f" A run takes {arrays[-1].size - 1:,} steps of {dt:g} s."
                 warn("record_timing", odd + steps)
+            from pounding_sweep.model.sensors.checks import record_problem  # SciPy: only where a record is read
+
+            if (offset := record_problem(recs[-1])) is not None:
+                warn("record_offset", offset)
         lens = np.array([a.size for a in arrays], dtype=np.int64)
         if lens.min() < 2:
             from pounding_sweep.scene import ConfigError

@@ -17,7 +17,15 @@ from pathlib import Path
 #: before they existed: at these values they are left out of the canonical form, so a scene that does not
 #: use them keeps its hash (and its results resume). Written out, not read from the schema: were a default
 #: ever changed, a scene at the new default would differ from these values and hash differently, as it must.
-ADDED_EXPERIMENT_KEYS = {"acc_units": "m/s2", "lowpass_Hz": None, "lowpass_order": 4, "use": "both", "weights": "equal"}
+ADDED_EXPERIMENT_KEYS = {
+    "acc_units": "m/s2",
+    "lowpass_Hz": None,
+    "lowpass_order": 4,
+    "use": "both",
+    "weights": "equal",
+    "noise": None,
+    "noise_window_s": None,
+}
 #: [excitation] keys and sections added for ensembles of ground motions (intensity measures, stochastic
 #: motions), left out at the values they had before they existed, like ADDED_EXPERIMENT_KEYS
 ADDED_EXCITATION_KEYS = {"intensity": "none", "scaling": "factor", "intensity_period_s": None}

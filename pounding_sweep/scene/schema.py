@@ -285,6 +285,19 @@ class ExperimentConfig:
     window_s: tuple[float, ...] | None = _f(
         "[start, end] of the compared window in simulation time [s]", None, when="default: all overlap"
     )
+    noise: dict[str, float] | None = _f(
+        "table column -> its measurement noise (standard deviation) in the column's own units (units for a "
+        "displacement, acc_units for an acceleration), e.g. {b1f3_acc_m_s2 = 0.0095}: the noise floor of 'noise' "
+        "weights and of [calibrate]'s residuals",
+        None,
+        when="optional; else noise_window_s, else estimated from the table by differences (an upper bound)",
+    )
+    noise_window_s: tuple[float, ...] | None = _f(
+        "[start, end] of a quiet stretch of the table in experiment time [s] (nothing moves: before the shaking): "
+        "each channel's standard deviation there is its noise",
+        None,
+        when="optional; noise gives a channel's value directly",
+    )
     time_offset_s: float = _f(
         "experiment time minus simulation time [s] (the table's t = offset is the simulation's t = 0)", 0.0
     )
@@ -329,7 +342,10 @@ class CalibrateConfig:
         "the parameters to profile", (), when="optional; by default the fitted contact parameters (k_s or k_h, r)"
     )
     noise_m: float | None = _f(
-        "the tracking noise (RMS) of every channel [m]", None, when="optional; by default estimated from the data"
+        "the tracking noise (RMS) of every displacement channel [m] (an acceleration channel's: [experiment] noise "
+        "or noise_window_s)",
+        None,
+        when="optional; by default estimated from the data",
     )
     misfit_factor: float = _f("warn when the best fit's residual exceeds this many times the noise floor", 3.0)
 

@@ -29,6 +29,7 @@ from pounding_sweep.model.laws import hertz_stiffness, law_arrays
 from pounding_sweep.scene import SWEEPABLE, Scene, contact_stiffness
 from pounding_sweep.scene.axes import STRUCTURE_AXES
 from pounding_sweep.scene.channels import parse_channel
+from pounding_sweep.warn import warn
 
 LAW_NAMES = {code: name for name, code in CONTACT_LAWS.items()}
 
@@ -143,9 +144,11 @@ def prepare(scene: Scene, kernel: str = "auto") -> Prepared:
     hspec, hcols = history_spec(scene, model.floors)
     score, codes, comb = ScoreSpec.none(), [], None
     if scene.experiment is not None:
-        from pounding_sweep.sweep.scoring import load_experiment, score_spec
+        from pounding_sweep.sweep.scoring import load_experiment, score_spec, sensor_warnings
 
         exp = load_experiment(scene.experiment, model.floors)
+        for kind, message in sensor_warnings(exp, scene.experiment, model, exc):
+            warn(kind, message)
         score, comb = score_spec(exp, scene.experiment, model.floors, exc.max_duration_s, dt)
         codes = list(exp.channels)
     else:

@@ -26,6 +26,10 @@ ADDED_EXPERIMENT_KEYS = {
     "noise": None,
     "noise_window_s": None,
 }
+#: [excitation] keys and sections added for ensembles of ground motions (intensity measures, stochastic
+#: motions), left out at the values they had before they existed, like ADDED_EXPERIMENT_KEYS
+ADDED_EXCITATION_KEYS = {"intensity": "none", "scaling": "factor", "intensity_period_s": None}
+ADDED_SECTIONS = ("stochastic",)
 
 
 def canonical(scene) -> dict:
@@ -37,6 +41,13 @@ def canonical(scene) -> dict:
     d.pop("toml_text")
     d.pop("execution")
     d.pop("calibrate", None)  # the fit after the grid: changes no run of the grid (its parts resume)
+    d.pop("risk", None)  # the study over the runs ([risk]): changes no run either
+    for key, before in ADDED_EXCITATION_KEYS.items():
+        if d["excitation"].get(key, before) == before:
+            d["excitation"].pop(key, None)
+    for section in ADDED_SECTIONS:
+        if d.get(section, 0) is None:
+            del d[section]
     d["output"].pop("path")
     digests: dict[str, dict] = {}
 

@@ -9,6 +9,8 @@ import dataclasses
 from dataclasses import dataclass, field
 
 from pounding_sweep import codes
+from pounding_sweep.scene.risk import RiskConfig
+from pounding_sweep.scene.stochastic import StochasticConfig
 from pounding_sweep.scene.video import VideoSpec  # plain data; OpenCV stays unimported
 
 
@@ -136,9 +138,9 @@ class ContactConfig:
 
 @dataclass(frozen=True)
 class ExcitationConfig:
-    """Table motion: harmonic displacement, or a recorded ground acceleration."""
+    """Table motion: harmonic displacement, a recorded ground acceleration, or a stochastic one ([stochastic])."""
 
-    type: str = _f("'harmonic' or 'record'")
+    type: str = _f("'harmonic', 'record' or 'stochastic' (filtered white noise: the [stochastic] section)")
     name: str = _f("label used in outputs", "")
     amplitude_m: float | None = _f(
         "harmonic: table displacement amplitude [m]", None, when="required for type = 'harmonic'"
@@ -160,9 +162,25 @@ class ExcitationConfig:
         None,
         when="default: an AT2's header's units, else g; a CSV's m/s2",
     )
-    scale: float = _f("factor on the record's acceleration", 1.0)
+    scale: float = _f("factor on the motion's acceleration (scaling = 'intensity': the motion's intensity in g)", 1.0)
     length_scale: float = _f(
         "similitude length scale lambda_L (eqs. 17-19): time / sqrt(lambda_L), acceleration kept", 1.0
+    )
+    intensity: str = _f(
+        "record or stochastic: each motion's intensity measure, 'pga' or 'sa' (5 %-damped pseudo-spectral "
+        "acceleration at intensity_period_s, exact for piecewise-linear input: Nigam & Jennings 1969), written "
+        "per run as intensity_g; 'none': not computed",
+        "none",
+    )
+    scaling: str = _f(
+        "'factor': scale multiplies each motion (cloud analysis); 'intensity': each motion is scaled so that its "
+        "intensity is scale g (incremental dynamic analysis with [sweep] scale as the levels)",
+        "factor",
+    )
+    intensity_period_s: float | None = _f(
+        "intensity = 'sa': the period T of Sa(T) [s]",
+        None,
+        "default: the geometric mean of the two buildings' first periods",
     )
 
 
@@ -358,6 +376,8 @@ class Scene:
     toml_text: str  # the scene file as written
     experiment: ExperimentConfig | None = None
     calibrate: CalibrateConfig | None = None
+    stochastic: StochasticConfig | None = None
+    risk: RiskConfig | None = None
 
     def canonical(self) -> dict:
         """Resolved scene as plain data (what the hash covers): scene/hashing.py."""
@@ -388,4 +408,4 @@ SECTIONS = {
     "output": OutputConfig,
     "execution": ExecutionConfig,
 }
-TOP_KEYS = {"name", "description", "sweep", "experiment", "calibrate", *SECTIONS}
+TOP_KEYS = {"name", "description", "sweep", "experiment", "calibrate", "stochastic", "risk", *SECTIONS}

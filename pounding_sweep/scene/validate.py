@@ -33,6 +33,7 @@ from pounding_sweep.scene.schema import (
     BuildingConfig,
     Scene,
 )
+from pounding_sweep.scene.stochastic import validate_ensemble
 
 
 def _positive(value, key):
@@ -123,9 +124,12 @@ def validate(s: Scene) -> None:
         if v < 0:
             raise ConfigError(f"[sweep] gap_m = {v!r}: must be >= 0")
     e = s.excitation
-    if e.type not in ("harmonic", "record"):
-        raise ConfigError(f"[excitation] type = {e.type!r}: expected 'harmonic' or 'record'")
-    if e.type == "harmonic":
+    if e.type not in ("harmonic", "record", "stochastic"):
+        raise ConfigError(f"[excitation] type = {e.type!r}: expected 'harmonic', 'record' or 'stochastic'")
+    validate_ensemble(s)  # [stochastic], the seed axis, the intensity keys, [risk]
+    if e.type == "stochastic":
+        pass
+    elif e.type == "harmonic":
         for k in ("amplitude_m", "frequency_Hz", "duration_s"):
             if getattr(e, k) is None and k not in axes:
                 raise ConfigError(f"[excitation] missing key '{k}' for a harmonic excitation")

@@ -2362,6 +2362,126 @@ CASES += [
     ),
 ]
 
+# ----------------------------------------------------------------------------- risk studies (issue 29)
+
+STOCHASTIC = (
+    BASE.split("[excitation]")[0]
+    + """\
+[excitation]
+type = "stochastic"
+duration_s = 1.0
+intensity = "sa"
+scaling = "intensity"
+
+[stochastic]
+ground_frequency_Hz = 2.5
+ground_damping = 0.6
+s0_m2_per_s3 = 0.01
+
+[integration]
+dt_s = 0.005
+
+[sweep]
+seed = [0, 1, 2]
+scale = [0.2, 0.4]
+
+[risk]
+intensities_g = [0.4]
+"""
+)
+RISK = ("risk", "{scene}", "--out", "{dir}/study.risk")
+
+CASES += [
+    _c(
+        "risk_without_intensity",
+        "risk",
+        "[risk] with [excitation] intensity = 'none'",
+        [S, "[risk]"],
+        "intensity",
+        edit(edit(STOCHASTIC, 'intensity = "sa"', 'intensity = "none"'), 'scaling = "intensity"', 'scaling = "factor"'),
+    ),
+    _c(
+        "risk_seed_fraction",
+        "risk",
+        "[sweep] seed = [0, 1.5]",
+        [S, "[sweep] seed"],
+        "1.5",
+        edit(STOCHASTIC, "seed = [0, 1, 2]", "seed = [0, 1.5]"),
+    ),
+    _c(
+        "risk_stochastic_section_missing",
+        "risk",
+        "type = 'stochastic' without a [stochastic] section",
+        [S, "[excitation] type"],
+        "[stochastic]",
+        STOCHASTIC.split("[stochastic]")[0] + "[integration]" + STOCHASTIC.split("[integration]")[1],
+    ),
+    _c(
+        "risk_intensity_not_a_level",
+        "risk",
+        "[risk] intensities_g = [0.3] with [sweep] scale = [0.2, 0.4]",
+        [S, "[risk] intensities_g"],
+        "0.3",
+        edit(STOCHASTIC, "intensities_g = [0.4]", "intensities_g = [0.3]"),
+        argv=RISK,
+    ),
+    _c(
+        "risk_gap_axis",
+        "risk",
+        "[sweep] gap_m in a risk scene",
+        [S, "[sweep] gap_m"],
+        "sets the gaps itself",
+        edit(STOCHASTIC, "scale = [0.2, 0.4]", "scale = [0.2, 0.4]\ngap_m = [0.1, 0.2]"),
+        argv=RISK,
+    ),
+    _c(
+        "risk_hazard_missing",
+        "risk",
+        "[risk] hazard = 'nowhere.csv' (no such file)",
+        ["nowhere.csv"],
+        "hazard table",
+        edit(STOCHASTIC, "intensities_g = [0.4]", 'intensities_g = [0.4]\nhazard = "nowhere.csv"'),
+        argv=RISK,
+    ),
+    _c(
+        "risk_hazard_increasing",
+        "risk",
+        "a hazard table whose rate grows with the intensity",
+        ["haz.csv"],
+        "must decrease",
+        edit(STOCHASTIC, "intensities_g = [0.4]", 'intensities_g = [0.4]\nhazard = "haz.csv"'),
+        files={"haz.csv": "intensity_g,annual_rate\n0.1,0.01\n0.2,0.02\n"},
+        argv=RISK,
+    ),
+    _c(
+        "risk_subcommand_without_risk",
+        "risk",
+        "`risk` on a scene without a [risk] section",
+        [S],
+        "no [risk] section",
+        argv=RISK,
+        sub=True,
+    ),
+    _c(
+        "risk_out_is_a_file",
+        "risk",
+        "`risk --out` naming a file",
+        ["scene.toml"],
+        "not a risk study folder",
+        STOCHASTIC,
+        argv=("risk", "{scene}", "--out", "{scene}"),
+    ),
+    _c(
+        "risk_sweeps_contact",
+        "risk",
+        "a risk scene sweeping r (its contact runs take [contact]'s)",
+        [S, "[sweep] r"],
+        "ensemble",
+        edit(STOCHASTIC, "scale = [0.2, 0.4]", "scale = [0.2, 0.4]\nr = [0.2, 0.4]"),
+        argv=RISK,
+    ),
+]
+
 #: inputs that should be refused but are not yet: each is run and expected to fail its check
 #: (strict xfail in the test), so fixing the gap shows up. The reason says what is missing.
 KNOWN_GAPS: dict = {}  # none left: a video cut mid-stream is now refused (VideoReader._check_complete)

@@ -47,6 +47,15 @@ SLOW = {
         "test_kernel_counts_equal_newmark_reference",
         "test_kernel_histories_equal_newmark_reference",
     ),
+    "tests/risk/test_oracles.py": (
+        "test_covariance_and_upcrossings_match_lyapunov_and_rice",
+        "test_enveloped_covariance_matches_the_time_varying_lyapunov_equation",
+        "test_probability_of_pounding_within_rice_bound_and_vanmarcke",
+    ),
+    "tests/risk/test_study.py": (
+        "test_cli_runs_a_study",
+        "test_dask_gives_the_same_study_bit_for_bit",
+    ),
     "tests/scene/test_scene.py": ("test_cli_bad_input_exits_2_without_output",),
     "tests/scene/test_scene_properties.py": ("test_any_scene_loads_valid_or_raises_config_error",),
     "tests/sweep/test_best_table.py": (
@@ -107,6 +116,7 @@ SLOW = {
         "test_first_frequency_from_a_rendered_free_vibration_video_within_half_a_percent",
         "test_video_to_tracked_table_to_sweep_finds_the_hidden_contact_parameters",
     ),
+    "tests/video/test_video_io.py": ("test_import_and_a_sweep_never_import_opencv",),
 }
 
 

@@ -1,6 +1,11 @@
-"""Checks of a whole sweep that find a probable mistake in its scene (each a pounding_sweep.warn warning):
-before the runs, a time step too coarse for every run's contact; after them, a grid in which no run made
-contact although the scene is there to study pounding (a gap in mm in a metre field)."""
+"""Checks of a whole sweep that find a probable mistake in its scene, each where it can first be seen.
+
+Before the runs: a time step too coarse for every run's contact, an r axis the elastic Hertz law ignores, a
+low-pass below the buildings' modes (warnings); a measured value no shake-table test gives, and what would make
+the calibration after the grid fail (errors: time offsets off the table, a noise floor that cannot be
+estimated, a global stage too large). After them: a grid in which no run made contact although the scene is
+there to study pounding, and a scored channel no run explains (a unit mix-up, named where one factor fits).
+Criteria and their reasons: docs/safeguards.md and the constants below."""
 
 from __future__ import annotations
 

@@ -20,7 +20,7 @@ REPO = Path(__file__).resolve().parents[1]
 SWEEPS = REPO / "sweeps"
 SHARED = REPO.parent / "shared"
 
-#: The slow tier (docs/testing.md): tests that take more than about 2 s each warm on a 2-core machine, or more
+#: The slow tier (docs/contributing/testing.md): tests that take more than about 2 s each warm on a 2-core machine, or more
 #: than about 4 s over their parameters: a real `python -m pounding_sweep` process or Dask cluster, a calibration,
 #: a long reference integration, the notebook, a kernel compiled from scratch. Marked `slow` at collection, by
 #: file and test function (every parametrisation); `python -m pytest -q -m "not slow"` runs the rest, the fast

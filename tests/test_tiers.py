@@ -1,4 +1,4 @@
-"""The fast tier (docs/testing.md): the slow list in tests/conftest.py names tests that exist, so that a test
+"""The fast tier (docs/contributing/testing.md): the slow list in tests/conftest.py names tests that exist, so that a test
 renamed or removed does not leave a stale entry (and the tier is what the list says)."""
 
 from __future__ import annotations

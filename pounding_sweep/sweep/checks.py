@@ -5,7 +5,7 @@ low-pass below the buildings' modes (warnings); a measured value no shake-table 
 the calibration after the grid fail (errors: time offsets off the table, a noise floor that cannot be
 estimated, a global stage too large). After them: a grid in which no run made contact although the scene is
 there to study pounding, and a scored channel no run explains (a unit mix-up, named where one factor fits).
-Criteria and their reasons: docs/safeguards.md and the constants below."""
+Criteria and their reasons: docs/reference/safeguards.md and the constants below."""
 
 from __future__ import annotations
 

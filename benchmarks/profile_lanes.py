@@ -114,7 +114,7 @@ def _profile(a, perf: str, tmp: Path, pmap: Path) -> None:
     import numpy as np
 
     from pounding_sweep.engine import driver
-    from pounding_sweep.engine import lanes as kernel_lanes
+    from pounding_sweep.engine.lanes import groups
 
     s = B.scene(
         base=B.SCENE_6HZ,
@@ -127,7 +127,7 @@ def _profile(a, perf: str, tmp: Path, pmap: Path) -> None:
     t0 = time.perf_counter()
     driver.run_chunk_lanes(prep.sysarr, runs, rec, prep.opts, 1)
     print(f"compiled the lane kernel in {time.perf_counter() - t0:.0f} s")
-    syms = compiled_functions(kernel_lanes.integrate_lanes)
+    syms = compiled_functions(groups._integrate_groups)
     with open(pmap, "w") as fh:
         for k, (addr, name) in enumerate(syms):
             end = syms[k + 1][0] if k + 1 < len(syms) else addr + 65536

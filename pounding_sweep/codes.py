@@ -4,14 +4,14 @@ imports nothing), so choosing a scheme by name never loads the kernels."""
 
 from __future__ import annotations
 
-#: integration schemes (engine/scalar.py and engine/lanes.py implement them)
+#: integration schemes (engine/scalar.py, engine/nonlinear.py and engine/lanes implement them)
 SCHEME_IMPLICIT = 0
 SCHEME_PAPER = 1
 SCHEME_EVENT = 2
 SCHEMES = {"implicit": SCHEME_IMPLICIT, "paper": SCHEME_PAPER, "event": SCHEME_EVENT}
 
 #: contact laws (model/contact.py and model/laws.py hold their parameters): the linear Kelvin-Voigt laws
-#: (engine/scalar.py, engine/lanes.py) and, from LAW_HERTZ on, the Hertz-type nonlinear ones (engine/nonlinear.py)
+#: (engine/scalar.py, engine/lanes) and, from LAW_HERTZ on, the Hertz-type nonlinear ones (engine/nonlinear.py)
 LAW_CLASSIC = 0
 LAW_NO_TENSION = 1
 LAW_HERTZ = 2

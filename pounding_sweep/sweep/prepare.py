@@ -76,7 +76,6 @@ class Prepared:
             batch_runs,
             self.score,
             self.kernel,
-            law_codes(params),
             done,
         )
         return metrics, run_time, hist, scores, derived
@@ -115,7 +114,16 @@ class Prepared:
         k, c, derived, status = contact_arrays(self.model, self.scene, params, self.dt)
         ex = self.excitation.run_arrays(params)
         runs = RunArrays(
-            k, c, params["gap_m"], ex["exc_kind"], ex["exc_amp"], ex["exc_omega"], ex["rec_id"], ex["nsteps"], status
+            k,
+            c,
+            params["gap_m"],
+            ex["exc_kind"],
+            ex["exc_amp"],
+            ex["exc_omega"],
+            ex["rec_id"],
+            ex["nsteps"],
+            status,
+            law_codes(params),
         )
         rec = Records(self.excitation.rec_flat, self.excitation.rec_off, self.excitation.rec_len)
         return runs, rec, derived
@@ -135,7 +143,6 @@ def prepare(scene: Scene, kernel: str = "auto") -> Prepared:
     exc = Excitation.from_scene(scene, dt)
     opts = KernelOptions(
         SCHEMES[scene.integration.scheme],
-        CONTACT_LAWS[scene.contact.law],
         scene.integration.max_contact_iterations,
         scene.contact.min_impact_speed_m_s,
     )

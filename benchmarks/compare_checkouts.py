@@ -7,10 +7,15 @@ The timings (each a call of the driver on a chunk of the 6 Hz scene at dt = 1e-4
 compile time excluded):
   event, implicit: the lane kernel on the throughput benchmark's uneven grid (gaps 0/2/20 mm x k_s/k
       0.01..100 x r 0..1, 378 runs of 5 s), classic law;
+  quiet: the lane kernel, event scheme, the same k_s/k and r at a 1 m gap (126 runs that never touch: its
+      vector steps alone);
   scalar-event, scalar-implicit: the scalar kernel (engine/scalar.py) on 72 runs of 2 s of that grid
       (gaps 0/2/20 mm x k_s/k 0.01..100 x r 0, 1/3, 2/3, 1);
   hertz-event, hertz-implicit: the Hertz-type kernel (engine/nonlinear.py), hertzdamp law, on 36 runs of 2 s
       (the same gaps and k_s/k, r 0.3 and 0.8).
+Times are the calling thread's CPU time with --threads 1 (the default: the kernel runs in that thread, so
+time the machine gives other processes is not counted; caches and memory bandwidth shared with them still
+are), wall time otherwise.
 --paired N (the default, 30): one warm worker process per checkout, the calls alternated call by call and
 the order swapped every pair, so a load that comes and goes on a shared machine falls on both alike; prints
 per case the median ratio this / other with its quartiles and 5-95 % range over the N pairs.
@@ -33,7 +38,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 LANE_CASES = ("event", "implicit")
-CASES = LANE_CASES + ("scalar-event", "scalar-implicit", "hertz-event", "hertz-implicit")
+CASES = LANE_CASES + ("quiet", "scalar-event", "scalar-implicit", "hertz-event", "hertz-implicit")
 
 SETUP = r"""
 import dataclasses, json, sys, time
@@ -51,12 +56,12 @@ except ImportError:  # the flat package before it
 scene_file, threads, wanted = sys.argv[1], int(sys.argv[2]), sys.argv[3].split(",")
 
 
-def prepared(scheme, law, duration, r):
+def prepared(scheme, law, duration, r, gaps=(0.0, 0.002, 0.02)):
     s = load_scene(scene_file)
     s = dataclasses.replace(s, integration=dataclasses.replace(s.integration, scheme=scheme, dt_s=1e-4),
                             contact=dataclasses.replace(s.contact, law=law),
                             excitation=dataclasses.replace(s.excitation, duration_s=duration),
-                            sweep=(Axis("gap_m", (0.0, 0.002, 0.02)), Axis("ks_ratio", tuple(np.geomspace(0.01, 100, 6))),
+                            sweep=(Axis("gap_m", gaps), Axis("ks_ratio", tuple(np.geomspace(0.01, 100, 6))),
                                    Axis("r", tuple(r))))
     prep = prepare(s)
     runs, rec, _ = prep.kernel_inputs(prep.grid.chunk(0, prep.grid.size))
@@ -66,8 +71,9 @@ def prepared(scheme, law, duration, r):
 calls = {}
 for case in wanted:
     kind, _, scheme = case.rpartition("-")
-    if kind == "":
-        p, r, c = prepared(scheme, "classic", 5.0, np.linspace(0.0, 1.0, 21))
+    if kind == "" or case == "quiet":
+        gaps = (1.0,) if case == "quiet" else (0.0, 0.002, 0.02)
+        p, r, c = prepared("event" if case == "quiet" else scheme, "classic", 5.0, np.linspace(0.0, 1.0, 21), gaps)
         calls[case] = lambda p=p, r=r, c=c: driver.run_chunk_lanes(p.sysarr, r, c, p.opts, threads)
     else:
         law, rs = ("classic", np.linspace(0.0, 1.0, 4)) if kind == "scalar" else ("hertzdamp", (0.3, 0.8))
@@ -77,9 +83,10 @@ for case in wanted:
 
 
 def timed(case):
-    t0 = time.perf_counter()
+    clock = time.thread_time if threads == 1 else time.perf_counter
+    t0 = clock()
     calls[case]()
-    return time.perf_counter() - t0
+    return clock() - t0
 """
 
 # one process, the least of `repeats` calls per case

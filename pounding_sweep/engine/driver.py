@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
@@ -49,6 +50,7 @@ from pounding_sweep.engine.lanes import (
     ST_N,
     coefficient_table,
     excitation_profiles,
+    group_work,
     integrate_lanes,
     lane_modes,
     size_tuples,
@@ -230,9 +232,14 @@ def run_chunk_lanes(
     excitation = LaneExcitation(coef, pid, prof)
     stats_g = np.zeros((n_groups, ST_N), dtype=np.int64)  # one row per group: no thread shares one
 
+    local = threading.local()  # each thread's work arrays (lanes.group_work), made once
+
     def work(g):
         t0 = time.perf_counter()
-        integrate_lanes(order, g, g + 1, model, opts, runs, excitation, LaneOutputs(metrics, redo, stats_g[g]))
+        if not hasattr(local, "gw"):
+            local.gw = group_work(model, opts.max_iter)
+        out = LaneOutputs(metrics, redo, stats_g[g])
+        integrate_lanes(order, g, g + 1, model, opts, runs, excitation, out, local.gw)
         members = order[g * LANES : (g + 1) * LANES]
         run_time[members] = (time.perf_counter() - t0) / members.size
         if done is not None:

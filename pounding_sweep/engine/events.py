@@ -25,7 +25,7 @@ from typing import NamedTuple
 import numpy as np
 
 from pounding_sweep.codes import EXC_HARMONIC
-from pounding_sweep.engine.jit import njit_generic, njit_inner, njit_kernel
+from pounding_sweep.engine.jit import inline_generic, njit_generic, njit_inner, njit_kernel
 
 MAX_EVENTS = 16  # contact switches located inside one step before the step is taken as it is (flagged)
 EVENT_MIN_FRACTION = 1e-9  # a sub-step shorter than this fraction of dt is not integrated (rounding)
@@ -184,8 +184,9 @@ def bracket_crossing(herm, h, law, sign, f_lo, f_hi):
     return hi
 
 
-def event_functions(ops: EventOps):
-    """The event step compiled with a kernel's pieces: (event_step, contradicts).
+def event_functions(ops: EventOps, inline: bool = False):
+    """The event step compiled with a kernel's pieces: (event_step, contradicts); with `inline`, each of its
+    functions inlined into its caller (the lane kernel: its state record is wide, and a call passes it whole).
 
     event_step(st, ground, t_s, h, ag_s, ag_e, hmin) -> (finite, switches located, unsettled count): the
     rest of a step from t_s (length h, ground acceleration ag_s to ag_e), its trial with the start's contact
@@ -199,8 +200,9 @@ def event_functions(ops: EventOps):
     in this process, and a kernel holding one is never cached. These functions are not cached on their own:
     the cached kernels that call them hold their code.)"""
     advance, pair, tolerance, is_finite, accept, switch, crossing = ops
+    compiled = inline_generic if inline else njit_generic
 
-    @njit_generic
+    @compiled
     def indicator(st, end, j):
         """Pair j's contact indicator at the start or end state, signed so that >= 0 contradicts its contact state."""
         pr = st.pairs
@@ -210,7 +212,7 @@ def event_functions(ops: EventOps):
             want = min(pen, pen + (pr.c[j] / pr.k_s) * rate)
         return -want if pr.active[j] else want
 
-    @njit_generic
+    @compiled
     def contradicts(st):
         """Whether some pair's end state contradicts the contact set beyond the switch tolerance: an event
         inside the piece (an impact, a separation, or under no tension the force reaching zero)."""
@@ -219,12 +221,12 @@ def event_functions(ops: EventOps):
             pe, rate = pair(st, True, j)
             if pr.no_tension and pe > 0.0:
                 pe = min(pe, pe + (pr.c[j] / pr.k_s) * rate)
-            tol = tolerance(st, j)
-            if (pe < -tol) if pr.active[j] else (pe > tol):
+            # the tolerance is positive: it is needed only where the sign already contradicts
+            if (pe < 0.0 and pe < -tolerance(st, j)) if pr.active[j] else (pe > 0.0 and pe > tolerance(st, j)):
                 return True
         return False
 
-    @njit_generic
+    @compiled
     def first_event(st, h):
         """Fraction of the piece (0..1] of length h at which the first pair leaves its contact state, or 2.0
         if none does, from each pair's Hermite interpolant between the start and end states; each pair's
@@ -239,7 +241,7 @@ def event_functions(ops: EventOps):
             law = (pr.no_tension, pr.k_s, pr.c[j])
             sign = -1.0 if pr.active[j] else 1.0  # > 0: the state contradicts the set
             f1 = sign * hermite_indicator(herm, 1.0, h, law)
-            if f1 <= tolerance(st, j):
+            if f1 <= 0.0 or f1 <= tolerance(st, j):  # (the tolerance is positive)
                 continue
             f0 = sign * hermite_indicator(herm, 0.0, h, law)
             if not pr.just[j] and f0 >= 0.0:
@@ -252,7 +254,7 @@ def event_functions(ops: EventOps):
             pr.switch[j] = pr.theta[j] <= first + 1e-9
         return first
 
-    @njit_generic
+    @compiled
     def locate_event(st, theta, h, hmin, ground, t_s, ag_s, ag_e):
         """Length hs (0 <= hs <= h) of the sub-step that ends where the first pair switches.
 
@@ -310,7 +312,7 @@ def event_functions(ops: EventOps):
             pr.switch[j] = j == target or pr.theta[j] <= 1.0  # the target, and pairs crossing with it
         return hs
 
-    @njit_generic
+    @compiled
     def event_step(st, ground, t_s, h, ag_s, ag_e, hmin):
         """The rest of a step from t_s (length h, ground acceleration ag_s to ag_e), its trial with the start's
         contact set already in st: accepted whole where no pair contradicts the set, else split at the located

@@ -61,6 +61,14 @@ class Group(NamedTuple):
     sizes: tuple  # (N, N1, P, rows)
 
 
+def _aligned_zeros(n: int, align: int = 64) -> np.ndarray:
+    """n float64 zeros starting at a multiple of `align` bytes (a vector of VW lanes is one 64-byte cache line:
+    NumPy's 16-byte alignment would split every vector load across two lines)."""
+    buf = np.zeros(n + align // 8)
+    start = (-buf.ctypes.data % align) // 8
+    return buf[start : start + n]
+
+
 def group_work(model, max_iter: int) -> Group:
     """The arrays integrate_lanes works in, for a model (engine/inputs.py LaneModel)."""
     n, n1 = len(model.nt), len(model.n1t)
@@ -78,7 +86,13 @@ def group_work(model, max_iter: int) -> Group:
     ints = [np.zeros(LANES, dtype=np.int64) for _ in range(4)]
     flags = [np.zeros(LANES, dtype=np.bool_) for _ in range(2)]
     return Group(
-        np.zeros(rows * LANES), *ints, *flags, np.zeros(LANES, np.int64), np.zeros(p, np.int64), lane, (n, n1, p, rows)
+        _aligned_zeros(rows * LANES),
+        *ints,
+        *flags,
+        np.zeros(LANES, np.int64),
+        np.zeros(p, np.int64),
+        lane,
+        (n, n1, p, rows),
     )
 
 
@@ -193,15 +207,15 @@ def _finalize_lane(gw, l, metrics, steps_done, dt, modal):
 
 
 @njit_step
-def _count_act(gw, l, sign):
-    """Add (sign 1) or remove (-1) lane l's contact set from the per-pair counts; returns the change
-    of the total."""
-    N, _n1, P, _rows = gw.sizes
+def _count_act(W, l, act_pair, sizes, sign):
+    """Add (sign 1) or remove (-1) lane l's contact set from the per-pair counts act_pair; returns the change
+    of the total. sizes = (N, N1, P, rows): Group.sizes."""
+    N, _n1, P, _rows = sizes
     r_act = row_offsets(N, P)[5]
     n = 0
     for j in range(P):
-        if gw.W[(r_act + j) * LANES + l] > 0.5:
-            gw.act_pair[j] += sign
+        if W[(r_act + j) * LANES + l] > 0.5:
+            act_pair[j] += sign
             n += sign
     return n
 
@@ -284,7 +298,7 @@ def _scalar_steps(gw, bufs, model, opts, runs, stats):
             if not gw.live[l]:
                 continue
             run = gw.run[l]
-            d_act += _count_act(gw, l, -1)
+            d_act += _count_act(gw.W, l, gw.act_pair, gw.sizes, -1)
             t0_ = _monotonic_ns()
             ctx = (
                 model.dt,
@@ -301,7 +315,7 @@ def _scalar_steps(gw, bufs, model, opts, runs, stats):
             ok = lane_step(W, l, bufs, run, ctx, (model.phi, model.psi, model.W), runs.cdash, gw.lane)
             stats[ST_FIX_NS] += _monotonic_ns() - t0_
             stats[ST_FIXUPS] += 1
-            d_act += _count_act(gw, l, 1)
+            d_act += _count_act(gw.W, l, gw.act_pair, gw.sizes, 1)
             if not ok:
                 nbad += 1
             for j in range(P):  # a phase still open on a pair that switched off at the step end
@@ -336,7 +350,7 @@ def _drop_diverged(gw, redo):
         if gw.W[(r_s + S_BAD) * LANES + l] > 0.5:
             if gw.live[l]:
                 redo[gw.run[l]] = 1
-                d_act += _count_act(gw, l, -1)
+                d_act += _count_act(gw.W, l, gw.act_pair, gw.sizes, -1)
                 gw.live[l] = False
             _park(gw.W, l, nrows, r_s)
     return d_act
@@ -353,7 +367,7 @@ def _finish_lanes(gw, step, metrics, model, max_nst):
     for l in range(LANES):
         if gw.live[l] and gw.nst[l] == step:
             _finalize_lane(gw, l, metrics, step, model.dt, (model.om2, model.psi))
-            d_act += _count_act(gw, l, -1)
+            d_act += _count_act(gw.W, l, gw.act_pair, gw.sizes, -1)
             _park(gw.W, l, nrows, r_s)
             gw.live[l] = False
         elif gw.live[l] and gw.nst[l] < next_end:
@@ -376,9 +390,17 @@ def _integrate_groups(order, groups, model, opts, runs, excitation, out, gw):
         nl = min(LANES, order.size - base)
         lanes = order[base : base + nl]
         # the group's law: the runs of one call share it (run_chunk_lanes)
-        vm = (model.dt, opts.scheme, runs.law[lanes[0]], model.nt, model.n1t, model.Cv)
+        law = runs.law[lanes[0]]
         max_nst, uniform, pid0 = _start_group(gw, lanes, model, opts, runs, excitation)
-        ex = (excitation.prof, gw.pid, uniform, pid0)
+        dt, scheme, nt, n1t, Cv, prof, pid = (
+            model.dt,
+            opts.scheme,
+            model.nt,
+            model.n1t,
+            model.Cv,
+            excitation.prof,
+            gw.pid,
+        )
         for l in range(nl):
             if gw.nst[l] == 0:
                 _finalize_lane(gw, l, out.metrics, 0, model.dt, (model.om2, model.psi))
@@ -396,14 +418,16 @@ def _integrate_groups(order, groups, model, opts, runs, excitation, out, gw):
             step_before = step
             last = next_end if next_end <= max_nst else max_nst
             if n_act == 0:
-                step, nevt, nbad = _quiet(W, step + 1, last, vm, ex)
+                step, nevt, nbad = _quiet(W, step + 1, last, dt, scheme, law, nt, n1t, Cv, prof, pid, uniform, pid0)
                 nend = 0
             else:
                 pon = gw.act_pair[0] * 0  # int64, not a literal (see uniform)
                 for j in range(P):
                     if gw.act_pair[j] > 0:
                         pon |= 1 << j
-                step, nevt, nbad, nend = _contact(W, step + 1, last, vm, pon, ex)
+                step, nevt, nbad, nend = _contact(
+                    W, step + 1, last, dt, scheme, law, nt, n1t, Cv, pon, prof, pid, uniform, pid0
+                )
             stats[ST_CALLS] += 1
             stats[ST_VSTEPS] += step - step_before
             src = r_q0 if (step - 1) % 2 == 0 else r_q1

@@ -8,6 +8,12 @@ Psi^T q - gap each pair's penetration, floors Phi q; a step of length h is dq = 
 cr (h/2) q' per mode, the contact forces at its end solve (I + diag(kappa) W)_SS F_S = (k_s delta +
 c delta')_S of the free step (W = Psi^T diag(cf) Psi, kappa = k_s + 2 c / h): the same system as
 engine/scalar.py's S = G^T Keff^-1 G.
+
+Everything here is inlined into lane_step at Numba's IR level (engine/jit.py `inline`), the event step's
+functions too (events.event_functions(..., inline=True)): LLVM left these small functions as calls, and
+the calls, each passing the lane's state, made the scalar steps 20-30 % slower than when they took their
+arrays one by one (benchmarks/compare_checkouts.py). bracket_crossing and the scalar helpers of
+engine/events.py stay calls (LLVM inlines them).
 """
 
 from __future__ import annotations
@@ -28,7 +34,7 @@ from pounding_sweep.engine.events import (
     event_functions,
     switch_tolerance,
 )
-from pounding_sweep.engine.jit import njit_step
+from pounding_sweep.engine.jit import inline, njit_step
 from pounding_sweep.engine.lanes.rows import (
     B_ACT,
     B_INC,
@@ -104,7 +110,7 @@ class LaneState(NamedTuple):
     sizes: tuple  # (N, N1, P): floors, building 1's floors, pairs
 
 
-@njit_step
+@inline
 def _floor_u(Z, row, i, phi, N):
     s = 0.0
     for k in range(N):
@@ -112,7 +118,7 @@ def _floor_u(Z, row, i, phi, N):
     return s
 
 
-@njit_step
+@inline
 def _pair(Z, rq, rqd, j, psi, gap, N):
     """(penetration, its rate) of pair j in the state (Z[rq], Z[rqd])."""
     s = 0.0
@@ -123,7 +129,7 @@ def _pair(Z, rq, rqd, j, psi, gap, N):
     return s - gap, v
 
 
-@njit_step
+@inline
 def _keff_coefs(Z, h, N):
     """Newmark coefficients of each mode for a step of length h (modal.py)."""
     for k in range(N):
@@ -133,7 +139,7 @@ def _keff_coefs(Z, h, N):
         Z[Z_CR, k] = 8.0 / (h * h) * f
 
 
-@njit_step
+@inline
 def _free_step(Z, h, ag_s, ag_e, gap, psi, N, P):
     """The step of length h with no contact force at its end (the start forces Z_F in the load): its
     increment Z_DQF, and the pairs' free end penetration Z_DF and rate Z_DDF."""
@@ -153,28 +159,27 @@ def _free_step(Z, h, ag_s, ag_e, gap, psi, N, P):
         Z[Z_DDF, j] = v
 
 
-@njit_step
-def _active_pairs(active, I):
-    """The pairs in `active` into I[I_IDX, :na]; returns na."""
+@inline
+def _active_pairs(B, I, P):
+    """The pairs in B_ACT into I[I_IDX, :na]; returns na."""
     na = 0
-    for j in range(active.size):
-        if active[j]:
+    for j in range(P):
+        if B[B_ACT, j]:
             I[I_IDX, na] = j
             na += 1
     return na
 
 
-@njit_step
-def _set_forces(st, h):
-    """Contact forces Z_FS at the end of a step of length h with the lane's set (others 0): the SPD
+@inline
+def _set_forces(Z, B, I, A, h, k_s, psi, sizes):
+    """Contact forces Z_FS at the end of a step of length h with the set B_ACT (others 0): the SPD
     system (W_SS + diag(1/kappa)) F_S = (k_s delta + c delta')_S / kappa of the free end state,
-    W = Psi^T diag(cf) Psi, kappa = k_s + 2 c / h (scalar._contact_forces' system in modal form)."""
-    Z, I, A, psi = st.Z, st.I, st.A, st.psi
-    N, _n1, P = st.sizes
-    k_s = st.pairs.k_s
+    W = Psi^T diag(cf) Psi, kappa = k_s + 2 c / h (scalar._contact_forces' system in modal form).
+    sizes = (N, N1, P)."""
+    N, _n1, P = sizes
     for j in range(P):
         Z[Z_FS, j] = 0.0
-    na = _active_pairs(st.pairs.active, I)
+    na = _active_pairs(B, I, P)
     if na == 0:
         return
     for p in range(na):
@@ -204,7 +209,7 @@ def _set_forces(st, h):
         Z[Z_FS, I[I_IDX, p]] = Z[Z_B, p]
 
 
-@njit_step
+@inline
 def _end_state(Z, h, psi, N, P):
     """End state of a step with forces Z_FS: dq = dqf - cf Psi F, q+ = q + dq, q'+ = (2/h) dq - q'."""
     for k in range(N):
@@ -216,51 +221,33 @@ def _end_state(Z, h, psi, N, P):
         Z[Z_QDE, k] = (2.0 / h) * dq - Z[Z_QD, k]
 
 
-@njit_step
-def _law_forces(st, rq, rqd, rf):
-    """Row rf := the Kelvin-Voigt forces (eq. 8) of the pairs in contact in the state (rq, rqd), 0 for
-    the others."""
-    Z, pr = st.Z, st.pairs
-    N, _n1, P = st.sizes
+@inline
+def _law_forces(Z, B, rows, k_s, gap, psi, sizes):
+    """Row rf := the Kelvin-Voigt forces (eq. 8) of the pairs in B_ACT in the state (rq, rqd), 0 for
+    the others; rows = (rq, rqd, rf)."""
+    rq, rqd, rf = rows
+    N, _n1, P = sizes
     for j in range(P):
         Z[rf, j] = 0.0
-        if pr.active[j]:
-            pen, vr = _pair(Z, rq, rqd, j, st.psi, st.gap, N)
-            Z[rf, j] = pr.k_s * pen + Z[Z_C, j] * vr
+        if B[B_ACT, j]:
+            pen, vr = _pair(Z, rq, rqd, j, psi, gap, N)
+            Z[rf, j] = k_s * pen + Z[Z_C, j] * vr
 
 
-@njit_step
-def _advance(st, h, ag_s, ag_e, cold):
-    """EventOps.advance: scalar._advance in modal form, one Newmark step of length h from (Z_Q, Z_QD, Z_F)
-    with the lane's set in contact at its end; end state in Z_QE, Z_QDE, its Kelvin-Voigt forces (eq. 8)
-    in Z_FE. Returns 0 (a direct solve)."""
-    Z, psi = st.Z, st.psi
-    N, _n1, P = st.sizes
+@inline
+def _fixed_set_step(Z, B, I, A, h, ags, k_s, gap, psi, sizes):
+    """scalar._advance in modal form: one Newmark step of length h from (Z_Q, Z_QD, Z_F) with the pairs in
+    B_ACT in contact at its end (ags = (ag_s, ag_e): the ground acceleration at its ends); end state in Z_QE,
+    Z_QDE, its Kelvin-Voigt forces (eq. 8) in Z_FE."""
+    N, _n1, P = sizes
     _keff_coefs(Z, h, N)
-    _free_step(Z, h, ag_s, ag_e, st.gap, psi, N, P)
-    _set_forces(st, h)
+    _free_step(Z, h, ags[0], ags[1], gap, psi, N, P)
+    _set_forces(Z, B, I, A, h, k_s, psi, sizes)
     _end_state(Z, h, psi, N, P)
-    _law_forces(st, Z_QE, Z_QDE, Z_FE)
-    return 0
+    _law_forces(Z, B, (Z_QE, Z_QDE, Z_FE), k_s, gap, psi, sizes)
 
 
-@njit_step
-def _pair_at(st, end, j):
-    """EventOps.pair: (penetration, its rate) of pair j at the end or start state."""
-    N = st.sizes[0]
-    if end:
-        return _pair(st.Z, Z_QE, Z_QDE, j, st.psi, st.gap, N)
-    return _pair(st.Z, Z_Q, Z_QD, j, st.psi, st.gap, N)
-
-
-@njit_step
-def _tolerance(st, j):
-    """EventOps.tolerance: events.switch_tolerance of pair j's two floors at the end state."""
-    N, N1, _p = st.sizes
-    return switch_tolerance(_floor_u(st.Z, Z_QE, j, st.phi, N), _floor_u(st.Z, Z_QE, N1 + j, st.phi, N))
-
-
-@njit_step
+@inline
 def _modal_acc(Z, rq, rqd, rf, psi, N, P):
     """Modal absolute accelerations of the state (rq, rqd) with forces in row rf into row Z_B:
     -d q' - w^2 q - Psi F (equilibrium; the ground term cancels in absolute acceleration)."""
@@ -271,13 +258,12 @@ def _modal_acc(Z, rq, rqd, rf, psi, N, P):
         Z[Z_B, k] = -Z[Z_DMP, k] * Z[rqd, k] - Z[Z_OM2, k] * Z[rq, k] - g
 
 
-@njit_step
-def _finite_rows(st, rf):
-    """The scalar kernels' divergence guard on the end state (forces in row rf): floors within
+@inline
+def _finite_rows(Z, rf, phi, psi, sizes):
+    """The scalar kernels' divergence guard on the end state Z_QE, Z_QDE (forces in row rf): floors within
     DIVERGED_M, accelerations below 1e300."""
-    Z, phi = st.Z, st.phi
-    N, _n1, P = st.sizes
-    _modal_acc(Z, Z_QE, Z_QDE, rf, st.psi, N, P)
+    N, _n1, P = sizes
+    _modal_acc(Z, Z_QE, Z_QDE, rf, psi, N, P)
     for i in range(N):
         u = 0.0
         a = 0.0
@@ -289,36 +275,28 @@ def _finite_rows(st, rf):
     return True
 
 
-@njit_step
-def _finite(st):
-    """EventOps.finite: _finite_rows with the event step's forces."""
-    return _finite_rows(st, Z_FE)
-
-
-@njit_step
-def _switch(st, t, ag):
-    """EventOps.switch: scalar._switch in modal form, the marked pairs switched at an event (time t,
-    state Z_Q, Z_QD); every force from the Kelvin-Voigt law at this instant (the acceleration follows
-    from equilibrium, never stored)."""
-    Z, B, pr, orow = st.Z, st.B, st.pairs, st.orow
-    N, _n1, P = st.sizes
-    k_s = pr.k_s
+@inline
+def _switch_rows(Z, B, orow, t, k_s, gap, psi, sizes):
+    """scalar._switch in modal form: the pairs in B_TRIAL switched at an event (time t, state Z_Q, Z_QD);
+    every force from the Kelvin-Voigt law at this instant (the acceleration follows from equilibrium,
+    never stored)."""
+    N, _n1, P = sizes
     pbase = ML.PER_DOF * N
     for j in range(P):
-        pr.just[j] = pr.switch[j]
-        if not pr.switch[j]:
+        B[B_JUST, j] = B[B_TRIAL, j]
+        if not B[B_TRIAL, j]:
             continue
-        pen, vr = _pair(Z, Z_Q, Z_QD, j, st.psi, st.gap, N)
+        pen, vr = _pair(Z, Z_Q, Z_QD, j, psi, gap, N)
         base = pbase + ML.PER_PAIR * j
-        if pr.active[j]:
-            pr.active[j] = False
+        if B[B_ACT, j]:
+            B[B_ACT, j] = False
             if pen > 0.0:
                 Z[Z_EN, E_WREL] += 0.5 * k_s * pen * pen
             Z[Z_F, j] = 0.0
             Z[Z_SP, j] = 0.0
             Z[Z_DP, j] = 0.0
         else:
-            pr.active[j] = True
+            B[B_ACT, j] = True
             if pen > 0.0:
                 Z[Z_EN, E_WREL] -= 0.5 * k_s * pen * pen
             orow[base + ML.PAIR_IMPACTS] += 1.0
@@ -327,8 +305,8 @@ def _switch(st, t, ag):
             Z[Z_SP, j] = k_s * pen
             Z[Z_DP, j] = f - k_s * pen
             force_extremes(orow, base, f, t)
-        B[B_WAS, j] = pr.active[j]
-    _law_forces(st, Z_Q, Z_QD, Z_F)
+        B[B_WAS, j] = B[B_ACT, j]
+    _law_forces(Z, B, (Z_Q, Z_QD, Z_F), k_s, gap, psi, sizes)
 
 
 @njit_step
@@ -340,15 +318,16 @@ def end_phase(dur, nph, l, j, duration):
     nph[l, j] = k + 1
 
 
-@njit_step
-def _accept_rows(st, hs, t_e, ag_s, ag_e, rf):
+@inline
+def _accept_rows(Z, B, book, piece, k_s, gap, psi, sizes):
     """Accept the piece [t_e - hs, t_e] (scalar._accept in modal form), end state Z_QE, Z_QDE with forces in
     row rf: energy increments, exact for Newmark average acceleration (input -Gamma.dq ag, structural
     damping sum d_k dq_k^2 / hs, the contact spring and dashpot work on each pair's penetration),
-    contact metrics; then the state and forces move to Z_Q, Z_QD, Z_F."""
-    Z, B, orow, pr = st.Z, st.B, st.orow, st.pairs
-    N, _n1, P = st.sizes
-    k_s = pr.k_s
+    contact metrics; then the state and forces move to Z_Q, Z_QD, Z_F. book = (orow, dur, nph, l): the
+    lane's metric slots and compressive phases; piece = (hs, t_e, ag_s, ag_e, rf)."""
+    orow, dur, nph, l = book
+    hs, t_e, ag_s, ag_e, rf = piece
+    N, _n1, P = sizes
     pbase = ML.PER_DOF * N
     s_in = 0.0
     s_d = 0.0
@@ -361,9 +340,9 @@ def _accept_rows(st, hs, t_e, ag_s, ag_e, rf):
     Z[Z_EN, E_ABS] += abs(de)
     Z[Z_EN, E_DST] += s_d / hs
     for j in range(P):
-        act = pr.active[j]
+        act = B[B_ACT, j]
         was = B[B_WAS, j]
-        pen, _v = _pair(Z, Z_QE, Z_QDE, j, st.psi, st.gap, N)
+        pen, _v = _pair(Z, Z_QE, Z_QDE, j, psi, gap, N)
         base = pbase + ML.PER_PAIR * j
         if -pen < orow[base + ML.PAIR_CLOSEST]:  # closest approach, at every accepted piece's end
             orow[base + ML.PAIR_CLOSEST] = -pen
@@ -390,7 +369,7 @@ def _accept_rows(st, hs, t_e, ag_s, ag_e, rf):
             orow[base + ML.PAIR_COMPRESSION_TIME] += hs
             Z[Z_CAC, j] = Z[Z_CAC, j] + hs if B[B_INC, j] else hs
         elif B[B_INC, j]:
-            end_phase(st.dur, st.nph, st.l, j, Z[Z_CAC, j])
+            end_phase(dur, nph, l, j, Z[Z_CAC, j])
         B[B_INC, j] = comp
         B[B_WAS, j] = act
     for k in range(N):
@@ -400,15 +379,54 @@ def _accept_rows(st, hs, t_e, ag_s, ag_e, rf):
         Z[Z_F, j] = Z[rf, j]
 
 
-@njit_step
+# The event step's pieces (EventOps) in modal form: thin wrappers of the functions above, which take the
+# few arrays they use.
+
+
+@inline
+def _advance(st, h, ag_s, ag_e, cold):
+    """EventOps.advance: _fixed_set_step; returns 0 (a direct solve)."""
+    _fixed_set_step(st.Z, st.B, st.I, st.A, h, (ag_s, ag_e), st.pairs.k_s, st.gap, st.psi, st.sizes)
+    return 0
+
+
+@inline
+def _pair_at(st, end, j):
+    """EventOps.pair: (penetration, its rate) of pair j at the end or start state."""
+    if end:
+        return _pair(st.Z, Z_QE, Z_QDE, j, st.psi, st.gap, st.sizes[0])
+    return _pair(st.Z, Z_Q, Z_QD, j, st.psi, st.gap, st.sizes[0])
+
+
+@inline
+def _tolerance(st, j):
+    """EventOps.tolerance: events.switch_tolerance of pair j's two floors at the end state."""
+    N, N1, _p = st.sizes
+    return switch_tolerance(_floor_u(st.Z, Z_QE, j, st.phi, N), _floor_u(st.Z, Z_QE, N1 + j, st.phi, N))
+
+
+@inline
+def _finite(st):
+    """EventOps.finite: _finite_rows with the event step's forces."""
+    return _finite_rows(st.Z, Z_FE, st.phi, st.psi, st.sizes)
+
+
+@inline
 def _accept(st, hs, t_e, ag_s, ag_e):
     """EventOps.accept: _accept_rows with the event step's forces."""
-    _accept_rows(st, hs, t_e, ag_s, ag_e, Z_FE)
+    book = (st.orow, st.dur, st.nph, st.l)
+    _accept_rows(st.Z, st.B, book, (hs, t_e, ag_s, ag_e, Z_FE), st.pairs.k_s, st.gap, st.psi, st.sizes)
+
+
+@inline
+def _switch(st, t, ag):
+    """EventOps.switch: _switch_rows."""
+    _switch_rows(st.Z, st.B, st.orow, t, st.pairs.k_s, st.gap, st.psi, st.sizes)
 
 
 #: the event step's pieces in modal coordinates
 OPS = EventOps(_advance, _pair_at, _tolerance, _finite, _accept, _switch, bracket_crossing)
-_event_step, _contradicts = event_functions(OPS)
+_event_step, _contradicts = event_functions(OPS, inline=True)
 
 
 @njit_step
@@ -421,7 +439,7 @@ def _mask(active):
     return mk
 
 
-@njit_step
+@inline
 def _implicit_step(st, step, dt, max_iter, ag_prev, ag):
     """Implicit scheme, one lane, one step: scalar._implicit_forces' active-set iteration from the start
     set (cycle detection, the union fallback), then the accepted step. Returns (finite, iterations,
@@ -436,7 +454,7 @@ def _implicit_step(st, step, dt, max_iter, ag_prev, ag):
     while it < max_iter and not cycled:
         I[I_SEEN, it] = _mask(pr.active)
         it += 1
-        _set_forces(st, dt)
+        _set_forces(Z, B, I, st.A, dt, pr.k_s, psi, st.sizes)
         changed = False
         for j in range(P):
             wf = 0.0
@@ -467,22 +485,23 @@ def _implicit_step(st, step, dt, max_iter, ag_prev, ag):
         uns = 1
         for j in range(P):
             pr.active[j] = B[B_PREV, j] or B[B_TRIAL, j]
-        _set_forces(st, dt)
+        _set_forces(Z, B, I, st.A, dt, pr.k_s, psi, st.sizes)
     _end_state(Z, dt, psi, N, P)
-    if not _finite_rows(st, Z_FS):
+    if not _finite_rows(Z, Z_FS, st.phi, psi, st.sizes):
         return False, it, uns
-    _accept_rows(st, dt, (step - 1) * dt + dt, ag_prev, ag, Z_FS)
+    book = (st.orow, st.dur, st.nph, st.l)
+    _accept_rows(Z, B, book, (dt, (step - 1) * dt + dt, ag_prev, ag, Z_FS), pr.k_s, st.gap, psi, st.sizes)
     return True, it, uns
 
 
-@njit_step
+@inline
 def _lane_factors(W, st, Wm, dt, r_R):
     """The lane's R = (I + diag(kappa) W)_SS^-1 for its set S, in full P x P (zeros outside S), into W."""
     I, A, l, pr = st.I, st.A, st.l, st.pairs
     P = st.sizes[2]
     for z in range(P * P):
         W[(r_R + z) * LANES + l] = 0.0
-    na = _active_pairs(pr.active, I)
+    na = _active_pairs(st.B, I, P)
     if na == 0:
         return
     # Gauss-Jordan on [I + diag(kappa) W_SS | I] (no pivoting: similar to I + SPD, positive pivots)
@@ -505,7 +524,7 @@ def _lane_factors(W, st, Wm, dt, r_R):
             W[(r_R + I[I_IDX, p] * P + I[I_IDX, p2]) * LANES + l] = A[p, na + p2]
 
 
-@njit_step
+@inline
 def _load(W, st, l, src, dt):
     """Lane l's start state, forces, set, phases, energies and metric slots from W (buffer src) into st."""
     Z, B, pr, orow = st.Z, st.B, st.pairs, st.orow
@@ -535,7 +554,7 @@ def _load(W, st, l, src, dt):
         orow[z] = W[(r_met + z) * LANES + l]
 
 
-@njit_step
+@inline
 def _store(W, st, l, dst, step, dt):
     """The step's end back into W (buffer dst): per-floor peaks at the step end, state, forces and their
     modal resultant, set, phases, energies, metric slots."""

@@ -149,19 +149,12 @@ def _floor_acc(T, i, N, N1, t_qa, Cv, c_phi):
 
 
 @inline
-def _floor_peaks(W, c, T, vm, lay, vt, gap, ok_mask):
+def _floor_peaks(W, c, T, N, N1, P, t_u, t_qa, r_met, Cv, c_phi, vt, gap, ok_mask):
     """Per-floor peaks of |u| (and its time), of |absolute acceleration| and of |interstory drift| (the story
     below the floor), and each pair's closest approach gap - (u1 - u2) (and its time). One test for all
     floors and pairs; rows are written only in the rare steps where some extreme grows in some lane of
     `ok_mask`. Returns the lanes that diverged (|u| >= DIVERGED_M or |a| >= 1e300; a NaN never grows a
-    peak and is caught by the energy rows instead). vm: the vector model (see _quiet); lay: row_offsets."""
-    dt, scheme, law, nt, n1t, Cv = vm
-    N = len(nt)
-    N1 = len(n1t)
-    P = min(N1, N - N1)
-    t_qa, t_u = scratch_entries(N, P)[:2]
-    c_phi = table_offsets(N, P)[0]
-    r_met = lay[12]
+    peak and is caught by the energy rows instead)."""
     pbase = r_met + ML.PER_DOF * N
     grow = mconst(False)
     for i in range(N):
@@ -201,17 +194,10 @@ def _floor_peaks(W, c, T, vm, lay, vt, gap, ok_mask):
 
 
 @inline
-def _exact_events(W, c, T, dst, vm, lay, ks, gap):
+def _exact_events(W, c, T, N, N1, P, t_u, r_act, r_cd, dst, Cv, c_psv, law, scheme, ks, gap):
     """The lanes whose end state contradicts their contact set, by the scheme's own test (event:
     events.switch_tolerance, the no-tension indicator min(pen, pen + c/k_s v_rel); implicit: the set
     the end state asks for)."""
-    dt, scheme, law, nt, n1t, Cv = vm
-    N = len(nt)
-    N1 = len(n1t)
-    P = min(N1, N - N1)
-    t_u = scratch_entries(N, P)[1]
-    c_psv = table_offsets(N, P)[2]
-    r_act, r_cd = lay[5], lay[9]
     evt = mconst(False)
     zero = vsplat(0.0)
     for j in range(P):
@@ -253,20 +239,16 @@ def _energy(W, c, r_s, s, pin, dsum, keep):
 
 
 @inline
-def _events_energy_peaks(W, c, T, dst, quiet, sums, vt, vm, lay):
+def _events_energy_peaks(W, c, T, dst, quiet, s, pin, dsum, vt, law, scheme, N, N1, P, Cv, lay):
     """The end of a vector step, the floors of the new state in T: the lanes with an event (EVT row),
     then energy increments and per-floor peaks of the others. The exact event test runs only where a
     pair out of contact penetrates or one in contact does not: every event of either scheme under the
     classic law is one of these (under the no-tension law a pair in contact can also switch off while
-    penetrating: with contact the exact test always runs). sums = (ag_s + ag_e, Gamma.dq, sum d_k dq_k^2
-    / dt): the energy increments' parts. Returns (lanes without an event, events, divergences)."""
-    dt, scheme, law, nt, n1t, Cv = vm
-    N = len(nt)
-    N1 = len(n1t)
-    P = min(N1, N - N1)
-    s, pin, dsum = sums
-    r_act, r_s = lay[5], lay[11]
-    t_u = scratch_entries(N, P)[1]
+    penetrating: with contact the exact test always runs). Returns (lanes without an event, events,
+    divergences)."""
+    r_q0, r_q1, r_g, r_f, r_pen, r_act, r_inc, r_cac, r_end, r_cd, r_R, r_s, r_met = lay
+    c_phi, c_psi, c_psv = table_offsets(N, P)
+    t_qa, t_u, t_dq, t_f, t_g, t_qf, t_rf = scratch_entries(N, P)
     gap = _row(W, r_s + S_GAP, c)
     maybe = mconst(law == LAW_NO_TENSION and not quiet)
     for j in range(P):
@@ -279,13 +261,15 @@ def _events_energy_peaks(W, c, T, dst, quiet, sums, vt, vm, lay):
     evt = mconst(False)
     nevt = 0
     if many(maybe):
-        evt = _exact_events(W, c, T, dst, vm, lay, _row(W, r_s + S_KS, c), gap)
+        evt = _exact_events(
+            W, c, T, N, N1, P, t_u, r_act, r_cd, dst, Cv, c_psv, law, scheme, _row(W, r_s + S_KS, c), gap
+        )
         if many(evt):
             _put(W, r_s + S_EVT, c, mfloat(evt))
             nevt = mcount(evt)
     ok = ~evt
     bad = _energy(W, c, r_s, s, pin, dsum, ok)
-    bad = bad | _floor_peaks(W, c, T, vm, lay, vt, gap, ok)
+    bad = bad | _floor_peaks(W, c, T, N, N1, P, t_u, t_qa, r_met, Cv, c_phi, vt, gap, ok)
     nbad = 0
     if many(bad):
         _keep(W, r_s + S_BAD, c, bad, vsplat(1.0))
@@ -294,9 +278,8 @@ def _events_energy_peaks(W, c, T, dst, quiet, sums, vt, vm, lay):
 
 
 @inline
-def _fill_ag(W, r_s, step, ex):
-    """Ground acceleration rows: AGS at the step start, AGE at its end (coef * prof[pid, step]; ex as _quiet's)."""
-    prof, pid_lane, uniform, pid0 = ex
+def _fill_ag(W, r_s, prof, pid_lane, step, uniform, pid0):
+    """Ground acceleration rows: AGS at the step start, AGE at its end (coef * prof[pid, step])."""
     if uniform:
         p0 = prof[pid0, step - 1]
         p1 = prof[pid0, step]
@@ -312,15 +295,10 @@ def _fill_ag(W, r_s, step, ex):
 
 
 @njit_step
-def _quiet(W, step0, step1, vm, ex):
+def _quiet(W, step0, step1, dt, scheme, law, nt, n1t, Cv, prof, pid_lane, uniform, pid0):
     """Steps step0..step1 with no lane in contact at their start: the free step of every lane. Returns
     at the first step with an event or a divergence: (that step, lanes with an event, lanes diverged);
-    event lanes are left for their scalar step (only their dst rows were written).
-
-    vm = (dt, scheme, law, nt, n1t, Cv): the vector model (nt, n1t: tuples whose lengths are the floor
-    counts N and N1, compile-time constants; Cv: the coefficient table); ex = (prof, pid_lane, uniform,
-    pid0): the ground acceleration profiles, each lane's profile, whether every lane shares pid0."""
-    dt, scheme, law, nt, n1t, Cv = vm
+    event lanes are left for their scalar step (only their dst rows were written)."""
     N = len(nt)
     N1 = len(n1t)
     P = min(N1, N - N1)
@@ -329,22 +307,17 @@ def _quiet(W, step0, step1, vm, ex):
     for step in range(step0, step1 + 1):
         src = lay[0] if (step - 1) % 2 == 0 else lay[1]
         dst = lay[1] if (step - 1) % 2 == 0 else lay[0]
-        _fill_ag(W, lay[11], step, ex)
-        nevt, nbad = _quiet_step(W, T, src, dst, step, vm, lay)
+        _fill_ag(W, lay[11], prof, pid_lane, step, uniform, pid0)
+        nevt, nbad = _quiet_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, lay)
         if nevt > 0 or nbad > 0:
             return step, nevt, nbad
     return step1, 0, 0
 
 
 @inline
-def _quiet_step(W, T, src, dst, step, vm, lay):
+def _quiet_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, lay):
     """One quiet step of every chunk of lanes: modes (Newmark, modal.py), floors, the cheap test
     "some pair penetrates" (then the exact event test), energy increments, peaks."""
-    dt, scheme, law, nt, n1t, Cv = vm
-    N = len(nt)
-    N1 = len(n1t)
-    P = min(N1, N - N1)
-
     r_q0, r_q1, r_g, r_f, r_pen, r_act, r_inc, r_cac, r_end, r_cd, r_R, r_s, r_met = lay
     c_phi, c_psi, c_psv = table_offsets(N, P)
     t_qa, t_u, t_dq, t_f, t_g, t_qf, t_rf = scratch_entries(N, P)
@@ -368,20 +341,19 @@ def _quiet_step(W, T, src, dst, step, vm, lay):
             dsum = vfma(_cv(Cv, C_DH * N + k) * dq, dq, dsum)
             sset(T, t_qa + k, vfma(_cv(Cv, C_NDA * N + k), rn, _cv(Cv, C_NW2 * N + k) * qn))
         _floors(T, N, N1, t_u, t_dq, Cv, c_phi)
-        ok, ne, nb = _events_energy_peaks(W, c, T, dst, True, (s, pin, dsum), vt, vm, lay)
+        ok, ne, nb = _events_energy_peaks(W, c, T, dst, True, s, pin, dsum, vt, law, scheme, N, N1, P, Cv, lay)
         nevt += ne
         nbad += nb
     return nevt, nbad
 
 
 @njit_step
-def _contact(W, step0, step1, vm, pon, ex):
+def _contact(W, step0, step1, dt, scheme, law, nt, n1t, Cv, pon, prof, pid_lane, uniform, pid0):
     """Steps step0..step1 with some lane in contact: the step with each lane's contact set (forces from
     its R), contact metrics and energies. Pairs in contact in no lane (bit j of pon clear) have zero
     force in every lane. Returns at the first step with an event, a divergence or the end of a
     compressive phase: (that step, lanes with an event, lanes diverged, lanes whose phase ended).
-    Its loop is _quiet's: one function for both cost the quiet step 6-14 %. vm, ex: as _quiet's."""
-    dt, scheme, law, nt, n1t, Cv = vm
+    Its loop is _quiet's: one function for both cost the quiet step 6-14 %."""
     N = len(nt)
     N1 = len(n1t)
     P = min(N1, N - N1)
@@ -390,21 +362,16 @@ def _contact(W, step0, step1, vm, pon, ex):
     for step in range(step0, step1 + 1):
         src = lay[0] if (step - 1) % 2 == 0 else lay[1]
         dst = lay[1] if (step - 1) % 2 == 0 else lay[0]
-        _fill_ag(W, lay[11], step, ex)
-        nevt, nbad, nend = _contact_step(W, T, src, dst, step, vm, pon, lay)
+        _fill_ag(W, lay[11], prof, pid_lane, step, uniform, pid0)
+        nevt, nbad, nend = _contact_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, pon, lay)
         if nevt > 0 or nbad > 0 or nend > 0:
             return step, nevt, nbad, nend
     return step1, 0, 0, 0
 
 
 @inline
-def _contact_step(W, T, src, dst, step, vm, pon, lay):
+def _contact_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, pon, lay):
     """One step of every chunk of lanes, some lane in contact."""
-    dt, scheme, law, nt, n1t, Cv = vm
-    N = len(nt)
-    N1 = len(n1t)
-    P = min(N1, N - N1)
-
     r_q0, r_q1, r_g, r_f, r_pen, r_act, r_inc, r_cac, r_end, r_cd, r_R, r_s, r_met = lay
     c_phi, c_psi, c_psv = table_offsets(N, P)
     t_qa, t_u, t_dq, t_f, t_g, t_qf, t_rf = scratch_entries(N, P)
@@ -472,7 +439,7 @@ def _contact_step(W, T, src, dst, step, vm, pon, lay):
             dsum = vfma(_cv(Cv, C_DH * N + k) * dq, dq, dsum)
             sset(T, t_qa + k, vfma(_cv(Cv, C_NDA * N + k), rn, _cv(Cv, C_NW2 * N + k) * qn) - g)
         _floors(T, N, N1, t_u, t_dq, Cv, c_phi)
-        ok, ne, nb = _events_energy_peaks(W, c, T, dst, False, (s, pin, dsum), vt, vm, lay)
+        ok, ne, nb = _events_energy_peaks(W, c, T, dst, False, s, pin, dsum, vt, law, scheme, N, N1, P, Cv, lay)
         nevt += ne
         nbad += nb
         # contact spring and dashpot work on each pair's penetration, contact metrics (kernel.py's order)

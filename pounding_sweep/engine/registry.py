@@ -12,7 +12,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
 
-from pounding_sweep.codes import CONTACT_LAWS, LAW_CLASSIC, LAW_HERTZ, LAW_HERTZDAMP, LAW_JANKOWSKI, LAW_NO_TENSION
+from pounding_sweep.codes import CONTACT_LAWS, HERTZ_LAWS, KELVIN_VOIGT_LAWS
 from pounding_sweep.engine import lanes
 from pounding_sweep.engine.inputs import HistorySpec, KernelOptions, ScoreSpec
 from pounding_sweep.engine.nonlinear import integrate_nonlinear
@@ -77,21 +77,9 @@ def _lanes_why_not(chunk: Chunk) -> str | None:
 #: the kernels, in the order "auto" prefers them
 KERNELS = (
     Kernel("lanes", "the lane kernel", True, lanes.integrate_lanes, lanes.LAWS, _lanes_why_not),
+    Kernel("scalar", "the scalar kernel", False, integrate_batch, KELVIN_VOIGT_LAWS, _one_at_a_time(KELVIN_VOIGT_LAWS)),
     Kernel(
-        "scalar",
-        "the scalar kernel",
-        False,
-        integrate_batch,
-        (LAW_CLASSIC, LAW_NO_TENSION),
-        _one_at_a_time((LAW_CLASSIC, LAW_NO_TENSION)),
-    ),
-    Kernel(
-        "nonlinear",
-        "the Hertz-type contact kernel",
-        False,
-        integrate_nonlinear,
-        (LAW_HERTZ, LAW_HERTZDAMP, LAW_JANKOWSKI),
-        _one_at_a_time((LAW_HERTZ, LAW_HERTZDAMP, LAW_JANKOWSKI)),
+        "nonlinear", "the Hertz-type contact kernel", False, integrate_nonlinear, HERTZ_LAWS, _one_at_a_time(HERTZ_LAWS)
     ),
 )
 

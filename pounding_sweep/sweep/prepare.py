@@ -11,8 +11,8 @@ import numpy as np
 
 from pounding_sweep.codes import (
     CONTACT_LAWS,
+    HERTZ_LAWS,
     LAW_CLASSIC,
-    LAW_HERTZ,
     LAW_HERTZDAMP,
     LAW_JANKOWSKI,
     LAW_NO_TENSION,
@@ -232,7 +232,7 @@ def contact_arrays(model: CoupledModel, scene: Scene, params: dict[str, np.ndarr
     contact columns, and the status bits known before the run (too few steps per contact period)."""
     c = scene.contact
     codes_ = law_codes(params)
-    hertz = codes_ >= LAW_HERTZ
+    hertz = np.isin(codes_, HERTZ_LAWS)
     ks = contact_stiffness(params["ks_ratio"], params["ks_N_per_m"], c.k_ref_N_per_m)
     kh = np.where(
         np.isnan(params["kh_N_per_m1_5"]), hertz_stiffness(ks, c.reference_penetration_m), params["kh_N_per_m1_5"]

@@ -5,13 +5,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from pounding_sweep.codes import LAW_CLASSIC, LAW_NO_TENSION, SCHEME_EVENT, SCHEME_IMPLICIT
+from pounding_sweep.codes import KELVIN_VOIGT_LAWS, SCHEME_EVENT, SCHEME_IMPLICIT
 from pounding_sweep.engine.inputs import building_split
 from pounding_sweep.engine.simd import SCRATCH
 from pounding_sweep.model.modal import ModalArrays, modal_arrays
 
 #: the contact laws the lane kernel integrates (the linear Kelvin-Voigt laws)
-LAWS = (LAW_CLASSIC, LAW_NO_TENSION)
+LAWS = KELVIN_VOIGT_LAWS
 
 
 def lane_modes(sys, hist, opts, score, law: int) -> ModalArrays | str:

@@ -3,7 +3,8 @@
 identify/safety.py says when not to trust it).
 
 Exit status 0 when done, 2 with one line `error: <file>: <what> (<value>)` on stderr and no file written
-(the updated sections go to `<out>.tmp`, renamed when complete) on bad input, a single-frequency table
+(the updated sections go to `.<out>.<pid>.tmp`, renamed when complete) on bad input, an --out that holds
+anything but an update identify wrote before (a user's file is never replaced), a single-frequency table
 motion, no mode found, or a model update refused (f1 at a forcing frequency, a stiffness changed by more
 than 30 %; --force-update writes it anyway, with a warning). The modes found are printed before the
 last two errors, so that the numbers can be seen.
@@ -16,9 +17,15 @@ import os
 import sys
 from pathlib import Path
 
-from pounding_sweep.cli.common import EXIT_BAD_INPUT, Bad, split_list
+from pounding_sweep.cli.common import EXIT_BAD_INPUT, Bad, check_replaceable, first_line, hidden_temporary, split_list
 
 VIDEO_SUFFIXES = {".mkv", ".avi", ".mp4", ".mov", ".m4v", ".webm"}
+#: the first line of every file identify writes: what marks an existing --out as one it may replace
+WRITTEN_BY = "# written by python -m pounding_sweep identify"
+
+
+def _written_by_identify(path: Path) -> bool:
+    return first_line(path).startswith(WRITTEN_BY)
 
 
 def _identify_parser() -> argparse.ArgumentParser:
@@ -38,12 +45,20 @@ def _identify_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--input",
         default="auto",
-        help="column with the table's motion (displacement; acceleration if its name says acc): modes from the "
-        "transmissibility floor / table; 'none': from the floors alone (default: the column named table* or "
-        "ground*, if there is one)",
+        help="column with the table's motion: modes from the transmissibility floor / table; 'none': from the "
+        "floors alone (default: the column named table* or ground*, if there is one; with --free-vibration none)",
     )
     p.add_argument(
-        "--free-vibration", action="store_true", help="the record is free vibration: also logarithmic decrement"
+        "--input-kind",
+        choices=["displacement", "velocity", "acceleration"],
+        help="what the table's column measures (default: the table's metadata, as import writes it, else "
+        "displacement); it weighs the harmonic-table test",
+    )
+    p.add_argument(
+        "--free-vibration",
+        action="store_true",
+        help="the record is free vibration (the table at rest): modes from the floors alone (the table's column "
+        "is only checked to be quiet, unless --input names it), no harmonic refusal, logarithmic decrement too",
     )
     p.add_argument("--scene", help="scene whose buildings are updated to the identified first frequencies")
     p.add_argument(
@@ -64,11 +79,19 @@ def _print_identification(ident, forcing) -> None:
     from pounding_sweep.identify.safety import forcing_notes
 
     print(f"method: {ident.method}")
-    if ident.input_line is not None:
-        line = ident.input_line
+    if ident.table_line is not None:
+        line = ident.table_line
+        what = "broadband" if line.fraction < 0.5 else "one line dominates"
+        if not line.fraction > 0:
+            what = "nothing above its noise: a quiet table"
+        if line.fraction >= 0.5 and line.over_noise < 10:
+            what = "a line barely above its noise: a quiet table"
+        used = "" if ident.input_column else " (not the input)"
         print(
-            f"table motion '{ident.input_column}': largest line {line.frequency_Hz:.3f} Hz holds "
-            f"{100 * line.fraction:.1f} % of its acceleration power (broadband)"
+            f"table motion '{ident.table_column}'{used} ({line.kind}, from {ident.input_kind_source}): largest line "
+            f"{line.frequency_Hz:.3f} Hz holds {100 * line.fraction:.1f} % of its acceleration power above the noise"
+            + (f", {line.over_noise:.3g} times the noise" if line.fraction >= 0.5 else "")
+            + f" ({what})"
         )
     for b, r in sorted(ident.results.items()):
         head = f"building {b}" if b else "other columns"
@@ -79,10 +102,23 @@ def _print_identification(ident, forcing) -> None:
         if not r.modes:
             print("  no mode")
         for k, m in enumerate(r.modes, 1):
-            ld = "" if m.damping_log_decrement is None else f", log decrement {100 * m.damping_log_decrement:.2f} %"
+            ld = ""
+            if m.damping_log_decrement is not None:
+                se = m.damping_log_decrement_se
+                pm = f" +/- {100 * se:.2f}" if se is not None and np.isfinite(se) else ""
+                ld = f", log decrement {100 * m.damping_log_decrement:.2f}{pm} %"
+            lo, hi = m.damping_half_power_interval
             hp = "n/a" if not np.isfinite(m.damping_half_power) else f"{100 * m.damping_half_power:.2f} %"
+            if np.isfinite(m.damping_half_power):
+                hp += f" (within {100 * lo:.2f}-{100 * hi:.2f} %: +/- a resolution on the band)"
+            elif np.isfinite(hi):
+                hp += f" (at most {100 * hi:.2f} %: the band less the window's decay, plus a resolution)"
+            if np.isfinite(m.damping_fit):
+                a, b = m.damping_fit_ci95
+                ld += f", fitted {100 * m.damping_fit:.2f} % (95 % {100 * a:.2f} to {100 * b:.2f} %)"
+            merged = f"; merged peaks {', '.join(f'{f:.3f}' for f in m.merged_Hz)} Hz" if m.merged_Hz else ""
             shape = ", ".join(f"{c} {v:+.3f}" for c, v in m.shape.items())
-            print(f"  mode {k}: {m.frequency_Hz:.4f} Hz, damping half-power {hp}{ld}; shape {shape}")
+            print(f"  mode {k}: {m.frequency_Hz:.4f} Hz, damping half-power {hp}{ld}; shape {shape}{merged}")
         for n in list(r.notes) + forcing_notes(r, forcing):
             print(f"  note: {n}")
 
@@ -105,7 +141,9 @@ def identify_main(argv: list[str]) -> int:
             )
         if args.out and not args.scene:
             raise Bad(args.out, "--out writes updated buildings: it needs --scene", "--out without --scene")
-        df, _ = read_table(src)
+        if args.out:
+            check_replaceable(Path(args.out), _written_by_identify, "identify")
+        df, md = read_table(src)
         scene = load_scene(args.scene) if args.scene else None
         ident = identify_table(
             df,
@@ -118,6 +156,8 @@ def identify_main(argv: list[str]) -> int:
             args.start,
             args.free_vibration,
             args.input,
+            args.input_kind,
+            md,
         )
         forcing = forcing_frequencies(ident, scene)
         _print_identification(ident, forcing)
@@ -143,9 +183,9 @@ def identify_main(argv: list[str]) -> int:
         text = "".join(u.toml() + "\n" for u in updates)
         if args.out:
             out = Path(args.out)
-            tmp = out.with_name(out.name + ".tmp")
+            tmp = hidden_temporary(out)
             try:
-                tmp.write_text(f"# written by python -m pounding_sweep identify {src}\n" + text, encoding="utf-8")
+                tmp.write_text(f"{WRITTEN_BY} {src}\n" + text, encoding="utf-8")
                 os.replace(tmp, out)
             except OSError as e:
                 tmp.unlink(missing_ok=True)

@@ -13,7 +13,7 @@ import signal
 import sys
 import threading
 
-from pounding_sweep.cli.common import EXIT_BAD_INPUT
+from pounding_sweep.cli.common import EXIT_BAD_INPUT, interruptible
 from pounding_sweep.errors import InputError
 from pounding_sweep.progress import Progress
 from pounding_sweep.scene import describe, load_scene
@@ -27,6 +27,8 @@ SUBCOMMANDS = {
     "track": "pounding_sweep.cli.track:track_main",
     "identify": "pounding_sweep.cli.identify:identify_main",
     "gaps": "pounding_sweep.cli.gaps:gaps_main",
+    "import": "pounding_sweep.cli.import_:import_main",
+    "risk": "pounding_sweep.cli.risk:risk_main",
 }
 #: one line per subcommand for --help (each has its own: python -m pounding_sweep NAME --help)
 SUBCOMMAND_HELP = {
@@ -34,13 +36,15 @@ SUBCOMMAND_HELP = {
     "identify": "identify TABLE [--scene S --out T]: frequencies, damping and mode shapes; the model update",
     "plot": "plot RESULTS: PNG figures of a result file (heatmaps, best run's histories, error vs run time)",
     "gaps": "gaps SCENE [--out T]: the seismic gap each floor pair needs, by rule and from the histories",
+    "import": "import NAME=FILE ... --out DIR: raw sensor exports -> an experiment table, a record, provenance",
+    "risk": "risk SCENE [--out D]: probability of pounding against the gap, fragility, required gap ([risk])",
 }
 
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="python -m pounding_sweep",
-        usage="%(prog)s [options] SCENE.toml\n       %(prog)s {track,identify,plot,gaps} ... (see below)",
+        usage="%(prog)s [options] SCENE.toml\n       %(prog)s {track,identify,plot,gaps,import,risk} ... (see below)",
         description="Run a pounding scene: every grid point of its [sweep] through the Newmark/Kelvin-Voigt "
         "kernel, one Parquet row per run (metrics with units in the column names; the scene, its hash and "
         "the package versions in the file metadata).",
@@ -122,24 +126,28 @@ def _print_summary(s) -> None:
                 f"refined from the best cell ({how}{rf.evaluations} runs): {opt}, combined error {rf.error_pct:.3f} % "
                 f"(grid best {rf.start_error_pct:.3f} %)"
             )
-    if s.calibration:
-        _print_calibration(s.calibration)
+    if s.calibration_summary:
+        _print_calibration(s.calibration_summary, s.calibration_reused)
 
 
-def _print_calibration(fits) -> None:
-    """The calibration's answer: per law each fitted value with its 95 % interval and whether the data identify it,
-    the error against the noise floor, and (several laws) the comparison."""
-    from pounding_sweep.sweep.calibrate import fit_table, law_table
+def _print_calibration(md: dict, reused: bool) -> None:
+    """The calibration's answer (calibrate.calibration_metadata: new, or kept from an earlier run): per law each
+    fitted value with its 95 % interval and whether the data identify it, the error against the noise floor, and
+    (several laws) the comparison."""
+    import pandas as pd
 
-    ft = fit_table(fits)
-    print("\ncalibration (contact and structure fitted together; 95 % intervals; stored in the best table's metadata):")
-    for f in fits:
+    ft, lt = pd.DataFrame(md["fits"]), pd.DataFrame(md["laws"])
+    kept = "; kept from an earlier run of this calibration" if reused else ""
+    print(
+        "\ncalibration (contact and structure fitted together; 95 % intervals; stored in the best table's "
+        f"metadata{kept}):"
+    )
+    for f in lt.itertuples():
         print(
-            f"  {f.law}: relative RMS {f.error_pct:.3f} %, residual {f.misfit_ratio:.2f} x the noise floor, "
-            f"{f.evaluations} runs, {f.seconds:.0f} s"
+            f"  {f.contact_law}: relative RMS {f.rel_rms_pct:.3f} %, residual {f.misfit_over_noise:.2f} x the noise "
+            f"floor, {f.evaluations} runs, {f.seconds:.0f} s"
         )
-        rows = ft[ft.contact_law == f.law]
-        for r in rows.itertuples():
+        for r in ft[ft.contact_law == f.contact_law].itertuples():
             ident = (
                 "" if r.identified else f"  NOT IDENTIFIED: any value in [{r.profile_low:.4g}, {r.profile_high:.4g}]"
             )
@@ -147,8 +155,8 @@ def _print_calibration(fits) -> None:
                 f"    {r.parameter:<20} {r.estimate:.5g}  (95 % {r.ci95_low:.5g} .. {r.ci95_high:.5g}; "
                 f"bounds {r.lower_bound:g} .. {r.upper_bound:g}){ident}"
             )
-    if len(fits) > 1:
-        lt = law_table(fits).sort_values("aic")
+    if len(lt) > 1:
+        lt = lt.sort_values("aic")
         print("  laws compared (AIC with the residuals' effective count; within 2: the data cannot decide):")
         print(
             lt[["contact_law", "parameters", "rel_rms_pct", "misfit_over_noise", "delta_aic", "delta_bic"]].to_string(
@@ -157,8 +165,27 @@ def _print_calibration(fits) -> None:
         )
 
 
+class SweepProgress(Progress):
+    """The progress meter, and a line for each stage of the calibration after the grid (which runs for a minute
+    or more between them): on stderr, terminal or not (a log keeps them), not with --quiet."""
+
+    def stage(self, message: str) -> None:
+        if self.announce:
+            print(message, file=sys.stderr, flush=True)
+
+
 def _print_warning(w) -> None:
     print(f"warning: {w.message}", file=sys.stderr, flush=True)
+
+
+def check_execution_options(args) -> None:
+    """--threads, --workers and --dask-address, checked before anything is read (shared by the subcommands)."""
+    if args.threads is not None:
+        check_workers(args.threads, "--threads")
+    if args.workers is not None:
+        check_workers(args.workers, "--workers")
+    if args.dask_address:
+        check_dask_address(args.dask_address, "--dask-address")
 
 
 def _with_execution(scene, args):
@@ -177,9 +204,18 @@ def _with_execution(scene, args):
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
-    if argv and argv[0] in SUBCOMMANDS:
-        module, func = SUBCOMMANDS[argv[0]].split(":")
-        return getattr(importlib.import_module(module), func)(argv[1:])
+    with interruptible():
+        if argv and argv[0] in SUBCOMMANDS:
+            module, func = SUBCOMMANDS[argv[0]].split(":")
+            try:
+                return getattr(importlib.import_module(module), func)(argv[1:])
+            except KeyboardInterrupt:  # a subcommand that does not say more itself (track does)
+                print("interrupted", file=sys.stderr)
+                return 130
+        return _sweep_main(argv)
+
+
+def _sweep_main(argv: list[str]) -> int:
     args = _parser().parse_args(argv)
     if args.describe:
         try:
@@ -196,12 +232,7 @@ def main(argv: list[str] | None = None) -> int:
     scene = None
     try:
         with _terminated_as_interrupt():
-            if args.threads is not None:
-                check_workers(args.threads, "--threads")
-            if args.workers is not None:
-                check_workers(args.workers, "--workers")
-            if args.dask_address:
-                check_dask_address(args.dask_address, "--dask-address")
+            check_execution_options(args)
             scene = load_scene(args.scene)
             from pounding_sweep.sweep.run import (
                 run_scene,
@@ -213,7 +244,7 @@ def main(argv: list[str] | None = None) -> int:
                     scene,
                     out_path=args.out,
                     threads=args.threads,
-                    progress=Progress(not args.quiet),
+                    progress=SweepProgress(not args.quiet),
                     overwrite=args.overwrite,
                     confirmed=args.yes,
                 )

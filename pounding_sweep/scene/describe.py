@@ -8,16 +8,20 @@ import dataclasses
 from pounding_sweep.scene.axes import SWEEPABLE
 from pounding_sweep.scene.files import MAX_RECORD_BYTES, MAX_SCENE_BYTES, MAX_TABLE_BYTES, MiB
 from pounding_sweep.scene.parse import MAX_NESTING
+from pounding_sweep.scene.risk import RiskConfig
 from pounding_sweep.scene.schema import (
     MAX_AXIS_VALUES,
+    MAX_CALIBRATE_COUNTS,
     MAX_FLOORS,
     MAX_GRID,
     MAX_STEPS,
     MAX_THREADS,
+    NOISE_M_RANGE,
     SECTIONS,
     CalibrateConfig,
     ExperimentConfig,
 )
+from pounding_sweep.scene.stochastic import StochasticConfig
 
 MAX_EVENTS = 16  # engine.events.MAX_EVENTS: the scene layer loads no Numba (tests/scene checks they agree)
 
@@ -46,7 +50,8 @@ def describe() -> str:
     """Every section and key with its meaning: the reference for writing scenes."""
     lines = ["(top level)  keys outside any section"]
     lines += [f"  {k}: {doc} (default {d})" for k, doc, d in TOP]
-    for name, cls in {**SECTIONS, "experiment": ExperimentConfig, "calibrate": CalibrateConfig}.items():
+    optional = {"experiment": ExperimentConfig, "calibrate": CalibrateConfig, "stochastic": StochasticConfig}
+    for name, cls in {**SECTIONS, **optional, "risk": RiskConfig}.items():
         need = " (required section)" if name in REQUIRED_SECTIONS else " (optional section)"
         lines.append(f"[{name}]{need}  {cls.__doc__}")
         for f in dataclasses.fields(cls):
@@ -76,4 +81,6 @@ Limits  what the engine supports
   files: each a regular file (not a FIFO or a device); a scene at most {MAX_SCENE_BYTES // MiB} MiB, its tables and
     arrays nested at most {MAX_NESTING} deep; a record at most {MAX_RECORD_BYTES // MiB} MiB and an experiment table
     {MAX_TABLE_BYTES // MiB // 1024} GiB, as UTF-8 or ASCII text where they are text (AT2, CSV).
-  threads, Dask LocalCluster workers: at most {MAX_THREADS:,}."""
+  threads, Dask LocalCluster workers: at most {MAX_THREADS:,}.
+  [calibrate]: {", ".join(f"{k} at most {v:,}" for k, v in MAX_CALIBRATE_COUNTS.items())};
+    noise_m in [{NOISE_M_RANGE[0]:g}, {NOISE_M_RANGE[1]:g}] m."""

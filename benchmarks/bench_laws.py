@@ -69,7 +69,7 @@ from compare_checkouts import paired
 from pounding_sweep.engine import driver
 from pounding_sweep.engine import layout as L
 from pounding_sweep.scene import load_scene
-from pounding_sweep.sweep.prepare import law_codes, prepare
+from pounding_sweep.sweep.prepare import prepare
 
 SCENES = {"6 Hz": REPO / "sweeps" / "paper_6hz.toml", "Duzce": REPO / "sweeps" / "paper_duzce.toml"}
 # (label, law, kernel)
@@ -96,11 +96,10 @@ def timed_call(path, law, kernel, scheme, threads, duration):
         s = dataclasses.replace(s, excitation=dataclasses.replace(s.excitation, duration_s=duration))
     prep = prepare(s, kernel=kernel)
     params = prep.grid.chunk(0, prep.grid.size)
-    runs, rec, _ = prep.kernel_inputs(params)
-    laws = law_codes(params)
+    runs, rec, _ = prep.kernel_inputs(params)  # each run's law in runs.law
 
     def call():
-        return driver.run_chunk(prep.sysarr, runs, rec, prep.hist, prep.opts, threads, 0, prep.score, kernel, laws)
+        return driver.run_chunk(prep.sysarr, runs, rec, prep.hist, prep.opts, threads, 0, prep.score, kernel)
 
     names = L.metric_columns(prep.model.floors, prep.model.n_pairs)
     return call, int(runs.nsteps.sum()), runs.n, names

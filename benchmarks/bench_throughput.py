@@ -210,7 +210,7 @@ s = load_scene(r"{scene}")
 s = dataclasses.replace(s, integration=dataclasses.replace(s.integration, scheme="implicit"))
 p = prepare(s)
 one = driver.RunArrays(np.ones(1), np.zeros((1, 3)), np.zeros(1), np.zeros(1, np.int64), np.zeros(1), np.ones(1),
-                       np.zeros(1, np.int64), np.ones(1, np.int64), np.zeros(1, np.int64))
+                       np.zeros(1, np.int64), np.ones(1, np.int64), np.zeros(1, np.int64), np.zeros(1, np.int64))
 rec = (np.zeros(1), np.zeros(1, np.int64), np.zeros(1, np.int64))
 t1 = time.perf_counter()
 driver.run_chunk_lanes(p.sysarr, one, rec, p.opts)
@@ -666,7 +666,7 @@ def cli_duzce(repeats: int) -> None:
 # float64 multiply-class operations (multiplies and fused multiply-adds, which share the FMA pipes)
 # per lane and step of the vector step without contact, for N modes (floors) and P pairs: the
 # modal update 3 N (ek s, cr r, cq q), input work N, damping work 2 N, modal acceleration 2 N, then
-# Phi q and Phi a, N_b^2 per building each. Counted from the source (kernel_lanes._quiet_step).
+# Phi q and Phi a, N_b^2 per building each. Counted from the source (engine/lanes/vector.py _quiet_step).
 
 
 def fma_ops_quiet(n1: int, n2: int) -> int:

@@ -35,13 +35,14 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 def short(name: str) -> str:
-    """`_ZN14pounding_sweep12kernel_lanes8_contactB3v51...` -> `kernel_lanes._contact`."""
+    """`_ZN14pounding_sweep6engine5lanes6vector8_contactB3v51...` -> `engine.lanes.vector._contact` (a closure:
+    `...6events15event_functions8<locals>12locate_event` -> `engine.events.event_functions.<locals>.locate_event`)."""
     at = name.find("14pounding_sweep")
     if at < 0:
         return name[:60]
     rest = name[at + len("14pounding_sweep") :]
     parts = []
-    while rest and rest[0].isdigit() and len(parts) < 2:
+    while rest and rest[0].isdigit() and len(parts) < 6:
         n = int(re.match(r"\d+", rest).group(0))
         k = len(str(n))
         parts.append(rest[k : k + n])
@@ -114,7 +115,11 @@ def _profile(a, perf: str, tmp: Path, pmap: Path) -> None:
     import numpy as np
 
     from pounding_sweep.engine import driver
-    from pounding_sweep.engine import lanes as kernel_lanes
+
+    try:
+        from pounding_sweep.engine.lanes.groups import _integrate_groups
+    except ImportError:  # before engine/lanes became a package
+        from pounding_sweep.engine.lanes import _integrate_groups
 
     s = B.scene(
         base=B.SCENE_6HZ,
@@ -127,7 +132,7 @@ def _profile(a, perf: str, tmp: Path, pmap: Path) -> None:
     t0 = time.perf_counter()
     driver.run_chunk_lanes(prep.sysarr, runs, rec, prep.opts, 1)
     print(f"compiled the lane kernel in {time.perf_counter() - t0:.0f} s")
-    syms = compiled_functions(kernel_lanes.integrate_lanes)
+    syms = compiled_functions(_integrate_groups)
     with open(pmap, "w") as fh:
         for k, (addr, name) in enumerate(syms):
             end = syms[k + 1][0] if k + 1 < len(syms) else addr + 65536

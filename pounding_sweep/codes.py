@@ -4,14 +4,15 @@ imports nothing), so choosing a scheme by name never loads the kernels."""
 
 from __future__ import annotations
 
-#: integration schemes (engine/scalar.py and engine/lanes.py implement them)
+#: integration schemes (engine/scalar.py, engine/nonlinear.py and engine/lanes implement them)
 SCHEME_IMPLICIT = 0
 SCHEME_PAPER = 1
 SCHEME_EVENT = 2
 SCHEMES = {"implicit": SCHEME_IMPLICIT, "paper": SCHEME_PAPER, "event": SCHEME_EVENT}
 
 #: contact laws (model/contact.py and model/laws.py hold their parameters): the linear Kelvin-Voigt laws
-#: (engine/scalar.py, engine/lanes.py) and, from LAW_HERTZ on, the Hertz-type nonlinear ones (engine/nonlinear.py)
+#: (engine/scalar.py, engine/lanes) and the Hertz-type nonlinear ones (engine/nonlinear.py); engine/registry.py
+#: says which kernel integrates which
 LAW_CLASSIC = 0
 LAW_NO_TENSION = 1
 LAW_HERTZ = 2
@@ -30,9 +31,14 @@ CONTACT_LAWS = {
 RESTITUTION_RELATIONS = ("authors", "exact", "muthukumar2006")
 
 
+#: the linear Kelvin-Voigt laws and the Hertz-type ones (force ~ penetration^1.5)
+KELVIN_VOIGT_LAWS = (LAW_CLASSIC, LAW_NO_TENSION)
+HERTZ_LAWS = (LAW_HERTZ, LAW_HERTZDAMP, LAW_JANKOWSKI)
+
+
 def is_nonlinear(law: int) -> bool:
     """A Hertz-type law (force ~ penetration^1.5), integrated by engine/nonlinear.py."""
-    return law >= LAW_HERTZ
+    return law in HERTZ_LAWS
 
 
 #: excitation kinds: table displacement amp sin(omega t) (ground acceleration -amp omega^2 sin(omega t)),

@@ -99,12 +99,12 @@ def count_bounds(base, twins) -> tuple[np.ndarray, np.ndarray]:
 
 def switch_residue_force(ks, up, uq):
     """Largest |force| [N] the event scheme leaves on a pair without calling it a switch: a penetration
-    (or, under no tension, F / k_s) inside kernel._switch_tolerance of zero at a step's end does not
+    (or, under no tension, F / k_s) inside events.switch_tolerance of zero at a step's end does not
     contradict the contact set, so a phase's least force may sit anywhere in +/- k_s times it. The
     tolerance is the kernel's own rule (one home), evaluated on the floors' peak displacements."""
-    from pounding_sweep.engine.scalar import _switch_tolerance
+    from pounding_sweep.engine.events import switch_tolerance
 
-    return np.asarray(ks) * np.vectorize(_switch_tolerance)(np.asarray(up, float), np.asarray(uq, float))
+    return np.asarray(ks) * np.vectorize(switch_tolerance)(np.asarray(up, float), np.asarray(uq, float))
 
 
 def summation_tolerance(n_terms: int, abs_sum) -> float:

@@ -2,11 +2,14 @@
 rows, histories and scores out; it knows nothing of TOML, Parquet, Dask or the command line.
 
 Modules: inputs (the records), layout (the metric row's slots and status bits: one home for the kernels
-and the writer), jit (Numba flags and the cache keyed by the engine's sources), events (the event
-scheme's coordinate-free pieces), clock, scalar (one run at a time, floor coordinates, every option, the linear
-laws), nonlinear (the same for the Hertz-type laws), bookkeeping (the metric rows both share),
-lanes and simd (8 runs side by side in SIMD lanes, modal coordinates), score (eq. 20 and the scores of a
-run against an experiment), driver (threads, the kernel chosen by argument).
+and the writer), jit (Numba flags and the cache keyed by the engine's sources), registry (the kernels:
+each one's entry point, compile label and why it cannot run a chunk), events (the event scheme's located
+step, written once, each kernel supplying its coordinate-specific pieces), floors (those pieces in floor
+coordinates), scalar (one run at a time, floor coordinates, every option, the linear laws), nonlinear
+(the same for the Hertz-type laws), bookkeeping (the metric rows both share), lanes (a package: 8 runs
+side by side in SIMD lanes, modal coordinates) and simd (its vector type), clock, score (eq. 20 and the
+scores of a run against an experiment), driver (threads; the kernel the registry chooses). docs/engine.md
+explains them.
 
 May import the model layer (its array types), the shared bottom modules, NumPy, Numba and llvmlite.
 """

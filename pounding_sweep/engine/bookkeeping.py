@@ -24,6 +24,35 @@ def start_row(out, npair, pbase, gap):
 
 
 @njit_inner
+def start_pairs(active, F, bufs, phases, gap):
+    """Every pair at rest at the run's start: out of contact, no force, `gap` apart, no phase open.
+    bufs = (was_active, spring part, dashpot part, penetration) of the energy book-keeping; phases as
+    pair_pieces takes them."""
+    was_active, sprev, dprev, pen_prev = bufs
+    in_comp, comp_acc, _durations, nphase = phases
+    for j in range(active.size):
+        active[j] = False
+        was_active[j] = False
+        F[j] = 0.0
+        sprev[j] = 0.0
+        dprev[j] = 0.0
+        pen_prev[j] = -gap  # at rest the pair is `gap` apart
+        in_comp[j] = False
+        comp_acc[j] = 0.0
+        nphase[j] = 0
+
+
+@njit_inner
+def force_extremes(out, base, f, t):
+    """A pair's peak force (and its time) and least force, at slot `base` of a metric row."""
+    if f > out[base + L.PAIR_PEAK_FORCE]:
+        out[base + L.PAIR_PEAK_FORCE] = f
+        out[base + L.PAIR_PEAK_FORCE_TIME] = t
+    if f < out[base + L.PAIR_MIN_FORCE]:
+        out[base + L.PAIR_MIN_FORCE] = f
+
+
+@njit_inner
 def samples_at_rest(exp_t, xs):
     """Experiment samples at t <= 0 see the structure at rest; returns the next sample to fill."""
     k = 0
@@ -44,11 +73,16 @@ def any_acceleration(exp_kind):
 
 
 @njit_inner
-def sample_experiment(k, exp_t, exp_dof, exp_kind, xs, ustep, u, astep, agstep, a, ag, t, dt):
-    """Fill the experiment samples inside (t - dt, t] by linear interpolation between the step's ends:
-    a displacement channel between ustep and u, an absolute-acceleration channel between astep + agstep
-    and a + ag (relative acceleration plus the table's, at the step's start and end; the abs_acc history
-    channel's values there); returns the next sample to fill."""
+def sample_experiment(k, channels, xs, start, end, t, dt):
+    """Fill the experiment samples inside (t - dt, t] by linear interpolation between the step's ends
+    (channels = (times, DOFs, kinds) as engine/inputs.py ScoreSpec's t, dof, kind),
+    start = (u, a, ag) and end = (u, a, ag) (displacement and acceleration relative to the table, the
+    table's acceleration): a displacement channel between the two u, an absolute-acceleration channel
+    between a + ag at either end (the abs_acc history channel's values there); returns the next sample
+    to fill."""
+    exp_t, exp_dof, exp_kind = channels
+    ustep, astep, agstep = start
+    u, a, ag = end
     while k < exp_t.size and exp_t[k] <= t + 1e-12 * dt:
         theta = (exp_t[k] - (t - dt)) / dt
         for c in range(exp_dof.size):
@@ -63,9 +97,9 @@ def sample_experiment(k, exp_t, exp_dof, exp_kind, xs, ustep, u, astep, agstep, 
 
 
 @njit_inner
-def floor_peaks(out, u, a, ag, t, i2):
+def floor_peaks(out, u, a, ag, t, n1):
     """Per floor, at a step's end: peak |u| (and its time), peak |absolute acceleration|, peak |drift|
-    of the story below (building 1's ground story is DOF 0, building 2's DOF i2[0])."""
+    of the story below (building 1's ground story is DOF 0, building 2's DOF n1)."""
     for i in range(u.shape[0]):
         base = L.PER_DOF * i
         ad = abs(u[i])
@@ -75,7 +109,7 @@ def floor_peaks(out, u, a, ag, t, i2):
         aa = abs(a[i] + ag)
         if aa > out[base + L.DOF_PEAK_ABS_ACC]:
             out[base + L.DOF_PEAK_ABS_ACC] = aa
-        dr = abs(u[i] - u[i - 1]) if i != 0 and i != i2[0] else abs(u[i])
+        dr = abs(u[i] - u[i - 1]) if i != 0 and i != n1 else abs(u[i])
         if dr > out[base + L.DOF_PEAK_DRIFT]:
             out[base + L.DOF_PEAK_DRIFT] = dr
 
@@ -131,10 +165,13 @@ def end_phase(durations, nphase, j, duration):
 
 
 @njit_inner
-def pair_pieces(out, pbase, pen, F, active, was_active, hs, t_e, in_comp, comp_acc, durations, nphase):
+def pair_pieces(out, pbase, pen, F, active, was_active, hs, t_e, phases):
     """Contact metrics of every pair over an accepted piece of length hs ending at t_e, with penetration
     pen[j] and force F[j] there: closest approach, impacts (a pair that entered contact), contact time,
-    penetration and force extremes, compressive time and phases (F > 0); then was_active = active."""
+    penetration and force extremes, compressive time and phases (F > 0; phases = (in_comp, comp_acc,
+    durations, nphase): a phase in progress, its duration so far, the phases' durations and count);
+    then was_active = active."""
+    in_comp, comp_acc, durations, nphase = phases
     for j in range(pen.shape[0]):
         base = pbase + L.PER_PAIR * j
         p = pen[j]
@@ -165,9 +202,10 @@ def pair_pieces(out, pbase, pen, F, active, was_active, hs, t_e, in_comp, comp_a
 
 
 @njit_kernel
-def close_row(out, pbase, npair, in_comp, comp_acc, durations, nphase, status):
+def close_row(out, pbase, npair, phases, status):
     """Close the phases still open at the run's end; per pair the phase count and median duration.
     Returns the status with STATUS_MEDIAN_TRUNCATED where the buffer overflowed."""
+    in_comp, comp_acc, durations, nphase = phases
     for j in range(npair):
         if in_comp[j]:
             end_phase(durations, nphase, j, comp_acc[j])
@@ -201,10 +239,12 @@ def score_run(scores, run, xs, experiment, k_filled, status):
 
 
 @njit_inner
-def energy_row(out, rbase, m, K, u, v, e_in, e_in_abs, d_struct, d_contact, e_spring, residual, status):
+def energy_row(out, rbase, m, K, u, v, energies, status):
     """The energy balance E_in = KE + SE + D_struct + D_contact + E_spring + residual at the run's end
-    (kinetic and strain energy from the end state); STATUS_ENERGY when |residual| > ENERGY_TOL of the
-    input work. Returns the status."""
+    (kinetic and strain energy from the end state; energies = (E_in, the input work's absolute sum,
+    D_struct, D_contact, E_spring, residual)); STATUS_ENERGY when |residual| > ENERGY_TOL of the input
+    work. Returns the status."""
+    e_in, e_in_abs, d_struct, d_contact, e_spring, residual = energies
     n = u.shape[0]
     ke_end = 0.0
     se_end = 0.0

@@ -1,12 +1,15 @@
 """Run a chunk of grid points through the kernel on a pool of threads.
 
-Two kernels compute the same metric row of a run: the lane kernel (engine.lanes.integrate_lanes,
-LANES runs side by side in SIMD lanes, in modal coordinates) takes every chunk it is eligible for
-(lanes.lanes_ineligible_reason: metrics only, implicit or event scheme, two shear frames
-facing floor by floor with classical damping); the scalar kernel (engine.scalar.integrate_batch) takes the
-others (histories, scoring, the paper's scheme) and reruns any run that diverged in a lane. The two
-agree to rounding (tests/engine/test_lanes.py states the tolerances, derived in tests/tolerances.py).
-Which kernel runs a chunk is an argument (KERNELS), never a module global.
+The kernels (engine/registry.py) compute the same metric row of a run: the lane kernel
+(engine/lanes, LANES runs side by side in SIMD lanes, in modal coordinates) takes every chunk it can
+run (metrics only, implicit or event scheme, a linear contact law, two shear frames facing floor by
+floor with classical damping); the scalar kernels, one run at a time in floor coordinates, take the
+others (histories, scoring, the paper's scheme; engine/scalar.py for the linear laws,
+engine/nonlinear.py for the Hertz-type ones) and rerun any run that diverged in a lane. The lane and
+scalar kernels agree to rounding (tests/engine/test_lanes.py states the tolerances, derived in
+tests/tolerances.py). Which kernel runs a chunk is the registry's answer to the chunk and the caller's
+choice (registry.CHOICES), never a module global; a chunk's runs of each contact law (RunArrays.law)
+go to that law's kernel.
 
 The kernels release the GIL, so threads run side by side; work is handed out in small pieces
 (a group of LANES runs, or a small batch of runs) from a shared queue, so a thread that draws runs
@@ -19,38 +22,40 @@ from __future__ import annotations
 
 import contextlib
 import os
+import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from pounding_sweep.codes import is_nonlinear
+from pounding_sweep.codes import LAW_CLASSIC
 from pounding_sweep.engine import layout as L
+from pounding_sweep.engine import registry
 from pounding_sweep.engine.inputs import (
     HistorySpec,
     KernelOptions,
     LaneExcitation,
     LaneModel,
-    LaneOutputs,  # noqa: F401
+    LaneOutputs,
     Outputs,
     Records,
     RunArrays,
     ScoreSpec,
     Structure,
+    building_split,
 )
 from pounding_sweep.engine.lanes import (
     LANES,
     ST_N,
     coefficient_table,
     excitation_profiles,
+    group_work,
     integrate_lanes,
     lane_modes,
-    lanes_ineligible_reason,
     size_tuples,
 )
-from pounding_sweep.engine.nonlinear import integrate_nonlinear
-from pounding_sweep.engine.scalar import integrate_batch
+from pounding_sweep.engine.registry import Chunk
 from pounding_sweep.engine.score import N_SCORES
 from pounding_sweep.model.coupled import SystemArrays
 from pounding_sweep.model.modal import ModalArrays, modal_arrays
@@ -64,24 +69,22 @@ def resolve_threads(threads: int) -> int:
     )
 
 
-#: the kernels a chunk may be run on: "auto" (the lane kernel where it computes the chunk, else the scalar
-#: one), "scalar" (every chunk on the scalar kernel: the benchmarks and tests compare the two), "lanes"
-KERNELS = ("auto", "scalar", "lanes")
+#: the kernels a chunk may be run on (registry.CHOICES): "auto" (the lane kernel where it computes the
+#: chunk, else a scalar one), "scalar" (one run at a time: the benchmarks and tests compare the two), "lanes"
+KERNELS = registry.CHOICES
 
 
 def kernel_for(
-    sys: SystemArrays, hist: HistorySpec, opts: KernelOptions, score: ScoreSpec | None = None, kernel: str = "auto"
+    sys: SystemArrays,
+    hist: HistorySpec,
+    opts: KernelOptions,
+    score: ScoreSpec | None = None,
+    kernel: str = "auto",
+    law: int = LAW_CLASSIC,
 ) -> str:
-    """'lanes' or 'scalar': the kernel run_chunk uses for such a chunk (ValueError: `kernel` names none,
-    or asks for the lane kernel where it cannot compute the chunk)."""
-    if kernel not in KERNELS:
-        raise ValueError(f"kernel = {kernel!r}: expected one of {KERNELS}")
-    if kernel == "scalar":
-        return "scalar"
-    why = lanes_ineligible_reason(sys, hist, opts, score)
-    if kernel == "lanes" and why is not None:
-        raise ValueError(f"kernel = 'lanes': the lane kernel cannot run this chunk ({why})")
-    return "lanes" if why is None else "scalar"
+    """The name of the kernel (registry.KERNELS) run_chunk uses for a chunk of runs of `law` (codes.LAW_*)
+    (ValueError: `kernel` names none of KERNELS, or asks for a kernel that cannot run the chunk)."""
+    return registry.choose(Chunk(sys, hist, opts, score or ScoreSpec.none(), law), kernel).name
 
 
 def run_chunk(
@@ -94,42 +97,29 @@ def run_chunk(
     batch_runs: int = 0,
     score: ScoreSpec | None = None,
     kernel: str = "auto",
-    laws: np.ndarray | None = None,
     done: Callable[[int], None] | None = None,
 ):
     """Integrate every run of the chunk on `kernel` (KERNELS); return (metrics, run_time_s, histories or
-    None, scores or None). `laws` (codes.LAW_* per run), when given, overrides opts.law run by run: the
-    runs of each law go to that law's kernel (a Hertz-type law to engine/nonlinear.py) and the rows come
-    back in the chunk's order. `done(n)`, when given, is called from the worker threads as each group or
-    batch of n runs finishes (progress within a chunk; it must be thread-safe and quick)."""
+    None, scores or None). The runs of each contact law (runs.law) go to the kernel the registry picks for
+    them and the rows come back in the chunk's order. `done(n)`, when given, is called from the worker
+    threads as each group or batch of n runs finishes (progress within a chunk; it must be thread-safe and
+    quick)."""
     score = score if score is not None else ScoreSpec.none()
-    if laws is not None:
-        codes_in = np.unique(laws)
-        if codes_in.size > 1:
-            return _run_by_law(sys, runs, rec, hist, opts, threads, batch_runs, score, kernel, laws, codes_in, done)
-        if codes_in.size == 1:
-            opts = opts._replace(law=int(codes_in[0]))
-    if is_nonlinear(opts.law):
-        if kernel == "lanes":
-            raise ValueError("kernel = 'lanes': the lane kernel cannot run this chunk (a Hertz-type contact law)")
-        return run_chunk_scalar(sys, runs, rec, hist, opts, threads, batch_runs, score, done)
-    if kernel_for(sys, hist, opts, score, kernel) == "lanes" and runs.n > 0:
-        ma = lane_modes(sys, hist, opts, score)
-        metrics, run_time = run_chunk_lanes(sys, runs, rec, opts, threads, ma, done=done)
+    codes_in = np.unique(runs.law)
+    if codes_in.size > 1:
+        parts = []
+        for code in codes_in:
+            idx = np.flatnonzero(runs.law == code)
+            parts.append(
+                (idx, run_chunk(sys, runs.take(idx), rec, hist, opts, threads, batch_runs, score, kernel, done))
+            )
+        return merge_rows(runs.n, parts)
+    law = int(codes_in[0]) if codes_in.size else LAW_CLASSIC
+    k = registry.choose(Chunk(sys, hist, opts, score, law), kernel)
+    if k.lanes and runs.n > 0:
+        metrics, run_time = run_chunk_lanes(sys, runs, rec, opts, threads, done=done)
         return metrics, run_time, None, None
     return run_chunk_scalar(sys, runs, rec, hist, opts, threads, batch_runs, score, done)
-
-
-def _run_by_law(sys, runs, rec, hist, opts, threads, batch_runs, score, kernel, laws, codes_in, done):
-    """run_chunk for a chunk mixing laws: each law's runs on their kernel, rows put back in order."""
-    parts = []
-    for code in codes_in:
-        idx = np.flatnonzero(laws == code)
-        law_opts = opts._replace(law=int(code))
-        parts.append(
-            (idx, run_chunk(sys, runs.take(idx), rec, hist, law_opts, threads, batch_runs, score, kernel, done=done))
-        )
-    return merge_rows(runs.n, parts)
 
 
 def merge_rows(n: int, parts) -> tuple:
@@ -163,9 +153,13 @@ def run_chunk_scalar(
     score: ScoreSpec | None = None,
     done: Callable[[int], None] | None = None,
 ):
-    """run_chunk on the scalar kernel (every option supported): engine/scalar.py for the linear laws,
-    engine/nonlinear.py for the Hertz-type ones."""
+    """run_chunk on a one-run-at-a-time kernel (every option supported; registry choice "scalar"):
+    engine/scalar.py for the linear laws, engine/nonlinear.py for the Hertz-type ones."""
     score = score if score is not None else ScoreSpec.none()
+    if np.unique(runs.law).size > 1:
+        return run_chunk(sys, runs, rec, hist, opts, threads, batch_runs, score, "scalar", done)
+    law = int(runs.law[0]) if runs.n else LAW_CLASSIC
+    kernel_fn = registry.choose(Chunk(sys, hist, opts, score, law), "scalar").entry
     n = runs.n
     n_metrics = L.n_metrics(sys.m.size, sys.i1.size)
     metrics = np.zeros((n, n_metrics))
@@ -180,7 +174,6 @@ def run_chunk_scalar(
     model = Structure.of(sys)
     records = Records(*rec)
     out = Outputs(metrics, run_time, hist_arr, scores)
-    kernel_fn = integrate_nonlinear if is_nonlinear(opts.law) else integrate_batch
 
     def work(bounds):
         kernel_fn(bounds[0], bounds[1], model, opts, runs, records, hist, score, out)
@@ -210,9 +203,10 @@ def run_chunk_lanes(
     stats: np.ndarray | None = None,
     done: Callable[[int], None] | None = None,
 ):
-    """run_chunk on the lane kernel (the caller checked eligibility; `ma`: the system's modal data
-    when the caller has them, from lanes.lane_modes): (metrics, run_time_s). `stats` (int64[lanes.ST_N]),
-    when given, is added the kernel's work counters (the benchmarks' profile); `done(n)`: as run_chunk's.
+    """run_chunk on the lane kernel (the caller checked that it can run the chunk: registry.choose; the runs
+    share one contact law; `ma`: the system's modal data when the caller has them, from lanes.lane_modes):
+    (metrics, run_time_s). `stats` (int64[lanes.ST_N]), when given, is added the kernel's work counters (the
+    benchmarks' profile); `done(n)`: as run_chunk's.
 
     Runs are grouped by length, then by excitation profile, then by gap, so a group's lanes end
     together, share their ground motion and tend to be in contact at the same time (a group pays
@@ -223,6 +217,8 @@ def run_chunk_lanes(
     lane are rerun by the scalar kernel. (Grouping changes no result: see tests/engine/test_lanes.py.)
     """
     n = runs.n
+    if np.unique(runs.law).size > 1:
+        raise ValueError("the lane kernel runs the runs of one contact law at a time (run_chunk splits a chunk)")
     n_metrics = L.n_metrics(sys.m.size, sys.i1.size)
     metrics = np.zeros((n, n_metrics))
     run_time = np.zeros(n)
@@ -231,14 +227,19 @@ def run_chunk_lanes(
     order = np.lexsort((runs.gap, pid, -runs.nsteps)).astype(np.int64)
     nt, n1t = size_tuples(sys)
     n_groups = -(-n // LANES)
-    ma = ma if ma is not None else modal_arrays(sys, len(n1t))
+    ma = ma if ma is not None else modal_arrays(sys, building_split(sys))
     model = LaneModel(float(sys.dt), nt, n1t, ma.phi, ma.psi, ma.om2, ma.dmp, ma.gam, ma.W, coefficient_table(ma))
     excitation = LaneExcitation(coef, pid, prof)
     stats_g = np.zeros((n_groups, ST_N), dtype=np.int64)  # one row per group: no thread shares one
 
+    local = threading.local()  # each thread's work arrays (lanes.group_work), made once
+
     def work(g):
         t0 = time.perf_counter()
-        integrate_lanes(order, g, g + 1, model, opts, runs, excitation, LaneOutputs(metrics, redo, stats_g[g]))
+        if not hasattr(local, "gw"):
+            local.gw = group_work(model, opts.max_iter)
+        out = LaneOutputs(metrics, redo, stats_g[g])
+        integrate_lanes(order, g, g + 1, model, opts, runs, excitation, out, local.gw)
         members = order[g * LANES : (g + 1) * LANES]
         run_time[members] = (time.perf_counter() - t0) / members.size
         if done is not None:
@@ -309,24 +310,30 @@ def compile_kernel(
     announce: Announce | None = None,
 ) -> float:
     """Compile (or load from cache) the kernel(s) a sweep of this system will use, on one-step runs;
-    return the seconds it took. With `hist` and `score` given: the kernel run_chunk picks for them;
-    without: the lane kernel where the system and options allow it, and the scalar kernel (which
-    chunks with histories or scoring, and diverged runs, use) in any case. `laws`: the codes.LAW_* the
-    sweep uses (default opts.law); a Hertz-type one compiles engine/nonlinear.py as well. `announce`
-    (Announce) is told when a kernel is really compiled, not loaded from the cache."""
+    return the seconds it took. `laws`: the codes.LAW_* the sweep uses (default: the classic law). With
+    `hist` and `score` given: the kernel run_chunk picks for each law's runs; without: that kernel, and
+    where it is the lane kernel, the scalar one too (which chunks with histories or scoring, and diverged
+    runs, use). `announce` (Announce) is told when a kernel is really compiled, not loaded from the cache."""
     t0 = time.perf_counter()
-    laws = [opts.law] if laws is None else sorted(set(int(x) for x in laws))
-    nonlinear = [x for x in laws if is_nonlinear(x)]
-    if nonlinear:
-        _compile_one(sys, opts._replace(law=nonlinear[0]), hist, score, kernel, announce)
-    linear = [x for x in laws if not is_nonlinear(x)]
-    if linear:
-        _compile_one(sys, opts._replace(law=linear[0]), hist, score, kernel, announce)
+    laws = [LAW_CLASSIC] if laws is None else sorted(set(int(x) for x in laws))
+    none = HistorySpec.none()
+    compiled = set()
+    for law in laws:
+        chunk = Chunk(sys, hist or none, opts, score or ScoreSpec.none(), law)
+        picks = [registry.choose(chunk, kernel)]
+        if hist is None and picks[0].lanes:
+            picks.append(registry.choose(chunk, "scalar"))
+        for k in picks:
+            key = k.compile_key(score)
+            if key not in compiled:
+                compiled.add(key)
+                with _announced(*key, announce):
+                    _one_step(k, sys, opts, law, hist or none, score)
     return time.perf_counter() - t0
 
 
-def _compile_one(sys, opts, hist, score, kernel, announce):
-    """compile_kernel for one law's kernel(s)."""
+def _one_step(k: registry.Kernel, sys, opts, law, hist, score):
+    """One run of one step of `law` on kernel k: compiles it (or loads it from the cache)."""
     p = sys.i1.size
     runs = RunArrays(
         np.ones(1),
@@ -338,21 +345,10 @@ def _compile_one(sys, opts, hist, score, kernel, announce):
         np.zeros(1, np.int64),
         np.ones(1, np.int64),
         np.zeros(1, np.int64),
+        np.full(1, law, np.int64),
     )
     rec = Records(np.zeros(1), np.zeros(1, np.int64), np.zeros(1, np.int64))
-    none = HistorySpec.none()
-    ma = lane_modes(sys, hist or none, opts, score)
-    lanes_ok = isinstance(ma, ModalArrays) and kernel != "scalar"
-    if lanes_ok:
-        with _announced("lanes", "the lane kernel", announce):
-            run_chunk_lanes(sys, runs, rec, opts, 1, ma)
-    if hist is None or not lanes_ok:
-        name, label = (
-            ("nonlinear", "the Hertz-type contact kernel")
-            if is_nonlinear(opts.law)
-            else ("scalar", "the scalar kernel")
-        )
-        if score is not None and score.active:
-            name, label = f"{name}_scored", f"{label} with scoring"
-        with _announced(name, label, announce):
-            run_chunk_scalar(sys, runs, rec, hist or none, opts, score=score)
+    if k.lanes:
+        run_chunk_lanes(sys, runs, rec, opts, 1, lane_modes(sys, hist, opts, score, law))
+    else:
+        run_chunk_scalar(sys, runs, rec, hist, opts, score=score)

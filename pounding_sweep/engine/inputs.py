@@ -17,8 +17,8 @@ import numpy as np
 
 class Structure(NamedTuple):
     """The coupled two-building model at one dt (model.coupled.SystemArrays), float64 / int64, C-contiguous.
-    DOFs are building 1's floors then building 2's; pair j faces floor i1[j] of building 1 and floor i2[j]
-    of building 2."""
+    DOFs are building 1's floors (n1 of them) then building 2's; pair j faces floor i1[j] of building 1 and
+    floor i2[j] of building 2 (P = 0 pairs: no contact)."""
 
     dt: float  # time step [s]
     m: np.ndarray  # (N,) lumped floor masses [kg]
@@ -29,13 +29,32 @@ class Structure(NamedTuple):
     S: np.ndarray  # (P, P) G^T Kinv G (symmetric)
     i1: np.ndarray  # (P,) DOF of building 1 in pair j
     i2: np.ndarray  # (P,) DOF of building 2 in pair j
+    n1: int  # building 1's floor count (DOFs 0 .. n1 - 1)
 
     @classmethod
     def of(cls, sysarr) -> Structure:
-        """The record of a model.coupled.SystemArrays (same fields)."""
+        """The record of a model.coupled.SystemArrays (same fields, and building 1's floor count)."""
         return cls(
-            float(sysarr.dt), sysarr.m, sysarr.C, sysarr.K, sysarr.Kinv, sysarr.H, sysarr.S, sysarr.i1, sysarr.i2
+            float(sysarr.dt),
+            sysarr.m,
+            sysarr.C,
+            sysarr.K,
+            sysarr.Kinv,
+            sysarr.H,
+            sysarr.S,
+            sysarr.i1,
+            sysarr.i2,
+            building_split(sysarr),
         )
+
+
+def building_split(sysarr) -> int:
+    """Building 1's floor count of a model.coupled.SystemArrays: its `n1` where it has one, else the DOF of
+    building 2's first pair (pairs face floor by floor from the ground), else every DOF (no pairs: one building)."""
+    n1 = getattr(sysarr, "n1", None)
+    if n1 is not None:
+        return int(n1)
+    return int(sysarr.i2[0]) if sysarr.i2.size else int(sysarr.m.size)
 
 
 class RunArrays(NamedTuple):
@@ -50,6 +69,7 @@ class RunArrays(NamedTuple):
     rec_id: np.ndarray  # (R,) record: which of Records
     nsteps: np.ndarray  # (R,) steps of the run
     status_in: np.ndarray  # (R,) status bits known before the run (engine.layout.STATUS_*)
+    law: np.ndarray  # (R,) the run's contact law, codes.LAW_* (int64)
 
     @property
     def n(self) -> int:
@@ -69,11 +89,11 @@ class Records(NamedTuple):
 
 
 class KernelOptions(NamedTuple):
-    """How to integrate: codes.SCHEME_*, codes.LAW_*, the implicit scheme's active-set iterations per step,
-    and the Hertz-damp law's floor on the approach speed of an impact [m/s] (engine/nonlinear.py)."""
+    """How to integrate: codes.SCHEME_*, the implicit scheme's active-set iterations per step, and the
+    Hertz-damp law's floor on the approach speed of an impact [m/s] (engine/nonlinear.py). The contact law
+    is the runs' (RunArrays.law)."""
 
     scheme: int
-    law: int
     max_iter: int
     min_impact_speed: float = 0.01
 
@@ -131,7 +151,7 @@ class Outputs(NamedTuple):
 
 
 class LaneModel(NamedTuple):
-    """The lane kernel's model (engine/lanes.py): modal data of the coupled model at dt (model.modal.ModalArrays)."""
+    """The lane kernel's model (engine/lanes): modal data of the coupled model at dt (model.modal.ModalArrays)."""
 
     dt: float  # time step [s]
     nt: tuple  # a tuple of N zeros: the floor count N, fixed at compile time

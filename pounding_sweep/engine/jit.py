@@ -25,12 +25,14 @@ from pathlib import Path
 import numba
 
 HERE = Path(__file__).resolve().parent
-#: engine modules that compile nothing (plain Python driving the kernels): an edit there changes no
-#: compiled code, so it must not cost every user a fresh compile of every kernel (tests/engine/test_jit.py
-#: checks that no module listed here holds compiled code)
-NOT_COMPILED = ("driver.py",)
+#: engine modules that compile nothing (plain Python driving or choosing the kernels), by their path in the
+#: engine: an edit there changes no compiled code, so it must not cost every user a fresh compile of every
+#: kernel (tests/engine/test_jit.py checks that no module listed here holds compiled code)
+NOT_COMPILED = ("driver.py", "registry.py", "lanes/__init__.py", "lanes/eligibility.py")
 #: the sources whose compiled code the cache holds
-SOURCES = sorted(p for p in HERE.glob("*.py") if p.name not in NOT_COMPILED) + [HERE.parent / "codes.py"]
+SOURCES = sorted(p for p in HERE.rglob("*.py") if p.relative_to(HERE).as_posix() not in NOT_COMPILED) + [
+    HERE.parent / "codes.py"
+]
 KEEP_CACHES = 3
 _CACHE_NAME = re.compile(r"engine-[0-9a-f]{16}")
 
@@ -44,7 +46,8 @@ def engine_hash(sources=None) -> str:
     """SHA-256 (16 hex digits) of the engine's sources, names and contents."""
     h = hashlib.sha256()
     for p in sources or SOURCES:
-        h.update(p.name.encode() + b"\0" + p.read_bytes() + b"\0")
+        name = p.relative_to(HERE).as_posix() if p.is_relative_to(HERE) else p.name
+        h.update(name.encode() + b"\0" + p.read_bytes() + b"\0")
     return h.hexdigest()[:16]
 
 
@@ -139,8 +142,10 @@ def njit_kernel(fn):
 
 
 def njit_lanes(fn):
-    """Decorate a lane kernel function that allocates (Numba's reference-counted runtime on)."""
-    return _cached(numba.njit(**LANES_JIT))(fn)
+    """Decorate an entry point of the lane kernel (called from Python): it allocates nothing (its work
+    arrays come from the caller), so it is compiled without Numba's runtime, whose atomic reference counts
+    on the arrays of its record arguments cost the scalar steps a fifth of their time."""
+    return _cached(numba.njit(_nrt=False, **LANES_JIT))(fn)
 
 
 def njit_step(fn):
@@ -157,8 +162,20 @@ def njit_inner(fn):
     return _cached(numba.njit(_nrt=False, no_cpython_wrapper=True, no_cfunc_wrapper=True, **KERNEL_JIT))(fn)
 
 
-#: inlined into its callers at Numba's IR level (the lane kernel's vector helpers)
+def njit_generic(fn):
+    """Decorate a function written once for every kernel and compiled with a kernel's own pieces as closure
+    variables (engine/events.py event_functions). As njit_inner, but not cached on its own: Numba keys a
+    closure's cache by its cell contents, and a compiled function there pickles with an id of this process,
+    so every process would add an entry no other finds (numba#6264). The cached kernels that call it hold
+    its code."""
+    return numba.njit(_nrt=False, no_cpython_wrapper=True, no_cfunc_wrapper=True, **dict(KERNEL_JIT, cache=False))(fn)
+
+
+#: inlined into its callers at Numba's IR level (the lane kernel's vector helpers, and its event step's
+#: pieces: a call passing the lane's state record cost its scalar steps as much as the work)
 inline = numba.njit(inline="always", **LANES_JIT)
+#: njit_generic, inlined (the lane kernel's event step: events.event_functions(..., inline=True))
+inline_generic = numba.njit(inline="always", **dict(LANES_JIT, cache=False))
 #: the same with the scalar kernels' flags, for a per-step helper whose call showed in the time (structure_work:
 #: about 8 % of the scalar kernel on the 6 Hz grid; inlining the other helpers this way cost more than it saved)
 inline_kernel = numba.njit(inline="always", **KERNEL_JIT)

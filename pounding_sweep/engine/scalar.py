@@ -20,75 +20,81 @@ Scheme "paper" (section 2 of the paper): a trial step with F = 0; where a pair p
 eq. (8) on the trial displacement and velocity is applied as a load and the step repeated once.
 This is explicit in the contact force and loses stability when k_s dt^2 / m_eff is large.
 
-Scheme "event": the step is first taken with the contact set of its start. Where a pair's state at
-the end disagrees with that set (an impact, a separation, or under the no-tension law the force
-reaching zero), the crossing is located on the step's cubic Hermite interpolant of the penetration
-(exact here: Newmark average acceleration moves quadratically inside a step), the step is split
-there, the set switched, the acceleration restored from equilibrium (the Kelvin-Voigt force jumps
-by c v_rel at an impact) and the rest of the step integrated with the new set (Newmark with the
-sub-step length, a fresh n x n solve). Every piece is smooth, so the scheme stays second order across
-impacts (Wriggers, Computational Contact Mechanics, 2006, sec. 9.5 on event-driven integration).
+Scheme "event" (engine/events.py, the step written once for every kernel): the step is first taken
+with the contact set of its start. Where a pair's state at the end disagrees with that set (an
+impact, a separation, or under the no-tension law the force reaching zero), the crossing is located
+(on the step's cubic Hermite interpolant of the penetration, exact here: Newmark average acceleration
+moves quadratically inside a step, then on real sub-steps), the step is split there, the set
+switched, the acceleration restored from equilibrium (the Kelvin-Voigt force jumps by c v_rel at an
+impact) and the rest of the step integrated with the new set (Newmark with the sub-step length, a
+fresh n x n solve: _advance). Every piece is smooth, so the scheme stays second order across impacts
+(Wriggers, Computational Contact Mechanics, 2006, sec. 9.5 on event-driven integration).
 """
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
-from pounding_sweep.codes import EXC_HARMONIC, EXC_RECORD, SCHEME_EVENT, SCHEME_IMPLICIT, SCHEME_PAPER, SCHEMES  # noqa: F401
+from pounding_sweep.codes import EXC_HARMONIC, EXC_RECORD, LAW_NO_TENSION, SCHEME_EVENT, SCHEME_IMPLICIT, SCHEME_PAPER
 from pounding_sweep.engine import bookkeeping as bk
+from pounding_sweep.engine import floors
 from pounding_sweep.engine import layout as L
 from pounding_sweep.engine.clock import _clock
 from pounding_sweep.engine.events import (
     EVENT_MIN_FRACTION,
-    MAX_EVENTS,
-    _ag_inside,
-    _force_extremes,
-    _illinois,  # noqa: F401
-    _secant_point,
-    _switch_tolerance,
-    _want_contact,
+    EventOps,
+    Ground,
+    Pairs,
+    bisect_crossing,
+    event_functions,
     ground_acceleration,
 )
-from pounding_sweep.engine.jit import njit_kernel
+from pounding_sweep.engine.jit import inline_kernel, njit_inner, njit_kernel
 
-# energy accumulator changed by _switch: the spring energy lost when a no-tension contact lets go while
+# energy accumulators of a run (LinearState.en): input work and its absolute sum, structural damping, the
+# contact spring's and dashpot's work, and the spring energy lost when a no-tension contact lets go while
 # compressed (less what it stores again when it re-engages overlapped)
-EN_W_RELEASE = 0
-EN_N = 1
+EN_IN, EN_ABS, EN_DST, EN_WSP, EN_WDA, EN_WREL = range(6)
+EN_N = 6
 
 
-@njit_kernel
-def gauss_solve(A, b, n, pivot):
-    """Solve A[:n,:n] x = b[:n] in place by Gaussian elimination; with `pivot`, partial pivoting (the Hertz-type
-    laws' Newton Jacobian I + D S is not symmetric); without, none (A symmetric positive definite)."""
-    for k in range(n):
-        if pivot:
-            p = k
-            for i in range(k + 1, n):
-                if abs(A[i, k]) > abs(A[p, k]):
-                    p = i
-            if p != k:
-                for j in range(n):
-                    A[k, j], A[p, j] = A[p, j], A[k, j]
-                b[k], b[p] = b[p], b[k]
-        piv = A[k, k]
-        for i in range(k + 1, n):
-            f = A[i, k] / piv
-            for j in range(k, n):
-                A[i, j] -= f * A[k, j]
-            b[i] -= f * b[k]
-    for i in range(n - 1, -1, -1):
-        s = b[i]
-        for j in range(i + 1, n):
-            s -= A[i, j] * b[j]
-        b[i] = s / A[i, i]
+class LinearState(NamedTuple):
+    """One run of this kernel inside a step: what the event step's pieces (EventOps) read and write."""
+
+    m: np.ndarray  # (N,) the model (engine/inputs.py Structure)
+    C: np.ndarray
+    K: np.ndarray
+    i1: np.ndarray
+    i2: np.ndarray
+    gap: float  # the run's gap d [m]
+    u: np.ndarray  # (N,) start of the piece: displacement, velocity, acceleration (relative to the table)
+    v: np.ndarray
+    a: np.ndarray
+    un: np.ndarray  # (N,) end of the piece
+    vn: np.ndarray
+    an: np.ndarray
+    F: np.ndarray  # (P,) contact forces at the end of the piece [N], compression > 0
+    pairs: Pairs  # contact set, switch marks, the no-tension indicator's k_s and c
+    was_active: np.ndarray  # (P,) in contact over the last accepted piece
+    Sprev: np.ndarray  # (P,) spring and dashpot parts of F at the start of the piece (energy book-keeping)
+    Dprev: np.ndarray
+    pen_prev: np.ndarray  # (P,) penetration at the start of the piece
+    en: np.ndarray  # (EN_N,) energy accumulators
+    row: np.ndarray  # the run's metric row (engine/layout.py)
+    phases: tuple  # (in_comp, comp_acc, durations, nphase): compressive phases (bookkeeping.pair_pieces)
+    Cdu: np.ndarray  # (N,) work: C du
+    A: np.ndarray  # (N, N) work: the sub-step's matrix
+    r: np.ndarray  # (N,) work: its right-hand side
 
 
-@njit_kernel
-def _contact_forces(S, z0, bb, ke, active, n_pairs, idx, Asmall, rhs, F):
-    """Forces of the pairs in `active` (others 0) for the implicit step: gauss_solve, symmetric positive definite."""
+@njit_inner
+def _contact_forces(S, z0, bb, ke, active, idx, Asmall, rhs, F):
+    """Forces of the pairs in `active` (others 0) for the implicit step: (S_AA + diag(1/ke_A)) F_A =
+    z0_A - b_A / ke_A by floors.gauss_solve, symmetric positive definite."""
     na = 0
-    for j in range(n_pairs):
+    for j in range(active.size):
         F[j] = 0.0
         if active[j]:
             idx[na] = j
@@ -101,403 +107,28 @@ def _contact_forces(S, z0, bb, ke, active, n_pairs, idx, Asmall, rhs, F):
             Asmall[p, q] = S[jp, idx[q]]
         Asmall[p, p] += 1.0 / ke[jp]
         rhs[p] = z0[jp] - bb[jp] / ke[jp]
-    gauss_solve(Asmall, rhs, na, False)
+    floors.gauss_solve(Asmall, rhs, na, False)
     for p in range(na):
         F[idx[p]] = rhs[p]
 
 
-@njit_kernel
-def integrate_batch(start, stop, model, opts, runs, records, histories, experiment, out):
-    """Integrate runs start..stop-1 of the chunk: fill out.metrics[run] (engine/layout.py), out.run_time[run],
-    the histories out.hist[run] when histories.kinds is not empty, and, when experiment.dof is not empty,
-    out.scores[run, channel, :] (engine/score.py).
-
-    Records (engine/inputs.py): model Structure, opts KernelOptions, runs RunArrays, records Records,
-    histories HistorySpec, experiment ScoreSpec, out Outputs."""
-    dt, m, C, K, Kinv, H, S, i1, i2 = model
-    scheme, law, max_iter = opts.scheme, opts.law, opts.max_iter
-    ks, cdash, gap, exc_kind, exc_amp, exc_omega, rec_id, nsteps, status_in = runs
-    rec_flat, rec_off, rec_len = records
-    hist_kind, hist_index, decimate = histories
-    exp_t, exp_dof, exp_kind = experiment.t, experiment.dof, experiment.kind
-    has_acc = bk.any_acceleration(exp_kind)  # then keep the step's starting acceleration too
-    metrics, run_time, hist, scores = out
-    n = m.shape[0]
-    npair = i1.shape[0]
-    keep_hist = hist.shape[0] > 0
-    a1 = 4.0 / (dt * dt)
-    a2 = 4.0 / dt
-    b1 = 2.0 / dt
-    # work arrays, allocated once per batch (never inside the time loop)
-    u = np.empty(n)
-    v = np.empty(n)
-    a = np.empty(n)
-    un = np.empty(n)
-    vn = np.empty(n)
-    an = np.empty(n)
-    w = np.empty(n)
-    rhs0 = np.empty(n)
-    u0 = np.empty(n)
-    z0 = np.empty(npair)
-    wrel = np.empty(npair)
-    bb = np.empty(npair)
-    ke = np.empty(npair)
-    F = np.empty(npair)
-    Fprev = np.empty(npair)
-    active = np.zeros(npair, dtype=np.bool_)
-    trial = np.zeros(npair, dtype=np.bool_)
-    prev = np.zeros(npair, dtype=np.bool_)
-    was_active = np.zeros(npair, dtype=np.bool_)
-    in_comp = np.zeros(npair, dtype=np.bool_)
-    comp_acc = np.zeros(npair)  # duration of the compressive phase in progress
-    idx = np.empty(npair, dtype=np.int64)
-    Asmall = np.empty((npair, npair))
-    rsmall = np.empty(npair)
-    durations = np.empty((npair, L.MEDIAN_BUFFER))
-    nphase = np.zeros(npair, dtype=np.int64)
-    seen = np.zeros(max_iter + 1, dtype=np.int64)
-    Sprev = np.zeros(npair)  # spring and dashpot parts of F at the step start (energy bookkeeping)
-    Dprev = np.zeros(npair)
-    pen_prev = np.zeros(npair)
-    Cdu = np.empty(n)
-    astep = np.empty(n)  # relative acceleration at the step start (acceleration channels)
-    ustep = np.empty(n)  # state at the step start (experiment sampling)
-    just = np.zeros(npair, dtype=np.bool_)  # pairs switched at the event just handled
-    thetas = np.empty(npair)
-    Amat = np.empty((n, n))
-    rvec = np.empty(n)
-    en = np.zeros(EN_N)  # energy accumulators (EN_*)
-    xs = np.empty((exp_dof.size, exp_t.size))  # the run sampled at the experiment's time stamps
-    pbase = L.PER_DOF * n
-    rbase = pbase + L.PER_PAIR * npair
-
-    for run in range(start, stop):
-        t_start = _clock()
-        out = metrics[run]
-        bk.start_row(out, npair, pbase, gap[run])
-        for j in range(npair):
-            active[j] = False
-            was_active[j] = False
-            F[j] = 0.0
-            Sprev[j] = 0.0
-            Dprev[j] = 0.0
-            pen_prev[j] = -gap[run]  # at rest the pair is `gap` apart
-            in_comp[j] = False
-            comp_acc[j] = 0.0
-            nphase[j] = 0
-            Fprev[j] = 0.0
-        status = status_in[run]
-        k_s = ks[run]
-        d = gap[run]
-        kind = exc_kind[run]
-        amp = exc_amp[run]
-        om = exc_omega[run]
-        roff = 0
-        rlen = 0
-        if kind == EXC_RECORD:
-            roff = rec_off[rec_id[run]]
-            rlen = rec_len[rec_id[run]]
-        for j in range(npair):
-            ke[j] = k_s + b1 * cdash[run, j]
-        # initial state: at rest relative to the table; eq. (11): a0 = M^-1 (p0 - C v0 - K u0) = -ag(0)
-        ag = ground_acceleration(kind, amp, om, rec_flat, roff, rlen, 0, dt)
-        for i in range(n):
-            u[i] = 0.0
-            v[i] = 0.0
-            a[i] = -ag
-        if keep_hist:
-            bk.keep_history(hist, run, 0, hist_kind, hist_index, u, v, a, F, ag)
-        nst = nsteps[run]
-        ke_next = bk.samples_at_rest(exp_t, xs)  # next experiment sample to fill
-        unsettled = 0
-        e_in = 0.0
-        e_in_abs = 0.0
-        d_struct = 0.0
-        w_spring = 0.0
-        w_dash = 0.0
-        en[EN_W_RELEASE] = 0.0  # also changed by _switch
-        ag_prev = ag
-        max_it_seen = 0
-        steps_done = 0
-        for step in range(1, nst + 1):
-            ag = ground_acceleration(kind, amp, om, rec_flat, roff, rlen, step, dt)
-            agstep = ag_prev  # the table's acceleration at the step start
-            for i in range(n):
-                ustep[i] = u[i]
-            if has_acc:
-                for i in range(n):
-                    astep[i] = a[i]
-            # Newmark effective load without contact (Chopra Table 5.4.2; paper eq. 13)
-            for i in range(n):
-                w[i] = b1 * u[i] + v[i]
-            for i in range(n):
-                s = -m[i] * ag + m[i] * (a1 * u[i] + a2 * v[i] + a[i])
-                for k in range(n):
-                    s += C[i, k] * w[k]
-                rhs0[i] = s
-            for i in range(n):
-                s = 0.0
-                for k in range(n):
-                    s += Kinv[i, k] * rhs0[k]
-                u0[i] = s
-            for j in range(npair):
-                z0[j] = u0[i1[j]] - u0[i2[j]]
-                wrel[j] = w[i1[j]] - w[i2[j]]
-                bb[j] = k_s * d + cdash[run, j] * wrel[j]
-            if scheme == SCHEME_IMPLICIT:
-                it = 0
-                settled = False
-                cycled = False
-                while it < max_iter and not cycled:
-                    seen[it] = _mask(active, npair)
-                    it += 1
-                    _contact_forces(S, z0, bb, ke, active, npair, idx, Asmall, rsmall, F)
-                    changed = False
-                    for j in range(npair):
-                        z = z0[j]
-                        for l in range(npair):
-                            z -= S[j, l] * F[l]
-                        pen = z - d
-                        want = pen > 0.0
-                        if want and law == 1:  # no tension: contact only while it pushes
-                            want = (ke[j] * z - bb[j]) > 0.0
-                        trial[j] = want
-                        if want != active[j]:
-                            changed = True
-                    if not changed:
-                        settled = True
-                        break
-                    for j in range(npair):
-                        prev[j] = active[j]
-                        active[j] = trial[j]
-                    # a set already tried means the iteration cycles: stop early
-                    mk = _mask(active, npair)
-                    for q in range(it):
-                        if seen[q] == mk and npair <= 62:
-                            cycled = True
-                if it > max_it_seen:
-                    max_it_seen = it
-                if not settled:
-                    # the active set cycles (an impact inside the step under the classic law): keep
-                    # every pair the last two sets disagree on in contact, solve once more, count it
-                    unsettled += 1
-                    for j in range(npair):
-                        active[j] = prev[j] or trial[j]
-                    _contact_forces(S, z0, bb, ke, active, npair, idx, Asmall, rsmall, F)
-            elif scheme == SCHEME_PAPER:
-                # paper's scheme: contact force from the trial (F = 0) state, applied as a load
-                for j in range(npair):
-                    F[j] = 0.0
-                    pen = z0[j] - d
-                    active[j] = False
-                    if pen > 0.0:
-                        vrel = b1 * z0[j] - wrel[j]
-                        f = k_s * pen + cdash[run, j] * vrel
-                        if law == 1 and f <= 0.0:
-                            continue  # no tension: no contact while the element would pull
-                        F[j] = f
-                        active[j] = True
-            else:
-                # event scheme: the whole step with the contact set of its start; a pair whose state
-                # disagrees with that set at the end is an event inside the step, handled below
-                _contact_forces(S, z0, bb, ke, active, npair, idx, Asmall, rsmall, F)
-            # end-of-step state u = u0 - H F, then Newmark velocity and acceleration (eqs. 15-16)
-            for i in range(n):
-                s = u0[i]
-                for j in range(npair):
-                    s -= H[i, j] * F[j]
-                un[i] = s
-            for i in range(n):
-                du = un[i] - u[i]
-                vn[i] = b1 * du - v[i]
-                an[i] = a1 * du - a2 * v[i] - a[i]
-            h = dt  # what is left of the step
-            t_s = (step - 1) * dt
-            ag_s = ag_prev
-            n_ev = 0
-            for j in range(npair):
-                just[j] = False
-            while True:  # the step, or its pieces between contact events (event scheme)
-                finite = True
-                for i in range(n):
-                    if not (abs(un[i]) < L.DIVERGED_M) or not (abs(an[i]) < 1e300):
-                        finite = False
-                if not finite:
-                    break
-                hs = h  # the piece to accept now
-                ag_e = ag
-                last = True
-                if scheme == SCHEME_EVENT:
-                    # a pair whose end state contradicts the set means an event inside the piece
-                    contradicts = False
-                    for j in range(npair):
-                        pe = un[i1[j]] - un[i2[j]] - d
-                        if law == 1 and pe > 0.0:
-                            pe = min(pe, pe + (cdash[run, j] / k_s) * (vn[i1[j]] - vn[i2[j]]))
-                        tol = _switch_tolerance(un[i1[j]], un[i2[j]])
-                        if (pe < -tol) if active[j] else (pe > tol):
-                            contradicts = True
-                    if contradicts:
-                        theta = _first_event(
-                            h, u, v, un, vn, active, just, law, k_s, cdash[run], d, i1, i2, npair, thetas, trial
-                        )
-                        if theta <= 1.0 and n_ev >= MAX_EVENTS:
-                            unsettled += 1  # events chatter: keep the last trial, say so
-                        elif theta <= 1.0:
-                            n_ev += 1
-                            last = False
-                            hs = _locate_event(
-                                theta,
-                                h,
-                                EVENT_MIN_FRACTION * dt,
-                                ag_s,
-                                ag,
-                                kind == EXC_HARMONIC,
-                                amp,
-                                om,
-                                t_s,
-                                u,
-                                v,
-                                a,
-                                m,
-                                C,
-                                K,
-                                i1,
-                                i2,
-                                active,
-                                just,
-                                law,
-                                k_s,
-                                cdash[run],
-                                d,
-                                Amat,
-                                rvec,
-                                un,
-                                vn,
-                                an,
-                                F,
-                                thetas,
-                                trial,
-                            )
-                            if hs <= EVENT_MIN_FRACTION * dt:
-                                hs = 0.0  # switch at the start of what is left
-                            elif h - hs <= EVENT_MIN_FRACTION * dt:
-                                hs = h
-                            ag_e = _ag_inside(hs, h, ag_s, ag, kind == EXC_HARMONIC, amp, om, t_s)
-                            for i in range(n):
-                                if not (abs(un[i]) < L.DIVERGED_M) or not (abs(an[i]) < 1e300):
-                                    finite = False
-                            if not finite:
-                                break
-                if hs > 0.0:
-                    # accept the piece [t_s, t_s + hs]: energy increments, exact for Newmark average
-                    # acceleration (trapezoidal work with du = hs (v_n + v_n+1) / 2): input -du.M1 ag,
-                    # structural damping du.C du / hs, the work of the contact's spring and dashpot
-                    # parts on the pair's relative displacement; then the contact metrics
-                    t_e = t_s + hs
-                    de, dd = bk.structure_work(u, un, m, C, Cdu, ag_s, ag_e, hs)
-                    e_in += de
-                    e_in_abs += abs(de)
-                    d_struct += dd
-                    for j in range(npair):
-                        pen = un[i1[j]] - un[i2[j]] - d
-                        sp = k_s * pen if active[j] else 0.0
-                        dp = F[j] - sp if active[j] else 0.0
-                        w_spring += 0.5 * (Sprev[j] + sp) * (pen - pen_prev[j])
-                        w_dash += 0.5 * (Dprev[j] + dp) * (pen - pen_prev[j])
-                        if was_active[j] and not active[j] and pen > 0.0:
-                            # released while still compressed (no-tension law): the spring's energy is
-                            # lost to the contact, a physical dissipation, not a numerical residual
-                            en[EN_W_RELEASE] += 0.5 * k_s * pen * pen
-                        Sprev[j] = sp
-                        Dprev[j] = dp
-                        pen_prev[j] = pen
-                    bk.pair_pieces(
-                        out, pbase, pen_prev, F, active, was_active, hs, t_e, in_comp, comp_acc, durations, nphase
-                    )
-                    for i in range(n):
-                        u[i] = un[i]
-                        v[i] = vn[i]
-                        a[i] = an[i]
-                if last:
-                    h = 0.0
-                    break
-                t_s += hs
-                h -= hs
-                ag_s = ag_e
-                _switch(
-                    trial,
-                    t_s,
-                    ag_s,
-                    n,
-                    npair,
-                    m,
-                    C,
-                    K,
-                    i1,
-                    i2,
-                    k_s,
-                    cdash[run],
-                    d,
-                    u,
-                    v,
-                    a,
-                    F,
-                    active,
-                    was_active,
-                    just,
-                    Sprev,
-                    Dprev,
-                    en,
-                    out,
-                    pbase,
-                )
-                if h <= 0.0:
-                    break
-                _fixed_set_step(h, ag, u, v, a, m, C, K, i1, i2, active, k_s, cdash[run], d, Amat, rvec, un, vn, an, F)
-            if n_ev > max_it_seen and scheme == SCHEME_EVENT:
-                max_it_seen = n_ev
-            if not finite:
-                status |= L.STATUS_NONFINITE
-                break
-            ag_prev = ag
-            t = step * dt
-            if ke_next < exp_t.size:
-                ke_next = bk.sample_experiment(
-                    ke_next, exp_t, exp_dof, exp_kind, xs, ustep, u, astep, agstep, a, ag, t, dt
-                )
-            steps_done = step
-            bk.floor_peaks(out, u, a, ag, t, i2)
-            if keep_hist and step % decimate == 0:
-                bk.keep_history(hist, run, step // decimate, hist_kind, hist_index, u, v, a, F, ag)
-        status = bk.close_row(out, pbase, npair, in_comp, comp_acc, durations, nphase, status)
-        status = bk.score_run(scores, run, xs, experiment, ke_next, status)
-        # energy balance at the end: E_in = KE + SE + D_struct + D_contact + E_spring + residual;
-        # the residual is the spring work the discrete contact switching did not store
-        e_spring = 0.0
-        for j in range(npair):
-            if active[j]:
-                e_spring += 0.5 * k_s * pen_prev[j] * pen_prev[j]
-        residual = w_spring - e_spring - en[EN_W_RELEASE]
-        status = bk.energy_row(
-            out, rbase, m, K, u, v, e_in, e_in_abs, d_struct, w_dash + en[EN_W_RELEASE], e_spring, residual, status
-        )
-        bk.run_counts(out, rbase, unsettled, max_it_seen, steps_done, status)
-        run_time[run] = _clock() - t_start
-
-
-@njit_kernel
-def _fixed_set_step(h, ag, u, v, a, m, C, K, i1, i2, active, k_s, c, d, A, r, un, vn, an, F):
-    """One Newmark average-acceleration step of length h with the pairs in `active` in contact.
+@njit_inner
+def _advance(st, h, ag_s, ag_e, cold):
+    """EventOps.advance: one Newmark average-acceleration step of length h from (u, v, a) with the pairs
+    in contact carrying the Kelvin-Voigt law, end state in (un, vn, an, F); returns 0 (a direct solve).
 
     (K + 2/h C + 4/h^2 M + sum_A ke g g^T) u_n+1 = p_hat + sum_A b g, with ke = k_s + 2 c / h and
-    b = k_s d + c (2/h g.u_n + g.v_n) from F = k_s (g.u_n+1 - d) + c g.v_n+1 (eq. 8) and eq. 15."""
+    b = k_s d + c (2/h g.u_n + g.v_n) from F = k_s (g.u_n+1 - d) + c g.v_n+1 (eq. 8) and eq. 15.
+    ag_s enters through a (the start's equilibrium); cold is for solves that iterate (engine/nonlinear.py)."""
+    m, C, K, i1, i2, d = st.m, st.C, st.K, st.i1, st.i2, st.gap
+    u, v, a, un, vn, an, F, A, r = st.u, st.v, st.a, st.un, st.vn, st.an, st.F, st.A, st.r
+    active, k_s, c = st.pairs.active, st.pairs.k_s, st.pairs.c
     n = m.shape[0]
     q1 = 4.0 / (h * h)
     q2 = 4.0 / h
     q3 = 2.0 / h
     for i in range(n):
-        s = -m[i] * ag + m[i] * (q1 * u[i] + q2 * v[i] + a[i])
+        s = -m[i] * ag_e + m[i] * (q1 * u[i] + q2 * v[i] + a[i])
         for k in range(n):
             A[i, k] = K[i, k] + q3 * C[i, k]
             s += C[i, k] * (q3 * u[k] + v[k])
@@ -514,7 +145,7 @@ def _fixed_set_step(h, ag, u, v, a, m, C, K, i1, i2, active, k_s, c, d, A, r, un
             A[q, p] -= kej
             r[p] += bj
             r[q] -= bj
-    gauss_solve(A, r, n, False)
+    floors.gauss_solve(A, r, n, False)
     for i in range(n):
         un[i] = r[i]
         vn[i] = q3 * (un[i] - u[i]) - v[i]
@@ -525,245 +156,381 @@ def _fixed_set_step(h, ag, u, v, a, m, C, K, i1, i2, active, k_s, c, d, A, r, un
             F[j] = k_s * (un[p] - un[q] - d) + c[j] * (vn[p] - vn[q])
     # the end acceleration from equilibrium, equal to Newmark's 4/h^2 du - 4/h v - a in exact
     # arithmetic but free of its 1/h^2 rounding amplification on short sub-steps
-    _equilibrium_acceleration(ag, m, C, K, i1, i2, un, vn, F, an)
+    floors.equilibrium_acceleration(st, ag_e, un, vn, F, an)
+    return 0
 
 
-@njit_kernel
-def _first_event(h, u, v, un, vn, active, just, law, k_s, c, d, i1, i2, npair, thetas, switch):
-    """Fraction of the step (0..1] at which the first pair leaves its contact state, or 2.0 if none
-    does; marks in `switch` the pairs whose switch falls there (bisection on the indicator)."""
-    first = 2.0
-    for j in range(npair):
-        thetas[j] = 2.0
-        p, q = i1[j], i2[j]
-        p0 = u[p] - u[q] - d
-        p1 = un[p] - un[q] - d
-        m0 = (v[p] - v[q]) * h
-        m1 = (vn[p] - vn[q]) * h
-        sign = -1.0 if active[j] else 1.0  # phi > 0: the state contradicts the set
-        if sign * _want_contact(p0, p1, m0, m1, 1.0, h, law, k_s, c[j]) <= _switch_tolerance(un[p], un[q]):
-            continue
-        if not just[j] and sign * _want_contact(p0, p1, m0, m1, 0.0, h, law, k_s, c[j]) >= 0.0:
-            thetas[j] = 0.0  # already contradicts at the start
-        else:
-            lo, hi = 0.0, 1.0
-            for _ in range(60):
-                mid = 0.5 * (lo + hi)
-                if sign * _want_contact(p0, p1, m0, m1, mid, h, law, k_s, c[j]) >= 0.0:
-                    hi = mid
-                else:
-                    lo = mid
-            thetas[j] = hi
-        if thetas[j] < first:
-            first = thetas[j]
-    for j in range(npair):
-        switch[j] = thetas[j] <= first + 1e-9
-    return first
+@inline_kernel
+def _accept(st, hs, t_e, ag_s, ag_e):
+    """EventOps.accept: book the piece [t_e - hs, t_e] and make its end the start. Energy increments, exact
+    for Newmark average acceleration (trapezoidal work with du = hs (v_n + v_n+1) / 2): input -du.M1 ag,
+    structural damping du.C du / hs, the work of the contact's spring and dashpot parts on the pair's
+    relative displacement; then the contact metrics (bookkeeping.pair_pieces)."""
+    u, un, i1, i2, d, F, en = st.u, st.un, st.i1, st.i2, st.gap, st.F, st.en
+    active, k_s = st.pairs.active, st.pairs.k_s
+    de, dd = bk.structure_work(u, un, st.m, st.C, st.Cdu, ag_s, ag_e, hs)
+    en[EN_IN] += de
+    en[EN_ABS] += abs(de)
+    en[EN_DST] += dd
+    for j in range(i1.shape[0]):
+        pen = un[i1[j]] - un[i2[j]] - d
+        sp = k_s * pen if active[j] else 0.0
+        dp = F[j] - sp if active[j] else 0.0
+        en[EN_WSP] += 0.5 * (st.Sprev[j] + sp) * (pen - st.pen_prev[j])
+        en[EN_WDA] += 0.5 * (st.Dprev[j] + dp) * (pen - st.pen_prev[j])
+        if st.was_active[j] and not active[j] and pen > 0.0:
+            # released while still compressed (no-tension law): the spring's energy is lost to the
+            # contact, a physical dissipation, not a numerical residual
+            en[EN_WREL] += 0.5 * k_s * pen * pen
+        st.Sprev[j] = sp
+        st.Dprev[j] = dp
+        st.pen_prev[j] = pen
+    bk.pair_pieces(st.row, L.PER_DOF * u.size, st.pen_prev, F, active, st.was_active, hs, t_e, st.phases)
+    for i in range(u.shape[0]):
+        u[i] = un[i]
+        st.v[i] = st.vn[i]
+        st.a[i] = st.an[i]
 
 
-@njit_kernel
-def _indicator(j, u, v, active, law, k_s, c, d, i1, i2):
-    """The contact indicator of pair j in the state (u, v), signed so that >= 0 contradicts `active`."""
-    p, q = i1[j], i2[j]
-    pen = u[p] - u[q] - d
-    want = pen
-    if law == 1:
-        want = min(pen, pen + (c[j] / k_s) * (v[p] - v[q]))
-    return -want if active[j] else want
-
-
-@njit_kernel
-def _locate_event(
-    theta,
-    h,
-    hmin,
-    ag_s,
-    ag_e,
-    harmonic,
-    amp,
-    om,
-    t_s,
-    u,
-    v,
-    a,
-    m,
-    C,
-    K,
-    i1,
-    i2,
-    active,
-    just,
-    law,
-    k_s,
-    c,
-    d,
-    A,
-    r,
-    un,
-    vn,
-    an,
-    F,
-    thetas,
-    switch,
-):
-    """Length hs (0 <= hs <= h) of the sub-step that ends where the first pair switches.
-
-    The interpolant's estimate (theta) starts a safeguarded false-position search (Illinois) on
-    the indicator after a real Newmark sub-step of length hs, so the switch happens where the
-    discrete motion crosses (penetration 0, or no-tension force 0) and the contact springs store or
-    return no energy there. A pair that crosses earlier inside the accepted sub-step takes over.
-    Leaves the sub-step's end state in un, vn, an, F and the pairs to switch in `switch`; 0 (switch at
-    the start) when the crossing is closer than hmin."""
-    npair = i1.shape[0]
-    if theta * h < hmin:
-        return 0.0
-    target = 0
-    for j in range(npair):
-        if thetas[j] < thetas[target]:
-            target = j
-    hi = h
-    f_hi = _indicator(target, un, vn, active, law, k_s, c, d, i1, i2)  # the trial over h contradicts
-    for _ in range(npair + 1):
-        lo = 0.0
-        f_lo = min(_indicator(target, u, v, active, law, k_s, c, d, i1, i2), -1e-300)  # agrees at the start
-        if theta * hi < hmin:
-            return 0.0  # a sub-step this short only amplifies rounding (the solve scales as 1/h^2)
-        hs = min(max(theta * hi, hmin), hi)
-        side = 0
-        scale = 0.0
-        pp, qq = i1[target], i2[target]
-        for _it in range(100):
-            _fixed_set_step(
-                hs,
-                _ag_inside(hs, h, ag_s, ag_e, harmonic, amp, om, t_s),
-                u,
-                v,
-                a,
-                m,
-                C,
-                K,
-                i1,
-                i2,
-                active,
-                k_s,
-                c,
-                d,
-                A,
-                r,
-                un,
-                vn,
-                an,
-                F,
-            )
-            h_eval = hs
-            phi = _indicator(target, un, vn, active, law, k_s, c, d, i1, i2)
-            scale = max(scale, abs(un[pp] - un[qq] - d) + abs(u[pp] - u[qq] - d))
-            lo, hi, f_lo, f_hi, side = _illinois(lo, hi, f_lo, f_hi, side, hs, phi)
-            if abs(phi) <= 1e-13 * scale or hi - lo <= 1e-13 * h or (hs <= hmin and phi >= 0.0):
-                break
-            hs = max(_secant_point(lo, hi, f_lo, f_hi), hmin)
-        hs = h_eval  # the sub-step whose end state is in un, vn, an, F
-        # does another pair switch inside this sub-step, before it ends?
-        _first_event(hs, u, v, un, vn, active, just, law, k_s, c, d, i1, i2, npair, thetas, switch)
-        earlier = -1
-        for j in range(npair):
-            if j != target and thetas[j] < 1.0 - 1e-9 and (earlier < 0 or thetas[j] < thetas[earlier]):
-                earlier = j
-        if earlier < 0:
-            break
-        target = earlier
-        theta = thetas[earlier]
-        f_hi = _indicator(target, un, vn, active, law, k_s, c, d, i1, i2)
-        hi = hs
-    for j in range(npair):
-        switch[j] = j == target or thetas[j] <= 1.0  # the target, and pairs crossing with it
-    return hs
-
-
-@njit_kernel
-def _switch(
-    switch,
-    t,
-    ag,
-    n,
-    npair,
-    m,
-    C,
-    K,
-    i1,
-    i2,
-    k_s,
-    c,
-    d,
-    u,
-    v,
-    a,
-    F,
-    active,
-    was_active,
-    just,
-    Sprev,
-    Dprev,
-    en,
-    out,
-    pbase,
-):
-    """Switch the contact state of the pairs in `switch` at an event (time t); restore the
-    acceleration from equilibrium, M a = -M 1 ag - C v - K u - G F (eqs. 1-2), since the
-    Kelvin-Voigt force jumps there (by c v_rel at an impact)."""
-    for j in range(npair):
-        just[j] = switch[j]
-        if not switch[j]:
+@njit_inner
+def _switch(st, t, ag):
+    """EventOps.switch: switch the contact state of the pairs marked at an event (time t); restore the
+    acceleration from equilibrium, M a = -M 1 ag - C v - K u - G F (eqs. 1-2), since the Kelvin-Voigt
+    force jumps there (by c v_rel at an impact)."""
+    pr = st.pairs
+    u, v, F, i1, i2, d, k_s, c = st.u, st.v, st.F, st.i1, st.i2, st.gap, pr.k_s, pr.c
+    pbase = L.PER_DOF * u.size
+    for j in range(i1.shape[0]):
+        pr.just[j] = pr.switch[j]
+        if not pr.switch[j]:
             continue
         p, q = i1[j], i2[j]
         pen = u[p] - u[q] - d
         base = pbase + L.PER_PAIR * j
-        if active[j]:
-            active[j] = False
+        if pr.active[j]:
+            pr.active[j] = False
             if pen > 0.0:
-                en[EN_W_RELEASE] += 0.5 * k_s * pen * pen
+                st.en[EN_WREL] += 0.5 * k_s * pen * pen
             F[j] = 0.0
-            Sprev[j] = 0.0
-            Dprev[j] = 0.0
+            st.Sprev[j] = 0.0
+            st.Dprev[j] = 0.0
         else:
-            active[j] = True
+            pr.active[j] = True
             if pen > 0.0:
                 # a no-tension contact re-engaging while still overlapped (its force is zero here):
                 # the spring energy booked as lost at its release is stored again
-                en[EN_W_RELEASE] -= 0.5 * k_s * pen * pen
-            out[base + L.PAIR_IMPACTS] += 1.0
+                st.en[EN_WREL] -= 0.5 * k_s * pen * pen
+            st.row[base + L.PAIR_IMPACTS] += 1.0
             F[j] = k_s * pen + c[j] * (v[p] - v[q])
-            Sprev[j] = k_s * pen
-            Dprev[j] = F[j] - Sprev[j]
-            _force_extremes(out, base, F[j], t)
-        was_active[j] = active[j]
-    for j in range(npair):  # every force from the Kelvin-Voigt law at this instant (eq. 8)
+            st.Sprev[j] = k_s * pen
+            st.Dprev[j] = F[j] - st.Sprev[j]
+            bk.force_extremes(st.row, base, F[j], t)
+        st.was_active[j] = pr.active[j]
+    for j in range(i1.shape[0]):  # every force from the Kelvin-Voigt law at this instant (eq. 8)
         p, q = i1[j], i2[j]
-        F[j] = k_s * (u[p] - u[q] - d) + c[j] * (v[p] - v[q]) if active[j] else 0.0
-    _equilibrium_acceleration(ag, m, C, K, i1, i2, u, v, F, a)
+        F[j] = k_s * (u[p] - u[q] - d) + c[j] * (v[p] - v[q]) if pr.active[j] else 0.0
+    floors.equilibrium_acceleration(st, ag, u, v, F, st.a)
 
 
-@njit_kernel
-def _equilibrium_acceleration(ag, m, C, K, i1, i2, u, v, F, a):
-    """a = M^-1 (-M 1 ag - C v - K u - G F), the equations of motion (eqs. 1-2, restoring sign)."""
-    n = m.shape[0]
-    for i in range(n):
-        s = -m[i] * ag
-        for k in range(n):
-            s -= C[i, k] * v[k] + K[i, k] * u[k]
-        a[i] = s
-    for j in range(i1.shape[0]):
-        a[i1[j]] -= F[j]
-        a[i2[j]] += F[j]
-    for i in range(n):
-        a[i] /= m[i]
+#: the event step's pieces in floor coordinates with the linear laws
+OPS = EventOps(_advance, floors.pair, floors.tolerance, floors.finite, _accept, _switch, bisect_crossing)
+_event_step, _contradicts = event_functions(OPS)
 
 
-@njit_kernel
-def _mask(active, npair):
+@njit_inner
+def _mask(active):
     """Active set as a bit mask (meaningful for up to 62 pairs; only used to spot cycles)."""
     mk = 0
-    for j in range(min(npair, 62)):
+    for j in range(min(active.size, 62)):
         if active[j]:
             mk |= 1 << j
     return mk
+
+
+class ImplicitWork(NamedTuple):
+    """The implicit and paper schemes' per-step arrays (pair space)."""
+
+    S: np.ndarray  # (P, P) G^T Keff^-1 G (engine/inputs.py Structure)
+    z0: np.ndarray  # (P,) g.u0: relative displacement at the contact-free end
+    wrel: np.ndarray  # (P,) g.(2/dt u + v)
+    bb: np.ndarray  # (P,) k_s d + c wrel
+    ke: np.ndarray  # (P,) k_s + 2 c / dt
+    want: np.ndarray  # (P,) bool: the set the end state asks for
+    prev: np.ndarray  # (P,) bool: the set before the last change
+    seen: np.ndarray  # (max_iter + 1,) masks of the sets tried
+    small: tuple  # (idx, Asmall, rsmall): _contact_forces' work
+
+
+@inline_kernel
+def _implicit_forces(iw, pr, F, max_iter, d):
+    """The implicit scheme's end-of-step forces: the active-set iteration from the start set (a set
+    already tried means it cycles: stop early); returns (iterations, 1 if the set did not settle: every
+    pair the last two sets disagree on is then kept in contact and solved once more)."""
+    S, z0, bb, ke, want, prev = iw.S, iw.z0, iw.bb, iw.ke, iw.want, iw.prev
+    active = pr.active
+    npair = active.size
+    idx, Asmall, rsmall = iw.small
+    it = 0
+    settled = False
+    cycled = False
+    while it < max_iter and not cycled:
+        iw.seen[it] = _mask(active)
+        it += 1
+        _contact_forces(S, z0, bb, ke, active, idx, Asmall, rsmall, F)
+        changed = False
+        for j in range(npair):
+            z = z0[j]
+            for l in range(npair):
+                z -= S[j, l] * F[l]
+            pen = z - d
+            w = pen > 0.0
+            if w and pr.no_tension:  # no tension: contact only while it pushes
+                w = (ke[j] * z - bb[j]) > 0.0
+            want[j] = w
+            if w != active[j]:
+                changed = True
+        if not changed:
+            settled = True
+            break
+        for j in range(npair):
+            prev[j] = active[j]
+            active[j] = want[j]
+        mk = _mask(active)
+        for q in range(it):
+            if iw.seen[q] == mk and npair <= 62:
+                cycled = True
+    if settled:
+        return it, 0
+    # the active set cycles (an impact inside the step under the classic law): keep every pair the
+    # last two sets disagree on in contact, solve once more, count it
+    for j in range(npair):
+        active[j] = prev[j] or want[j]
+    _contact_forces(S, z0, bb, ke, active, idx, Asmall, rsmall, F)
+    return it, 1
+
+
+@inline_kernel
+def _paper_forces(iw, pr, F, b1, d):
+    """The paper's scheme: the contact force from the trial (F = 0) state, applied as a load."""
+    k_s, c = pr.k_s, pr.c
+    for j in range(pr.active.size):
+        F[j] = 0.0
+        pen = iw.z0[j] - d
+        pr.active[j] = False
+        if pen > 0.0:
+            vrel = b1 * iw.z0[j] - iw.wrel[j]
+            f = k_s * pen + c[j] * vrel
+            if pr.no_tension and f <= 0.0:
+                continue  # no tension: no contact while the element would pull
+            F[j] = f
+            pr.active[j] = True
+
+
+class StepWork(NamedTuple):
+    """The time loop's arrays besides the run's state."""
+
+    w: np.ndarray  # (N,) 2/dt u + v
+    rhs0: np.ndarray  # (N,) Newmark's effective load without contact
+    u0: np.ndarray  # (N,) the contact-free end state
+    ustep: np.ndarray  # (N,) displacement at the step start (experiment sampling)
+    astep: np.ndarray  # (N,) relative acceleration at the step start (acceleration channels)
+    xs: np.ndarray  # (channels, samples) the run sampled at the experiment's time stamps
+    iw: ImplicitWork
+
+
+@njit_inner
+def _time_loop(run, model, opts, runs, records, histories, experiment, out, st, wk):
+    """The run's steps from rest (st: its state, reset): the end state of each step by the scheme, its
+    pieces (the event scheme's located switches), the per-step metrics, experiment samples and histories.
+    Compiled without Numba's reference counts (it allocates nothing): on the records' arrays they cost this
+    loop a third of its time. Returns (status bits, unsettled steps, most iterations or located switches in
+    a step, steps done, experiment samples filled)."""
+    dt, m, C, Kinv, H, i1, i2, n1 = model.dt, model.m, model.C, model.Kinv, model.H, model.i1, model.i2, model.n1
+    scheme, max_iter = opts.scheme, opts.max_iter
+    w, rhs0, u0, ustep, astep, xs, iw = wk
+    u, v, a, un, vn, an, F, pr, row = st.u, st.v, st.a, st.un, st.vn, st.an, st.F, st.pairs, st.row
+    z0, wrel, bb, ke = iw.z0, iw.wrel, iw.bb, iw.ke
+    channels = (experiment.t, experiment.dof, experiment.kind)
+    has_acc = bk.any_acceleration(experiment.kind)  # then keep the step's starting acceleration too
+    hist = out.hist
+    keep_hist = hist.shape[0] > 0
+    n = m.shape[0]
+    npair = i1.shape[0]
+    a1 = 4.0 / (dt * dt)
+    a2 = 4.0 / dt
+    b1 = 2.0 / dt
+    hmin = EVENT_MIN_FRACTION * dt
+    d, k_s, c = st.gap, pr.k_s, pr.c
+    kind = runs.exc_kind[run]
+    ground = Ground(kind == EXC_HARMONIC, runs.exc_amp[run], runs.exc_omega[run])
+    rec_flat, rec_off, rec_len = records
+    roff = 0
+    rlen = 0
+    if kind == EXC_RECORD:
+        roff = rec_off[runs.rec_id[run]]
+        rlen = rec_len[runs.rec_id[run]]
+    for j in range(npair):
+        ke[j] = k_s + b1 * c[j]
+    ag = ground_acceleration(kind, ground.amp, ground.omega, rec_flat, roff, rlen, 0, dt)
+    ke_next = bk.samples_at_rest(experiment.t, xs)  # next experiment sample to fill
+    status = 0
+    unsettled = 0
+    ag_prev = ag
+    max_it_seen = 0
+    steps_done = 0
+    for step in range(1, runs.nsteps[run] + 1):
+        ag = ground_acceleration(kind, ground.amp, ground.omega, rec_flat, roff, rlen, step, dt)
+        agstep = ag_prev  # the table's acceleration at the step start
+        for i in range(n):
+            ustep[i] = u[i]
+        if has_acc:
+            for i in range(n):
+                astep[i] = a[i]
+        # Newmark effective load without contact (Chopra Table 5.4.2; paper eq. 13)
+        for i in range(n):
+            w[i] = b1 * u[i] + v[i]
+        for i in range(n):
+            s = -m[i] * ag + m[i] * (a1 * u[i] + a2 * v[i] + a[i])
+            for k in range(n):
+                s += C[i, k] * w[k]
+            rhs0[i] = s
+        for i in range(n):
+            s = 0.0
+            for k in range(n):
+                s += Kinv[i, k] * rhs0[k]
+            u0[i] = s
+        for j in range(npair):
+            z0[j] = u0[i1[j]] - u0[i2[j]]
+            wrel[j] = w[i1[j]] - w[i2[j]]
+            bb[j] = k_s * d + c[j] * wrel[j]
+        if scheme == SCHEME_IMPLICIT:
+            it, uns = _implicit_forces(iw, pr, F, max_iter, d)
+            unsettled += uns
+            if it > max_it_seen:
+                max_it_seen = it
+        elif scheme == SCHEME_PAPER:
+            _paper_forces(iw, pr, F, b1, d)
+        else:
+            # event scheme: the whole step with the contact set of its start (the event step splits it
+            # where a pair's state at the end disagrees with that set)
+            idx, Asmall, rsmall = iw.small
+            _contact_forces(iw.S, z0, bb, ke, pr.active, idx, Asmall, rsmall, F)
+        # end-of-step state u = u0 - H F, then Newmark velocity and acceleration (eqs. 15-16)
+        for i in range(n):
+            s = u0[i]
+            for j in range(npair):
+                s -= H[i, j] * F[j]
+            un[i] = s
+        for i in range(n):
+            du = un[i] - u[i]
+            vn[i] = b1 * du - v[i]
+            an[i] = a1 * du - a2 * v[i] - a[i]
+        if scheme == SCHEME_EVENT and _contradicts(st):
+            finite, n_ev, uns = _event_step(st, ground, (step - 1) * dt, dt, ag_prev, ag, hmin)
+            unsettled += uns
+            if n_ev > max_it_seen:
+                max_it_seen = n_ev
+        else:
+            finite = floors.finite(st)
+            if finite:
+                _accept(st, dt, (step - 1) * dt + dt, ag_prev, ag)
+        if not finite:
+            status |= L.STATUS_NONFINITE
+            break
+        ag_prev = ag
+        t = step * dt
+        if ke_next < experiment.t.size:
+            ke_next = bk.sample_experiment(ke_next, channels, xs, (ustep, astep, agstep), (u, a, ag), t, dt)
+        steps_done = step
+        bk.floor_peaks(row, u, a, ag, t, n1)
+        if keep_hist and step % histories.decimate == 0:
+            bk.keep_history(hist, run, step // histories.decimate, histories.kinds, histories.index, u, v, a, F, ag)
+    return status, unsettled, max_it_seen, steps_done, ke_next
+
+
+@njit_kernel
+def integrate_batch(start, stop, model, opts, runs, records, histories, experiment, out):
+    """Integrate runs start..stop-1 of the chunk: fill out.metrics[run] (engine/layout.py), out.run_time[run],
+    the histories out.hist[run] when histories.kinds is not empty, and, when experiment.dof is not empty,
+    out.scores[run, channel, :] (engine/score.py). The linear laws (runs.law: codes.LAW_CLASSIC,
+    codes.LAW_NO_TENSION).
+
+    Records (engine/inputs.py): model Structure, opts KernelOptions, runs RunArrays, records Records,
+    histories HistorySpec, experiment ScoreSpec, out Outputs."""
+    m, C, K, S, i1, i2 = model.m, model.C, model.K, model.S, model.i1, model.i2
+    n = m.shape[0]
+    npair = i1.shape[0]
+    # work arrays, allocated once per batch (never inside the time loop)
+    u, v, a = np.empty(n), np.empty(n), np.empty(n)
+    un, vn, an = np.empty(n), np.empty(n), np.empty(n)
+    F = np.empty(npair)
+    active = np.zeros(npair, dtype=np.bool_)
+    iw = ImplicitWork(
+        S,
+        np.empty(npair),
+        np.empty(npair),
+        np.empty(npair),
+        np.empty(npair),
+        np.zeros(npair, dtype=np.bool_),
+        np.zeros(npair, dtype=np.bool_),
+        np.zeros(opts.max_iter + 1, dtype=np.int64),
+        (np.empty(npair, dtype=np.int64), np.empty((npair, npair)), np.empty(npair)),
+    )
+    xs = np.empty((experiment.dof.size, experiment.t.size))
+    wk = StepWork(np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), xs, iw)
+    phases = (
+        np.zeros(npair, dtype=np.bool_),
+        np.zeros(npair),
+        np.empty((npair, L.MEDIAN_BUFFER)),
+        np.zeros(npair, np.int64),
+    )
+    bufs = (np.zeros(npair, dtype=np.bool_), np.zeros(npair), np.zeros(npair), np.zeros(npair))
+    was_active, Sprev, Dprev, pen_prev = bufs
+    marks = (np.zeros(npair, dtype=np.bool_), np.zeros(npair, dtype=np.bool_), np.empty(npair))
+    en = np.zeros(EN_N)
+    solve = (np.empty(n), np.empty((n, n)), np.empty(n))  # Cdu, A, r
+    pbase = L.PER_DOF * n
+    rbase = pbase + L.PER_PAIR * npair
+    for run in range(start, stop):
+        t_start = _clock()
+        row = out.metrics[run]
+        d = runs.gap[run]
+        k_s = runs.ks[run]
+        pr = Pairs(active, marks[0], marks[1], marks[2], runs.cdash[run], k_s, runs.law[run] == LAW_NO_TENSION)
+        st = LinearState(
+            m, C, K, i1, i2, d, u, v, a, un, vn, an, F, pr, was_active, Sprev, Dprev, pen_prev, en, row, phases,
+            solve[0], solve[1], solve[2],
+        )  # fmt: skip
+        bk.start_row(row, npair, pbase, d)
+        bk.start_pairs(active, F, bufs, phases, d)
+        for q in range(EN_N):
+            en[q] = 0.0
+        # initial state: at rest relative to the table; eq. (11): a0 = M^-1 (p0 - C v0 - K u0) = -ag(0)
+        kind = runs.exc_kind[run]
+        rid = runs.rec_id[run] if kind == EXC_RECORD else 0
+        roff = records.off[rid] if kind == EXC_RECORD else 0
+        rlen = records.len[rid] if kind == EXC_RECORD else 0
+        ag = ground_acceleration(kind, runs.exc_amp[run], runs.exc_omega[run], records.flat, roff, rlen, 0, model.dt)
+        for i in range(n):
+            u[i] = 0.0
+            v[i] = 0.0
+            a[i] = -ag
+        if out.hist.shape[0] > 0:
+            bk.keep_history(out.hist, run, 0, histories.kinds, histories.index, u, v, a, F, ag)
+        status, unsettled, max_it_seen, steps_done, ke_next = _time_loop(
+            run, model, opts, runs, records, histories, experiment, out, st, wk
+        )
+        status |= runs.status_in[run]
+        status = bk.close_row(row, pbase, npair, phases, status)
+        status = bk.score_run(out.scores, run, xs, experiment, ke_next, status)
+        # energy balance at the end: E_in = KE + SE + D_struct + D_contact + E_spring + residual;
+        # the residual is the spring work the discrete contact switching did not store
+        e_spring = 0.0
+        for j in range(npair):
+            if active[j]:
+                e_spring += 0.5 * k_s * pen_prev[j] * pen_prev[j]
+        residual = en[EN_WSP] - e_spring - en[EN_WREL]
+        energies = (en[EN_IN], en[EN_ABS], en[EN_DST], en[EN_WDA] + en[EN_WREL], e_spring, residual)
+        status = bk.energy_row(row, rbase, m, K, u, v, energies, status)
+        bk.run_counts(row, rbase, unsettled, max_it_seen, steps_done, status)
+        out.run_time[run] = _clock() - t_start

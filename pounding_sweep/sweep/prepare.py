@@ -11,8 +11,8 @@ import numpy as np
 
 from pounding_sweep.codes import (
     CONTACT_LAWS,
+    HERTZ_LAWS,
     LAW_CLASSIC,
-    LAW_HERTZ,
     LAW_HERTZDAMP,
     LAW_JANKOWSKI,
     LAW_NO_TENSION,
@@ -77,7 +77,6 @@ class Prepared:
             batch_runs,
             self.score,
             self.kernel,
-            law_codes(params),
             done,
         )
         return metrics, run_time, hist, scores, derived
@@ -116,7 +115,16 @@ class Prepared:
         k, c, derived, status = contact_arrays(self.model, self.scene, params, self.dt)
         ex, rec = self.excitation.chunk_inputs(params, threads)  # a stochastic chunk's motions are generated here
         runs = RunArrays(
-            k, c, params["gap_m"], ex["exc_kind"], ex["exc_amp"], ex["exc_omega"], ex["rec_id"], ex["nsteps"], status
+            k,
+            c,
+            params["gap_m"],
+            ex["exc_kind"],
+            ex["exc_amp"],
+            ex["exc_omega"],
+            ex["rec_id"],
+            ex["nsteps"],
+            status,
+            law_codes(params),
         )
         if "intensity_g" in ex:
             derived["intensity_g"] = ex["intensity_g"]
@@ -137,7 +145,6 @@ def prepare(scene: Scene, kernel: str = "auto") -> Prepared:
     exc = Excitation.from_scene(scene, dt)
     opts = KernelOptions(
         SCHEMES[scene.integration.scheme],
-        CONTACT_LAWS[scene.contact.law],
         scene.integration.max_contact_iterations,
         scene.contact.min_impact_speed_m_s,
     )
@@ -229,7 +236,7 @@ def contact_arrays(model: CoupledModel, scene: Scene, params: dict[str, np.ndarr
     contact columns, and the status bits known before the run (too few steps per contact period)."""
     c = scene.contact
     codes_ = law_codes(params)
-    hertz = codes_ >= LAW_HERTZ
+    hertz = np.isin(codes_, HERTZ_LAWS)
     ks = contact_stiffness(params["ks_ratio"], params["ks_N_per_m"], c.k_ref_N_per_m)
     kh = np.where(
         np.isnan(params["kh_N_per_m1_5"]), hertz_stiffness(ks, c.reference_penetration_m), params["kh_N_per_m1_5"]

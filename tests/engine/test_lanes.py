@@ -1,4 +1,4 @@
-"""The lane kernel (kernel_lanes.integrate_lanes) against the scalar kernel (kernel.integrate_batch).
+"""The lane kernel (engine/lanes: integrate_lanes) against the scalar kernel (engine/scalar.py: integrate_batch).
 
 The two integrate the same scheme with different algebra (modal coordinates and fused multiply-adds
 in the lanes, the floors' Newmark solve in the scalar kernel), so they agree to rounding, not bit for
@@ -9,7 +9,7 @@ bit. The contract tested here (assert_rows_agree), on every run the scalar kerne
 - every other value within tolerances.SAFETY times the larger difference the scalar kernel's two
   backward-error twins (the model's matrices as rounding may leave them) show for that run and column;
 - plus, where the event scheme's own thresholds decide rather than rounding: the least force within
-  k_s kernel._switch_tolerance, contact and compression times within one step per phase or impact,
+  k_s events.switch_tolerance, contact and compression times within one step per phase or impact,
   the median phase within one step (a phase ends where F = 0, and whether its last piece counts as
   compressive depends on the sign of a residue of that size).
 Measured: at most 5.3x the twins' difference on three code-generation targets. Flagged runs (a contact
@@ -34,11 +34,11 @@ from conftest import SWEEPS
 from tolerances import SEEDS, backward_error_twin, count_bounds, mca_twins, switch_residue_force, value_tolerance
 
 from pounding_sweep import codes
-from pounding_sweep.engine import driver
+from pounding_sweep.engine import driver, events, registry
 from pounding_sweep.engine import lanes as kernel_lanes
 from pounding_sweep.engine import layout as L
-from pounding_sweep.engine import scalar as kernel
 from pounding_sweep.engine.driver import HistorySpec, RunArrays, ScoreSpec
+from pounding_sweep.engine.lanes.groups import _median_inplace
 from pounding_sweep.model.contact import CONTACT_LAWS
 from pounding_sweep.reference import newmark_reference
 from pounding_sweep.scene import Axis, load_scene
@@ -50,6 +50,12 @@ GAPS = (0.0, 1e-3, 0.02)
 
 
 SCHEMES = ("implicit", "event")
+
+
+def why(sysarr, hist, opts, score, law=codes.LAW_CLASSIC):
+    """Why the lane kernel cannot run such a chunk of runs of `law` (the kernel registry's answer), or None."""
+    lanes_kernel = next(k for k in registry.KERNELS if k.lanes)
+    return lanes_kernel.why_not(registry.Chunk(sysarr, hist, opts, score, law))
 
 
 def implicit(scene, law="classic", duration=None, scheme="implicit", dt=None):
@@ -96,7 +102,7 @@ def test_lane_kernel_metrics_equal_the_numpy_reference(ks_ratio, r, gap_m, law, 
         base, sweep=(), contact=dataclasses.replace(base.contact, ks_ratio=ks_ratio, r=r, gap_m=gap_m)
     )
     prep = prepare(s)
-    assert kernel_lanes.lanes_ineligible_reason(prep.sysarr, HistorySpec.none(), prep.opts, None) is None
+    assert why(prep.sysarr, HistorySpec.none(), prep.opts, ScoreSpec.none(), CONTACT_LAWS[law]) is None
     runs, rec = chunk_inputs(prep)
     assert runs.n == 1
     m, _ = driver.run_chunk_lanes(prep.sysarr, runs, rec, prep.opts)
@@ -162,7 +168,7 @@ def assert_rows_agree(prep, runs, rec, lanes, scalar, floors=(3, 3)):
     twins show for that run and column (at least the floor of n_steps rounding steps on the column's
     scale); counts equal, or between the scalar kernel's and its twins' at a near-tie. Two quantities
     carry the event scheme's own thresholds, not rounding: the least force of a pair may be anywhere
-    within +/- k_s times kernel._switch_tolerance (a force that small at a step's end is not a switch,
+    within +/- k_s times events.switch_tolerance (a force that small at a step's end is not a switch,
     in either kernel); and a compressive phase ends where F = 0, so whether its last piece counts as
     compressive depends on the sign of a force residue of that size: contact and compression times may
     differ by one step per phase or impact, the median phase by one step.
@@ -344,21 +350,21 @@ def test_run_chunk_dispatch_and_the_eligibility_rules():
     prep = prepare(implicit(load_scene(SWEEPS / "paper_6hz.toml"), duration=0.05))
     sysarr, opts = prep.sysarr, prep.opts
     none_h, none_s = HistorySpec.none(), ScoreSpec.none()
-    why = kernel_lanes.lanes_ineligible_reason
     assert why(sysarr, none_h, opts, none_s) is None
     assert "histories" in why(sysarr, HistorySpec(np.array([codes.H_DISP]), np.array([2]), 1), opts, none_s)
     score = ScoreSpec(
         np.array([0.1]), np.zeros((1, 1)), np.array([2]), 0, 0.01, np.zeros(1, np.int64), np.zeros((0, 6))
     )
     assert "scoring" in why(sysarr, none_h, opts, score)
-    assert "implicit" in why(sysarr, none_h, opts._replace(scheme=kernel.SCHEMES["paper"]), none_s)
-    for name, code in kernel.SCHEMES.items():  # every scheme but implicit and event
+    assert "implicit" in why(sysarr, none_h, opts._replace(scheme=codes.SCHEMES["paper"]), none_s)
+    for name, code in codes.SCHEMES.items():  # every scheme but implicit and event
         ok = why(sysarr, none_h, opts._replace(scheme=code), none_s) is None
         assert ok == (name in SCHEMES)
     assert why(sysarr, none_h, opts._replace(max_iter=0), none_s) is not None
     # the event scheme takes no active-set iteration
-    assert why(sysarr, none_h, opts._replace(scheme=kernel.SCHEMES["event"], max_iter=0), none_s) is None
-    assert why(sysarr, none_h, opts._replace(law=7), none_s) is not None
+    assert why(sysarr, none_h, opts._replace(scheme=codes.SCHEMES["event"], max_iter=0), none_s) is None
+    assert why(sysarr, none_h, opts, none_s, law=7) is not None
+    assert "Hertz" in why(sysarr, none_h, opts, none_s, law=codes.LAW_HERTZ)
     coupled = dataclasses.replace(sysarr, K=sysarr.K + 1e-30)
     assert "coupled" in why(coupled, none_h, opts, none_s)
     C = sysarr.C.copy()
@@ -376,12 +382,6 @@ def test_run_chunk_dispatch_and_the_eligibility_rules():
     ptall = prepare(tall)
     assert "scratch" in why(ptall.sysarr, none_h, opts, none_s)
     assert driver.kernel_for(ptall.sysarr, none_h, opts, none_s) == "scalar"
-    # the codes the lane kernel repeats agree with the scalar kernel's and the contact module's
-    assert kernel_lanes.SCHEME_IMPLICIT == kernel.SCHEMES["implicit"]
-    assert kernel_lanes.SCHEME_EVENT == kernel.SCHEMES["event"]
-    assert kernel_lanes.LAW_NO_TENSION == CONTACT_LAWS["no_tension"]
-    assert (kernel_lanes.EXC_HARMONIC, kernel_lanes.EXC_RECORD) == (kernel.EXC_HARMONIC, kernel.EXC_RECORD)
-    assert (kernel_lanes.MAX_EVENTS, kernel_lanes.EVENT_MIN_FRACTION) == (kernel.MAX_EVENTS, kernel.EVENT_MIN_FRACTION)
 
     # run_chunk: lanes when eligible (same rows as the scalar kernel), scalar with histories
     runs, rec = chunk_inputs(prep)
@@ -412,7 +412,7 @@ def test_excitation_profiles_equal_the_scalar_kernels_ground_acceleration():
     steps = np.arange(int(runs.nsteps[0]) + 1)
     ref = np.array(
         [
-            kernel.ground_acceleration(runs.exc_kind[0], runs.exc_amp[0], runs.exc_omega[0], rec[0], 0, 0, s, prep.dt)
+            events.ground_acceleration(runs.exc_kind[0], runs.exc_amp[0], runs.exc_omega[0], rec[0], 0, 0, s, prep.dt)
             for s in steps
         ]
     )
@@ -422,7 +422,7 @@ def test_excitation_profiles_equal_the_scalar_kernels_ground_acceleration():
 @pytest.mark.parametrize("law", ["classic", "no_tension"])
 def test_event_scheme_stiff_coarse_steps(law):
     """Event scheme at dt = 1 ms with k_s/k up to 1e4: contact events every few steps, several in one
-    step, and under the no-tension law with r = 0 chattering switches that reach kernel.MAX_EVENTS
+    step, and under the no-tension law with r = 0 chattering switches that reach events.MAX_EVENTS
     (the step taken as it is and counted unsettled): most steps of many lanes go through the scalar
     fix-up, next to lanes that stay in the vector path. Most of these runs are flagged (a contact
     period under one step): the contract holds on the others, the flags on all."""
@@ -442,12 +442,12 @@ def test_event_scheme_stiff_coarse_steps(law):
     assert (
         assert_rows_agree(prep, runs, rec, lanes, scalar).sum() >= 30
     )  # of 90: the rest have a contact period under a step
-    events = col(scalar, "max_contact_iterations")
-    assert (events == 0).any() and (events >= 3).any()
+    located = col(scalar, "max_contact_iterations")
+    assert (located == 0).any() and (located >= 3).any()
     assert (col(scalar, "impacts_f3") > 10).any()
     if law == "no_tension":
-        assert (events == kernel.MAX_EVENTS).any() and (col(scalar, "unsettled_steps") > 0).any()
-        assert (col(lanes, "max_contact_iterations") == kernel.MAX_EVENTS).any()
+        assert (located == events.MAX_EVENTS).any() and (col(scalar, "unsettled_steps") > 0).any()
+        assert (col(lanes, "max_contact_iterations") == events.MAX_EVENTS).any()
     again, _ = driver.run_chunk_lanes(prep.sysarr, runs, rec, prep.opts, threads=2)
     assert_rows_identical(again, lanes)
 
@@ -459,7 +459,7 @@ def test_median_of_compressive_phases_equals_numpys():
 
     @numba.njit
     def median(buf, k):
-        return kernel_lanes._median_inplace(buf, 0, 0, k)
+        return _median_inplace(buf, 0, 0, k)
 
     rng = np.random.default_rng(11)
     for k in [0, 1, 2, 3, 4, 7, 8, 100, 4096]:

@@ -187,7 +187,7 @@ def test_kernel_counts_equal_newmark_reference(ks_ratio, r, gap_m, law, scheme):
     rounding-level difference) between the two. Contact time: the implicit and paper schemes count whole
     steps (equal, or between the twins' at a near-tie, plus the rounding of summing them); the event
     scheme sums sub-steps that end at located switches, each located to within 1e-13 dt by the kernel's
-    bracket (kernel._locate_event) and 1e-15 dt by brentq (tests/reference.py), two switches per impact,
+    bracket (events.event_functions: locate_event) and 1e-15 dt by brentq (tests/reference.py), two switches per impact,
     plus SAFETY times the twins' difference. Peak force: SAFETY times the twins' difference, at least the
     floor (tests/tolerances.py).
     """

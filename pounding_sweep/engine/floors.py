@@ -1,0 +1,88 @@
+"""The floor-coordinate pieces the two one-run-at-a-time kernels share (engine/scalar.py for the linear
+laws, engine/nonlinear.py for the Hertz-type ones): a dense solve, the acceleration from equilibrium,
+and the event step's view of a pair (penetration, rate, switch tolerance) and of divergence.
+
+A kernel's state record (scalar.LinearState, nonlinear.HertzState) holds, under the same names, the
+model (m, C, K, i1, i2: engine/inputs.py Structure), the run's gap, the start state u, v, a and the
+end state un, vn, an of the piece in progress [m, m/s, m/s^2, relative to the table]; these functions
+read those fields and compile once per record type.
+
+Equations of motion (SI, restoring sign): M a + C v + K u + G F = -M 1 ag (the paper's eqs. 1-2),
+F_j > 0 in compression, G's column j = e(building 1, floor j) - e(building 2, floor j).
+"""
+
+from __future__ import annotations
+
+from pounding_sweep.engine import layout as L
+from pounding_sweep.engine.events import switch_tolerance
+from pounding_sweep.engine.jit import njit_inner, njit_kernel
+
+
+@njit_kernel
+def gauss_solve(A, b, n, pivot):
+    """Solve A[:n,:n] x = b[:n] in place by Gaussian elimination; with `pivot`, partial pivoting (the Hertz-type
+    laws' Newton Jacobian I + D S is not symmetric); without, none (A symmetric positive definite)."""
+    for k in range(n):
+        if pivot:
+            p = k
+            for i in range(k + 1, n):
+                if abs(A[i, k]) > abs(A[p, k]):
+                    p = i
+            if p != k:
+                for j in range(n):
+                    A[k, j], A[p, j] = A[p, j], A[k, j]
+                b[k], b[p] = b[p], b[k]
+        piv = A[k, k]
+        for i in range(k + 1, n):
+            f = A[i, k] / piv
+            for j in range(k, n):
+                A[i, j] -= f * A[k, j]
+            b[i] -= f * b[k]
+    for i in range(n - 1, -1, -1):
+        s = b[i]
+        for j in range(i + 1, n):
+            s -= A[i, j] * b[j]
+        b[i] = s / A[i, i]
+
+
+@njit_inner
+def equilibrium_acceleration(st, ag, u, v, F, a):
+    """a = M^-1 (-M 1 ag - C v - K u - G F), the equations of motion (eqs. 1-2, restoring sign), with
+    st's model (m, C, K, i1, i2)."""
+    m, C, K, i1, i2 = st.m, st.C, st.K, st.i1, st.i2
+    n = m.shape[0]
+    for i in range(n):
+        s = -m[i] * ag
+        for k in range(n):
+            s -= C[i, k] * v[k] + K[i, k] * u[k]
+        a[i] = s
+    for j in range(i1.shape[0]):
+        a[i1[j]] -= F[j]
+        a[i2[j]] += F[j]
+    for i in range(n):
+        a[i] /= m[i]
+
+
+@njit_inner
+def pair(st, end, j):
+    """(penetration g.u - d [m], its rate g.v [m/s]) of pair j at the piece's end state or its start."""
+    p, q = st.i1[j], st.i2[j]
+    if end:
+        return st.un[p] - st.un[q] - st.gap, st.vn[p] - st.vn[q]
+    return st.u[p] - st.u[q] - st.gap, st.v[p] - st.v[q]
+
+
+@njit_inner
+def tolerance(st, j):
+    """Pair j's switch tolerance at the end state (events.switch_tolerance of its two floors)."""
+    return switch_tolerance(st.un[st.i1[j]], st.un[st.i2[j]])
+
+
+@njit_inner
+def finite(st):
+    """The end state is finite: every floor within DIVERGED_M and every acceleration below 1e300."""
+    ok = True
+    for i in range(st.un.shape[0]):
+        if not (abs(st.un[i]) < L.DIVERGED_M) or not (abs(st.an[i]) < 1e300):
+            ok = False
+    return ok

@@ -150,6 +150,10 @@ class Problem:
             end = window[1] + shift + 2.0 * scene.integration.dt_s
             if scene.excitation.duration_s is None or end < scene.excitation.duration_s:
                 fixed = dataclasses.replace(fixed, excitation=dataclasses.replace(fixed.excitation, duration_s=end))
+            if scene.experiment.window_s is not None:  # the scored window inside the shortened simulation
+                w0, w1 = scene.experiment.window_s
+                w = (max(w0, window[0]), max(min(w1, window[1]), max(w0, window[0])))
+                fixed = dataclasses.replace(fixed, experiment=dataclasses.replace(fixed.experiment, window_s=w))
         probe = prepare(fixed)
         exp = probe.experiment
         weights = probe.combination.weights if probe.combination is not None else None

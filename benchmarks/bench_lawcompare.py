@@ -51,7 +51,9 @@ def make_case(i: int, rng, folder: Path, duration_s: float):
     kind = ("6hz", "4.6hz")[(i // len(GENERATING)) % 2]
     law = GENERATING[i % len(GENERATING)]
     scene = load_scene(SWEEPS / {"6hz": "paper_6hz.toml", "4.6hz": "paper_4613hz.toml"}[kind])
-    scene = dataclasses.replace(scene, sweep=(), excitation=dataclasses.replace(scene.excitation, duration_s=duration_s))
+    scene = dataclasses.replace(
+        scene, sweep=(), excitation=dataclasses.replace(scene.excitation, duration_s=duration_s)
+    )
     hidden = {"ks_ratio": float(np.exp(rng.uniform(0.0, np.log(10.0)))), "r": float(rng.uniform(0.4, 0.8))}
     kf = tuple(float(x) for x in rng.uniform(0.98, 1.02, 2))
     df, prov = make_ivp_experiment(
@@ -69,7 +71,12 @@ def calibrate_case(c: dict, channels: str, threads: int):
         exp = ExperimentConfig(
             table=str(c["table"]), channels={**DISP, **ACC}, use="both", lowpass_Hz=30.0, weights="noise"
         )
-    params = {"ks_ratio": [0.1, 20.0], "r": [0.05, 0.99], "stiffness_scale_b1": [0.9, 1.1], "stiffness_scale_b2": [0.9, 1.1]}
+    params = {
+        "ks_ratio": [0.1, 20.0],
+        "r": [0.05, 0.99],
+        "stiffness_scale_b1": [0.9, 1.1],
+        "stiffness_scale_b2": [0.9, 1.1],
+    }
     scene = dataclasses.replace(
         c["scene"],
         experiment=exp,
@@ -123,7 +130,8 @@ def main(argv=None) -> int:
                     )
                 least = min(fits, key=lambda f: f.rss).law
                 print(
-                    f"    before: {b_best}" + (f" (tied: {', '.join(b_tied)})" if len(b_tied) > 1 else "")
+                    f"    before: {b_best}"
+                    + (f" (tied: {', '.join(b_tied)})" if len(b_tied) > 1 else "")
                     + f"; least residual: {least}; after: {cmp.text}"
                 )
                 ok_before = b_best == c["law"] or c["law"] in b_tied

@@ -182,7 +182,12 @@ def per_story_case(folder: Path):
     path = folder / "per_story.parquet"
     write_experiment(df, prov, path)
     channels = {"model1_floor3_mm": "b1f3", "model2_floor3_mm": "b2f3"}
-    params = {"ks_ratio": [0.1, 20.0], "r": [0.05, 1.0], "stiffness_scale_b1": [0.8, 1.2], "stiffness_scale_b2": [0.8, 1.2]}
+    params = {
+        "ks_ratio": [0.1, 20.0],
+        "r": [0.05, 1.0],
+        "stiffness_scale_b1": [0.8, 1.2],
+        "stiffness_scale_b2": [0.8, 1.2],
+    }
     scene = dataclasses.replace(s, experiment=ExperimentConfig(table=str(path), channels=channels))
     return scene, params, 5e-5, [("start-up", (0.0, 1.5)), ("steady state", (2.5, 5.0))]
 

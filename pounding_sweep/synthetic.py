@@ -116,7 +116,9 @@ def make_experiment(
     return pd.DataFrame(table), provenance
 
 
-def mems_samples(t_fine: np.ndarray, a_fine: np.ndarray, fps: float, internal_hz: float) -> tuple[np.ndarray, np.ndarray]:
+def mems_samples(
+    t_fine: np.ndarray, a_fine: np.ndarray, fps: float, internal_hz: float
+) -> tuple[np.ndarray, np.ndarray]:
     """An accelerometer with a built-in low-pass, as MEMS parts have: it samples at its internal rate
     `internal_hz`, averages the n = internal_hz / fps most recent internal samples (a moving average: its
     decimation filter) and outputs every n-th average, at `fps`. `t_fine`, `a_fine`: the acceleration on a

@@ -137,7 +137,15 @@ def softening_reference(
             rhs = rhs_for(active, lambda t, a0=a0, slope=slope, t0=t0: a0 + slope * (t - t0))
         evs = [event(j, -1.0 if active[j] else 1.0) for j in range(p)]
         sol = solve_ivp(
-            rhs, (t0, t_stop), y, method="DOP853", rtol=rtol, atol=atol, max_step=max_step, events=evs, dense_output=True
+            rhs,
+            (t0, t_stop),
+            y,
+            method="DOP853",
+            rtol=rtol,
+            atol=atol,
+            max_step=max_step,
+            events=evs,
+            dense_output=True,
         )
         if sol.status < 0:
             raise RuntimeError(f"softening_reference: solve_ivp failed at t = {sol.t[-1]}: {sol.message}")

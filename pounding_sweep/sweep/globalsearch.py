@@ -87,6 +87,7 @@ def design_size(global_points: int, p: int) -> int:
 def find_basin(prob, cal, best_cell: dict | None = None, progress=None) -> Search:
     """The global stage (module docstring) for calibrate.Problem `prob` and [calibrate] `cal`."""
     from pounding_sweep.sweep.calibrate import misfit_of
+
     ladder = horizons(prob)
     first = _search(prob, cal, ladder, best_cell, 12345, design_size(cal.global_points, len(prob.names)))
     if progress is not None:
@@ -120,7 +121,13 @@ def _search(prob, cal, ladder, best_cell, seed, n_design) -> Search:
     r = sub.residuals(np.array([prob.to_theta(zz) for zz in z]))
     rss = np.sum(r * r, axis=1)
     starts = _apart(z[np.argsort(rss)], (hi - lo), max(cal.starts, 1))
-    stages = [{"horizon_s": ladder[0], "design": int(z.shape[0]), "best_design_misfit": misfit_of(r[np.argmin(rss)], sub.sizes())}]
+    stages = [
+        {
+            "horizon_s": ladder[0],
+            "design": int(z.shape[0]),
+            "best_design_misfit": misfit_of(r[np.argmin(rss)], sub.sizes()),
+        }
+    ]
     carried = starts
     result = None
     for k, end in enumerate(ladder):

@@ -8,12 +8,15 @@ structured, that is worse, residuals got a smaller N_eff and so a smaller AIC: a
 lost by delta AIC 132.
 
 1. Information criteria on one effective count. AIC = N_c ln(RSS / N) + 2 p and BIC = N_c ln(RSS / N)
-   + p ln N_c, N_c the same for every law: the least of the laws' own N_eff = N (1 - rho) / (1 + rho) (AR(1),
-   calibrate.effective_count). Why the least: a difference in N_c ln(RSS) grows in proportion to N_c, so the
-   least count gives the smallest differences, and an order it decides is decided at every law's own count;
-   a common count can never reverse the order of two laws' residuals at equal p. Tie band: 2 for both
-   (AIC: Burnham & Anderson 2002, Model Selection and Multimodel Inference, sec. 2.6; BIC: Kass & Raftery 1995,
-   JASA 90:773, "not worth more than a bare mention").
+   + p ln N_c, N_c the same for every law: N_eff = N (1 - rho) / (1 + rho) (AR(1), calibrate.effective_count)
+   of one reference residual series, the best-fitting law's (least RSS). Why that one: the count says how many
+   independent samples the data hold, a property of the measurement, not of a law; the residuals closest to
+   the noise estimate it best, while a worse law's extra residual is model error, correlated by nature, and
+   would make the count that law's (the least count over the laws let a law that cannot fit at all set it for
+   every law: 19 against the others' 275-302 on tests/sweep/test_lawcompare.py's end-to-end case). A common
+   count can never reverse the order of two laws' residuals at equal p. Tie band: 2 for both (AIC: Burnham &
+   Anderson 2002, Model Selection and Multimodel Inference, sec. 2.6; BIC: Kass & Raftery 1995, JASA 90:773,
+   "not worth more than a bare mention").
 2. Blocked cross-validation, robust to correlated residuals: the scored record cut into FOLDS contiguous blocks
    of equal duration; each law refitted (least squares from its optimum) on the samples outside a block and a
    buffer on either side of it (hv-block cross-validation: Racine 2000, J. Econometrics 99:39; the buffer one
@@ -124,9 +127,10 @@ def compare_laws(fits, local_fit, max_nfev: int, folds: int = FOLDS) -> LawCompa
 
 
 def information_criteria(fits) -> tuple[float, dict[str, float], dict[str, float]]:
-    """(N_c, AIC per law, BIC per law) on the common effective count N_c (module docstring, item 1)."""
+    """(N_c, AIC per law, BIC per law) on the common effective count N_c: the best-fitting law's (module
+    docstring, item 1)."""
     n = fits[0].n
-    nc = min(f.n_eff for f in fits)
+    nc = min(fits, key=lambda f: f.rss).n_eff
     aic = {f.law: nc * math.log(f.rss / n) + 2 * len(f.names) for f in fits}
     bic = {f.law: nc * math.log(f.rss / n) + len(f.names) * math.log(nc) for f in fits}
     return nc, aic, bic

@@ -790,7 +790,9 @@ def calibration_profile_figure(best_path: str | Path):
     if len(laws) > 1:
         order = laws.sort_values("aic")
         text = ", ".join(f"{r.contact_law} dAIC {r.delta_aic:.1f}" for r in order.itertuples())
-        fig.suptitle(f"calibration profiles; laws: {text} (within 2: not distinguished)", fontsize=9)
+        cmp = cal.get("comparison") or {}
+        verdict = f"chosen: {cmp['chosen']}" if cmp.get("chosen") else "the data cannot decide"
+        fig.suptitle(f"calibration profiles; laws: {text} (one N_eff, tie 2); {verdict}", fontsize=9)
     else:
         fig.suptitle("calibration profiles (shaded: the values the data cannot exclude, 95 %)", fontsize=9)
     return fig

@@ -16,10 +16,13 @@ Method.
 * Noise floor sigma_c: the [calibrate] noise_m (displacement channels; m), else estimated from the data by the
   difference method (model/experiment.py noise_floor: an upper bound), times the filter's noise gain for a
   filtered channel.
-* Global stage: `global_points` Sobol points (scipy.stats.qmc, scrambled, fixed seed) over the bounds (log scale
-  for stiffnesses), run as one batch by the grid engine, plus the sweep's best cell when there is one.
-* Local stage: scipy.optimize.least_squares (trust-region reflective, bounds, 2-point Jacobian) from the `starts`
-  best global points; the best optimum is kept.
+* Global stage (sweep/globalsearch.py): incremental single shooting: a Sobol design of max(global_points, 16 p)
+  points (scipy.stats.qmc, scrambled, fixed seed; log scale for stiffnesses) and the sweep's best cell on a
+  leading horizon of the record, least squares from the best of them, carried over horizons doubling to the
+  whole record; one restart from fresh points when the misfit stays above misfit_factor. Each batch of runs
+  (the design, a Jacobian) goes to the grid engine at once, runs of distinct structures dealt to the threads.
+* Local stage: scipy.optimize.least_squares (trust-region reflective, bounds), its Jacobian by forward
+  differences of JAC_STEP of each coordinate's range, the p runs as one batch (Problem.jac).
 * Uncertainty: Gauss-Newton covariance s^2 (J^T J)^-1 (s^2 = RSS / (N - p), J the Jacobian at the optimum, in
   the fit's coordinates: log for stiffnesses) inflated for the residuals' time correlation by N / N_eff, with
   N_eff = N (1 - rho) / (1 + rho) and rho the residuals' lag-1 autocorrelation (an AR(1) model of the
@@ -33,13 +36,15 @@ Method.
   are those the data cannot exclude (the profile-likelihood interval, Venzon & Moolgavkar 1988). A profile
   interval that reaches both bounds, or spans more than half of the (log) range, says the parameter is not
   identified by this data, with that range.
+* Model error (sweep/uncertainty.py): when the misfit exceeds misfit_factor, beside each noise-based interval
+  one that includes the model's error (a window split of the record: what fits of other parts of it give),
+  and that is the one to quote (Fit.quote).
 * Warnings (in the CLI summary, the result metadata and the tables): a fitted value on a bound; the best fit's
   residual RMS above misfit_factor times the noise floor (the model cannot explain the data); a parameter not
   identified.
-* Laws: with a [sweep] law axis each law is calibrated on its own (Hertz, elastic, without r) and compared by
-  AIC = N_eff ln(RSS / N) + 2 p and BIC = N_eff ln(RSS / N) + p ln N_eff (N_eff: the correlated residuals'
-  effective count); laws within 2 of the least AIC are not distinguished by the data (Burnham & Anderson 2002,
-  Model Selection and Multimodel Inference, sec. 2.6).
+* Laws (sweep/lawcompare.py): with a [sweep] law axis each law is calibrated on its own (Hertz, elastic, without
+  r) and compared by AIC and BIC on one effective count for every law and by blocked cross-validation; "the
+  data cannot decide" where they disagree or tie.
 """
 
 from __future__ import annotations
@@ -597,6 +602,12 @@ def _warnings(fit: Fit, z_opt, lo, hi, cal) -> None:
             f"calibration ({law}): the best fit's residual is {fit.misfit_ratio:.1f} times the noise floor "
             f"({', '.join(f'{c} {fit.rms_m[c] * 1e3:.3f} mm vs {fit.noise_m[c] * 1e3:.3f} mm' for c in fit.rms_m)}): "
             "the model cannot explain the data; the fitted values are not to be trusted as measurements"
+        )
+    if fit.quote == "model_error":
+        fit.warnings.append(
+            f"calibration ({law}): intervals with the model's error (fits of {len(fit.windows)} windows of the record; "
+            "quote these, not the noise-based ones): "
+            + ", ".join(f"{n} {fit.estimate[n]:.4g} in [{a:.4g}, {b:.4g}]" for n, (a, b) in fit.ci95_model.items())
         )
     for n, (ok, a, b) in fit.identified.items():
         if not ok:

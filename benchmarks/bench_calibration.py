@@ -146,7 +146,12 @@ def run_before(scene, threads: int, before: Path, folder: Path) -> dict:
     path.write_bytes(pickle.dumps(scene))
     env = dict(os.environ, PYTHONPATH=str(before))
     out = subprocess.run(
-        [sys.executable, "-c", RUNNER, str(path), str(threads)], env=env, capture_output=True, text=True, check=True
+        [sys.executable, "-c", RUNNER, str(path), str(threads)],
+        env=env,
+        cwd=before,
+        capture_output=True,
+        text=True,
+        check=True,
     )
     return json.loads(out.stdout.strip().splitlines()[-1])
 

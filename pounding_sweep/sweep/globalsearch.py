@@ -22,8 +22,10 @@ each fit starting from the last one's optimum, until the whole record is fitted.
   sweep's best cell when there is one (global_points = 0: no design, and no restart; the local fits start
   from the best cell, else the scene's values).
 * Starts: the `starts` best design points that lie apart (each at least 0.1 of the bounds' diagonal, in the
-  fit's coordinates, from those taken): local least squares from each on the first horizon; the best
-  BEAM distinct optima are carried to the next horizon, refitted there, and so on.
+  fit's coordinates, from those taken): local least squares from each on the first horizon, best first, until
+  one fits it to within misfit_factor times the noise floor (the data then have no better basin to offer on
+  that horizon). Of the distinct optima, up to BEAM whose misfit is below misfit_factor or within COMPARABLE
+  times the best's are carried to the next horizon, refitted there (the same rules), and so on.
 * Restart: when the best optimum on the whole record misfits more than misfit_factor times the noise floor,
   the search runs once more from a fresh design (another scramble, twice the points); the better answer
   is kept. A model that cannot explain the data pays this twice; the warning says so either way.
@@ -36,7 +38,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from pounding_sweep.sweep.fitstats import local_fit, misfit_of
+
 BEAM = 2  # optima carried from one horizon to the next
+COMPARABLE = 2.0  # ... when their misfit is within this factor of the best's (or below misfit_factor)
 FIRST_PERIODS = 4  # the first horizon spans at least this many periods (slowest mode, forcing)
 FIRST_ENERGY = 1.0 / 8.0  # ... and at least this share of the measured signal's (noise-normalised) energy
 WHOLE = 0.8  # a horizon past this share of the scored window is the whole window
@@ -86,7 +91,6 @@ def design_size(global_points: int, p: int) -> int:
 
 def find_basin(prob, cal, best_cell: dict | None = None, progress=None) -> Search:
     """The global stage (module docstring) for calibrate.Problem `prob` and [calibrate] `cal`."""
-    from pounding_sweep.sweep.calibrate import misfit_of
 
     ladder = horizons(prob)
     first = _search(prob, cal, ladder, best_cell, 12345, design_size(cal.global_points, len(prob.names)))
@@ -105,8 +109,6 @@ def find_basin(prob, cal, best_cell: dict | None = None, progress=None) -> Searc
 
 def _search(prob, cal, ladder, best_cell, seed, n_design) -> Search:
     from scipy.stats import qmc
-
-    from pounding_sweep.sweep.calibrate import local_fit, misfit_of
 
     lo, hi = prob.z_bounds
     p = len(prob.names)
@@ -132,15 +134,21 @@ def _search(prob, cal, ladder, best_cell, seed, n_design) -> Search:
     result = None
     for k, end in enumerate(ladder):
         here = sub if k == 0 else (prob if end >= ladder[-1] else prob.restricted((prob.window[0], end)))
-        fits = [local_fit(here, z0, cal.max_evals) for z0 in carried]
+        fits = []
+        for z0 in carried:  # best first; an optimum at the noise floor here ends the horizon's starts
+            fits.append(local_fit(here, z0, cal.max_evals))
+            if misfit_of(fits[-1].fun, here.sizes()) <= cal.misfit_factor:
+                break
         fits.sort(key=lambda f: f.cost)
+        best = misfit_of(fits[0].fun, here.sizes())
         kept = []
-        for f in fits:  # distinct optima only
+        for f in fits:  # distinct optima, comparable with the best (module docstring)
             if all(np.max(np.abs(f.z - g.z) / (hi - lo)) > 1e-3 for g in kept):
-                kept.append(f)
+                if misfit_of(f.fun, here.sizes()) <= max(cal.misfit_factor, COMPARABLE * best):
+                    kept.append(f)
         result = kept[0]
         carried = [f.z for f in kept[:BEAM]]
-        stages.append({"horizon_s": end, "starts": len(fits), "misfit": misfit_of(result.fun, here.sizes())})
+        stages.append({"horizon_s": end, "starts": len(fits), "misfit": best})
         if here is not prob:  # the runs of a shorter horizon count as runs of the calibration
             prob.evaluations += here.evaluations
             here.evaluations = 0

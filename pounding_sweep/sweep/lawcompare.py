@@ -39,6 +39,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from pounding_sweep.sweep.fitstats import local_fit
+
 TIE = 2.0  # AIC and BIC tie band (module docstring)
 DM_Z = 1.959963984540054  # two-sided 5 % normal quantile: the cross-validation tie band
 FOLDS = 4  # cross-validation blocks
@@ -80,7 +82,7 @@ class LawComparison:
         return f"the data cannot decide between the contact laws {', '.join(self.candidates)}: {crit}"
 
 
-def compare_laws(fits, local_fit, max_nfev: int, folds: int = FOLDS) -> LawComparison:
+def compare_laws(fits, max_nfev: int, folds: int = FOLDS) -> LawComparison:
     """Compare the laws of `fits` (calibrate.Fit, each with its Problem) by the module docstring's criteria."""
     t0 = time.perf_counter()
     laws = [f.law for f in fits]
@@ -91,7 +93,7 @@ def compare_laws(fits, local_fit, max_nfev: int, folds: int = FOLDS) -> LawCompa
     nc, aic, bic = information_criteria(fits)
     evals0 = sum(f.problem.evaluations for f in fits)
     blocks = fold_edges(fits[0].problem, folds)
-    held = {f.law: blocked_cv(f, local_fit, max_nfev, blocks) for f in fits}
+    held = {f.law: blocked_cv(f, max_nfev, blocks) for f in fits}
     cv = {law: float(e @ e) for law, e in held.items()}
     best_cv = min(cv, key=cv.get)
     sizes = fits[0].sizes
@@ -143,7 +145,7 @@ def fold_edges(prob, folds: int) -> list[tuple[float, float]]:
     return [(float(a), float(b)) for a, b in zip(e[:-1], e[1:])]
 
 
-def blocked_cv(fit, local_fit, max_nfev: int, blocks) -> np.ndarray:
+def blocked_cv(fit, max_nfev: int, blocks) -> np.ndarray:
     """Each residual held out once: refitted (from the optimum) without its block and the buffers beside it,
     the residual at that refit (module docstring)."""
     prob = fit.problem

@@ -36,15 +36,15 @@ import math
 
 import numpy as np
 
+from pounding_sweep.sweep.fitstats import LOG_SCALE, gauss_newton, interval, local_fit, misfit_of
+
 WINDOWS = 4  # windows of the split (the prediction interval's t quantile grows fast below 4)
 IDENTIFIED = 0.25  # a window identifies a parameter when its 95 % half-width is at most this share of the range
 
 
-def model_error_intervals(fit, prob, local_fit, max_nfev: int, windows: int = WINDOWS) -> None:
+def model_error_intervals(fit, prob, max_nfev: int, windows: int = WINDOWS) -> None:
     """Fill fit.windows (each window's fit) and fit.ci95_model, and set fit.quote = 'model_error'."""
     from scipy.stats import t as student_t
-
-    from pounding_sweep.sweep.calibrate import LOG_SCALE, gauss_newton, interval, misfit_of
 
     lo, hi = prob.z_bounds
     a, b = prob.window

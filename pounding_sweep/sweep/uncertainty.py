@@ -42,33 +42,44 @@ WINDOWS = 4  # windows of the split (the prediction interval's t quantile grows 
 IDENTIFIED = 0.25  # a window identifies a parameter when its 95 % half-width is at most this share of the range
 
 
+def fit_window(prob, z0: np.ndarray, window: tuple[float, float], max_nfev: int) -> dict:
+    """The model refitted on the samples of `window` (simulation time [s]) alone, from z0 (least squares, every
+    parameter free, the whole record's noise floors): per parameter its value, noise-based standard error and
+    whether the window identifies it (95 % half-width at most IDENTIFIED of the range); the misfit, the residual
+    sum of squares and the optimum's fit coordinates ('z')."""
+    lo, hi = prob.z_bounds
+    sub = prob.restricted((float(window[0]), float(window[1])))
+    res = local_fit(sub, z0, max_nfev)
+    gn = gauss_newton(res.jac, res.fun, sub.sizes(), len(prob.names))
+    ok = gn.tq * gn.se_z <= IDENTIFIED * (hi - lo)
+    theta = prob.to_theta(res.z)
+    prob.evaluations += sub.evaluations
+    se = [float(t * s) if n in LOG_SCALE else float(s) for n, t, s in zip(prob.names, theta, gn.se_z)]
+    return {
+        "start_s": float(window[0]),
+        "end_s": float(window[1]),
+        "misfit_over_noise": misfit_of(res.fun, sub.sizes()),
+        "rss": float(res.fun @ res.fun),
+        **{n: float(theta[j]) for j, n in enumerate(prob.names)},
+        **{f"std_error_{n}": se[j] for j, n in enumerate(prob.names)},
+        **{f"identified_{n}": bool(ok[j]) for j, n in enumerate(prob.names)},
+        "z": res.z,
+    }
+
+
 def model_error_intervals(fit, prob, max_nfev: int, windows: int = WINDOWS) -> None:
     """Fill fit.windows (each window's fit) and fit.ci95_model, and set fit.quote = 'model_error'."""
     from scipy.stats import t as student_t
 
-    lo, hi = prob.z_bounds
     a, b = prob.window
     edges = np.linspace(a, b, windows + 1)
     z_all, ok_all = [], []
     fit.windows = []
     for w0, w1 in zip(edges[:-1], edges[1:]):
-        sub = prob.restricted((float(w0), float(w1)))
-        res = local_fit(sub, fit.z_opt, max_nfev)
-        gn = gauss_newton(res.jac, res.fun, sub.sizes(), len(prob.names))
-        ok = gn.tq * gn.se_z <= IDENTIFIED * (hi - lo)
-        theta = prob.to_theta(res.z)
-        fit.windows.append(
-            {
-                "start_s": float(w0),
-                "end_s": float(w1),
-                "misfit_over_noise": misfit_of(res.fun, sub.sizes()),
-                **{n: float(theta[j]) for j, n in enumerate(prob.names)},
-                **{f"identified_{n}": bool(ok[j]) for j, n in enumerate(prob.names)},
-            }
-        )
-        z_all.append(res.z)
-        ok_all.append(ok)
-        prob.evaluations += sub.evaluations
+        w = fit_window(prob, fit.z_opt, (w0, w1), max_nfev)
+        z_all.append(w.pop("z"))
+        ok_all.append([w[f"identified_{n}"] for n in prob.names])
+        fit.windows.append(w)
     Z, OK = np.array(z_all), np.array(ok_all)
     for j, n in enumerate(prob.names):
         zk = Z[OK[:, j], j]
@@ -82,3 +93,20 @@ def model_error_intervals(fit, prob, max_nfev: int, windows: int = WINDOWS) -> N
         zb = max(fit.z_opt[j] + h, float(zk.max()), noise[1])
         fit.ci95_model[n] = interval(prob, j, za, zb)
     fit.quote = "model_error"
+
+
+def better_window_fit(w, whole, window) -> dict:
+    """What a fit of `window` (simulation time [s]) gives, for checking the model-error interval of the whole
+    record's fit `whole` (calibrate.Fit): the window's own calibration `w`, or where it ends lower the refit from
+    the whole record's optimum (fit_window): a window's calibration may stop in a local minimum of a parameter
+    it hardly sees. {'estimate', 'std_error', 'misfit', 'refit'}."""
+    r = fit_window(whole.problem, whole.z_opt, window, whole.problem.scene.calibrate.max_evals)
+    if r["rss"] < w.rss:
+        names = whole.names
+        return {
+            "estimate": {n: r[n] for n in names},
+            "std_error": {n: r[f"std_error_{n}"] for n in names},
+            "misfit": r["misfit_over_noise"],
+            "refit": True,
+        }
+    return {"estimate": w.estimate, "std_error": w.std_error, "misfit": w.misfit_ratio, "refit": False}

@@ -85,6 +85,21 @@ def case_scene(kind: str, record_s: float):
     return dataclasses.replace(s, sweep=())
 
 
+def family_bounds(scene) -> dict:
+    """The fitted parameters' bounds: k_s/k, r, each building's stiffness scale (+/-10 %) and damping ratio (x0.5 to
+    x1.5 of the scene's), the clock (+/-50 ms)."""
+    b1, b2 = scene.building1.damping_ratio, scene.building2.damping_ratio
+    return {
+        "ks_ratio": [0.1, 20.0],
+        "r": [0.05, 1.0],
+        "stiffness_scale_b1": [0.9, 1.1],
+        "stiffness_scale_b2": [0.9, 1.1],
+        "damping_ratio_b1": [0.5 * b1, 1.5 * b1],
+        "damping_ratio_b2": [0.5 * b2, 1.5 * b2],
+        "time_offset_s": [-0.05, 0.05],
+    }
+
+
 def make_case(i: int, rng, folder: Path, record_s: float) -> dict:
     regime = REGIMES[i % 3]
     kind = ("6hz", "4.6hz", "duzce")[(i // 3) % 3]
@@ -109,15 +124,7 @@ def make_case(i: int, rng, folder: Path, record_s: float) -> dict:
     table = folder / f"case{i}.parquet"
     write_experiment(df, prov, table)
     b1, b2 = scene.building1.damping_ratio, scene.building2.damping_ratio
-    bounds = {
-        "ks_ratio": [0.1, 20.0],
-        "r": [0.05, 1.0],
-        "stiffness_scale_b1": [0.9, 1.1],
-        "stiffness_scale_b2": [0.9, 1.1],
-        "damping_ratio_b1": [0.5 * b1, 1.5 * b1],
-        "damping_ratio_b2": [0.5 * b2, 1.5 * b2],
-        "time_offset_s": [-0.05, 0.05],
-    }
+    bounds = family_bounds(scene)
     exp = ExperimentConfig(table=str(table), channels={"model1_floor3_mm": "b1f3", "model2_floor3_mm": "b2f3"})
     cal = CalibrateConfig(parameters=bounds, global_points=32, starts=2, profile_points=0)
     truth_theta = np.array([hidden["ks_ratio"], hidden["r"], kf[0], kf[1], b1 * zf[0], b2 * zf[1], offset])

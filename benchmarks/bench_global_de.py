@@ -21,6 +21,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from bench_calibration import family_bounds
 from scipy.optimize import differential_evolution
 
 from pounding_sweep.scene import load_scene
@@ -43,15 +44,7 @@ def main(argv=None) -> int:
     s = dataclasses.replace(s, sweep=(), excitation=dataclasses.replace(s.excitation, duration_s=4.0))
     truth = dataclasses.replace(s, integration=dataclasses.replace(s.integration, scheme="implicit"))
     b1, b2 = s.building1.damping_ratio, s.building2.damping_ratio
-    bounds = {
-        "ks_ratio": [0.1, 20.0],
-        "r": [0.05, 1.0],
-        "stiffness_scale_b1": [0.9, 1.1],
-        "stiffness_scale_b2": [0.9, 1.1],
-        "damping_ratio_b1": [0.5 * b1, 1.5 * b1],
-        "damping_ratio_b2": [0.5 * b2, 1.5 * b2],
-        "time_offset_s": [-0.05, 0.05],
-    }
+    bounds = family_bounds(s)
     with tempfile.TemporaryDirectory() as d:
         df, prov = make_experiment(
             truth, {"ks_ratio": 10.0, "r": 0.8}, stiffness_factor=(1, 1), damping_factor=(1, 1), noise_mm=0.02, seed=5

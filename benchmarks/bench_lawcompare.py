@@ -71,12 +71,7 @@ def calibrate_case(c: dict, channels: str, threads: int):
         exp = ExperimentConfig(
             table=str(c["table"]), channels={**DISP, **ACC}, use="both", lowpass_Hz=30.0, weights="noise"
         )
-    params = {
-        "ks_ratio": [0.1, 20.0],
-        "r": [0.05, 0.99],
-        "stiffness_scale_b1": [0.9, 1.1],
-        "stiffness_scale_b2": [0.9, 1.1],
-    }
+    params = {"ks_ratio": [0.1, 20.0], "r": [0.05, 0.99]} | {f"stiffness_scale_b{b}": [0.9, 1.1] for b in (1, 2)}
     scene = dataclasses.replace(
         c["scene"],
         experiment=exp,

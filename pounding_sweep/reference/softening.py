@@ -76,6 +76,13 @@ def story_forces(u: np.ndarray, chains, s: float | None) -> np.ndarray:
     return out
 
 
+def _chord(f, t0: float, t1: float):
+    """The straight line through (t0, f(t0)) and (t1, f(t1)) (f(t0) where t1 = t0)."""
+    f0, f1 = f(t0), f(t1)
+    rate = (f1 - f0) / (t1 - t0) if t1 > t0 else 0.0
+    return lambda t: f0 + rate * (t - t0)
+
+
 def softening_reference(
     scene, drift_scale_m: float | None, t_end=None, dt_out=1e-3, rtol=1e-10, atol=1e-13, max_step=1e-3, **overrides
 ) -> dict:
@@ -127,48 +134,31 @@ def softening_reference(
     t0, k_stop, stalls = 0.0, 0, 0
     active = (False,) * p
     harmonic = s.excitation.type == "harmonic"
+    options = dict(method="DOP853", rtol=rtol, atol=atol, max_step=max_step, dense_output=True)
     while True:
         t_stop = stops[k_stop]
-        if harmonic:  # ag smooth: evaluated exactly at every stage
-            rhs = rhs_for(active, ag)
-        else:  # ag linear between record samples (the pieces end at them): written as such
-            a0, a1 = ag(t0), ag(t_stop)
-            slope = (a1 - a0) / (t_stop - t0) if t_stop > t0 else 0.0
-            rhs = rhs_for(active, lambda t, a0=a0, slope=slope, t0=t0: a0 + slope * (t - t0))
+        # ag: smooth (harmonic), evaluated at every stage; or linear between record samples, the pieces ending there
+        ground = ag if harmonic else _chord(ag, t0, t_stop)
         evs = [event(j, -1.0 if active[j] else 1.0) for j in range(p)]
-        sol = solve_ivp(
-            rhs,
-            (t0, t_stop),
-            y,
-            method="DOP853",
-            rtol=rtol,
-            atol=atol,
-            max_step=max_step,
-            events=evs,
-            dense_output=True,
-        )
+        sol = solve_ivp(rhs_for(active, ground), (t0, t_stop), y, events=evs, **options)
         if sol.status < 0:
             raise RuntimeError(f"softening_reference: solve_ivp failed at t = {sol.t[-1]}: {sol.message}")
         t1 = sol.t[-1]
-        sel = (grid >= t0 - 1e-12) & (grid <= t1 + 1e-12)
-        if sel.any():
-            Y[sel] = sol.sol(np.clip(grid[sel], t0, t1)).T
-            ACT[sel] = active
-        if sol.status == 1:  # a contact event ended the piece
-            te, j = min((tev[0], jj) for jj, tev in enumerate(sol.t_events) if tev.size)
-            y = sol.y_events[j][0].copy()
-            stalls = stalls + 1 if te - t0 < 1e-12 else 0
+        on = np.flatnonzero((grid >= t0 - 1e-12) & (grid <= t1 + 1e-12))  # the output instants in this piece
+        Y[on], ACT[on] = sol.sol(np.clip(grid[on], t0, t1)).T, active
+        if sol.status == 1:  # a contact event ended the piece: the earliest pair flips
+            j = int(np.argmin([tev[0] if tev.size else np.inf for tev in sol.t_events]))
+            te, y = float(sol.t_events[j][0]), sol.y_events[j][0].copy()
+            stalls = (stalls + 1) * (te - t0 < 1e-12)
             if stalls > 10:
                 raise RuntimeError(f"softening_reference: contact set chatters at t = {te}")
-            active = tuple((not a) if i == j else a for i, a in enumerate(active))
-            events.append((float(te), j, "contact" if active[j] else "separation"))
+            active = active[:j] + (not active[j],) + active[j + 1 :]
+            events.append((te, j, "contact" if active[j] else "separation"))
             t0 = te
-        else:
-            y = sol.y[:, -1].copy()
-            t0 = t_stop
-            k_stop += 1
-            if k_stop == stops.size:
-                break
+            continue
+        y, t0, k_stop = sol.y[:, -1].copy(), t_stop, k_stop + 1
+        if k_stop == stops.size:
+            break
     u, v = Y[:, :n], Y[:, n:]
     F = np.zeros((grid.size, p))
     for j in range(p):

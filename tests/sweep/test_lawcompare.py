@@ -18,13 +18,12 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from conftest import SWEEPS
+from calibration_cases import exact_6hz
 
-from pounding_sweep.scene import load_scene
-from pounding_sweep.scene.schema import Axis, CalibrateConfig, ExperimentConfig
+from pounding_sweep.scene.schema import Axis
 from pounding_sweep.sweep.calibrate import calibrate, law_table
 from pounding_sweep.sweep.lawcompare import dm_statistic, information_criteria, long_run_variance
-from pounding_sweep.synthetic import ar1_noise, make_experiment, write_experiment
+from pounding_sweep.synthetic import ar1_noise
 from pounding_sweep.warn import collecting
 
 
@@ -95,24 +94,9 @@ def test_laws_compared_end_to_end(tmp_path):
     0.05 mm noise; classic, no_tension and hertz (elastic) calibrated over k_s/k and r. The elastic law cannot
     dissipate what the data dissipate: it is no candidate. The classic law is one, and the only law the data may
     choose (no_tension differs only while the dashpot pulls, which the data may not resolve)."""
-    s = load_scene(SWEEPS / "paper_6hz.toml")
-    s = dataclasses.replace(s, sweep=(), excitation=dataclasses.replace(s.excitation, duration_s=1.5))
-    df, prov = make_experiment(
-        s, {"ks_ratio": 3.0, "r": 0.5}, stiffness_factor=(1.0, 1.0), damping_factor=(1.0, 1.0), dt_s=1e-4, seed=3
-    )
-    path = tmp_path / "exp.parquet"
-    write_experiment(df, prov, path)
-    exp = ExperimentConfig(table=str(path), channels={"model1_floor3_mm": "b1f3", "model2_floor3_mm": "b2f3"})
-    cal = CalibrateConfig(
-        parameters={"ks_ratio": [0.1, 20.0], "r": [0.05, 1.0]},
-        global_points=8,
-        starts=1,
-        profile_points=0,
-        noise_m=5e-5,
-    )
-    scene = dataclasses.replace(
-        s, experiment=exp, sweep=(Axis("law", ("classic", "no_tension", "hertz")),), calibrate=cal
-    )
+    bounds = {"ks_ratio": [0.1, 20.0], "r": [0.05, 1.0]}
+    scene = exact_6hz(tmp_path, 3, parameters=bounds, global_points=8, starts=1, profile_points=0, noise_m=5e-5)
+    scene = dataclasses.replace(scene, sweep=(Axis("law", ("classic", "no_tension", "hertz")),))
     with collecting():
         fits = calibrate(scene, 2)
     cmp = fits[0].comparison

@@ -10,17 +10,14 @@
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
-from conftest import SWEEPS
+from calibration_cases import exact_6hz
 
-from pounding_sweep.scene import load_scene
-from pounding_sweep.scene.schema import CalibrateConfig, ExperimentConfig
 from pounding_sweep.sweep.calibrate import calibrate
 from pounding_sweep.sweep.posterior import autocorrelation_time, quantile_error, sample_posterior, stretch_sampler
-from pounding_sweep.synthetic import ar1_noise, make_experiment, write_experiment
+from pounding_sweep.synthetic import ar1_noise
 
 
 def test_the_stretch_sampler_samples_a_correlated_normal():
@@ -61,20 +58,8 @@ def test_the_autocorrelation_time_of_ar1_chains():
 
 
 def test_credible_intervals_agree_with_the_profiles(tmp_path):
-    s = load_scene(SWEEPS / "paper_6hz.toml")
-    s = dataclasses.replace(s, sweep=(), excitation=dataclasses.replace(s.excitation, duration_s=1.5))
-    df, prov = make_experiment(
-        s, {"ks_ratio": 3.0, "r": 0.5}, stiffness_factor=(1.0, 1.0), damping_factor=(1.0, 1.0), dt_s=1e-4, seed=4
-    )
-    path = tmp_path / "exp.parquet"
-    write_experiment(df, prov, path)
-    scene = dataclasses.replace(
-        s,
-        experiment=ExperimentConfig(table=str(path), channels={"model1_floor3_mm": "b1f3", "model2_floor3_mm": "b2f3"}),
-        calibrate=CalibrateConfig(
-            parameters={"ks_ratio": [0.1, 20.0], "r": [0.05, 1.0]}, global_points=8, profile_points=9, noise_m=5e-5
-        ),
-    )
+    bounds = {"ks_ratio": [0.1, 20.0], "r": [0.05, 1.0]}
+    scene = exact_6hz(tmp_path, 4, parameters=bounds, global_points=8, profile_points=9, noise_m=5e-5)
     fit = calibrate(scene, 2)[0]
     post = sample_posterior(fit, steps=120, walkers=8, seed=2)
     tol = 4 * quantile_error(post.ess)  # in standard errors; 4 Monte Carlo errors: fails with probability < 1e-4

@@ -24,13 +24,14 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from calibration_cases import exact_6hz
 from conftest import SWEEPS
 
 from pounding_sweep.scene import load_scene
 from pounding_sweep.scene.schema import CalibrateConfig, ExperimentConfig
 from pounding_sweep.sweep.calibrate import calibrate, fit_table
 from pounding_sweep.sweep.uncertainty import better_window_fit
-from pounding_sweep.synthetic import make_experiment, make_ivp_experiment, write_experiment
+from pounding_sweep.synthetic import make_ivp_experiment, write_experiment
 from pounding_sweep.warn import collecting
 
 
@@ -81,14 +82,13 @@ def test_amplitude_dependent_stiffness(tmp_path):
     df, prov = make_ivp_experiment(s, {}, drift_scale_m=0.01, seed=7)
     path = tmp_path / "soft.parquet"
     write_experiment(df, prov, path)
-    channels = {f"model{b}_floor{f}_mm": f"b{b}f{f}" for b in (1, 2) for f in (1, 2, 3)}
-    scene = dataclasses.replace(s, experiment=ExperimentConfig(table=str(path), channels=channels))
-    b1, b2 = s.building1.damping_ratio, s.building2.damping_ratio
-    params = {
-        "stiffness_scale_b1": [0.8, 1.2],
-        "stiffness_scale_b2": [0.8, 1.2],
-        "damping_ratio_b1": [0.2 * b1, 5 * b1],
-        "damping_ratio_b2": [0.2 * b2, 5 * b2],
+    floors = [(b, f) for b in (1, 2) for f in (1, 2, 3)]
+    exp = ExperimentConfig(table=str(path), channels={f"model{b}_floor{f}_mm": f"b{b}f{f}" for b, f in floors})
+    scene = dataclasses.replace(s, experiment=exp)
+    params = {f"stiffness_scale_b{b}": [0.8, 1.2] for b in (1, 2)}  # and the damping ratios, x0.2 to x5
+    params |= {
+        f"damping_ratio_b{b}": [0.2 * z, 5 * z]
+        for b, z in ((1, s.building1.damping_ratio), (2, s.building2.damping_ratio))
     }
     whole, parts = _fits(scene, params, {"strong": (1.0, 6.0), "free vibration": (7.0, 12.0)})
     print(f"\n[softening] misfit {whole.misfit_ratio:.1f}; noise {whole.ci95}; model error {whole.ci95_model}")
@@ -128,20 +128,8 @@ def test_per_story_stiffness_where_the_model_is_uniform(tmp_path):
 def test_without_model_error_the_noise_interval_is_quoted(tmp_path):
     """The structure as modelled (the engine's own discretisation, dt 1e-4 s): the misfit stays at the noise and
     no window split is made."""
-    s = load_scene(SWEEPS / "paper_6hz.toml")
-    s = dataclasses.replace(s, sweep=(), excitation=dataclasses.replace(s.excitation, duration_s=1.5))
-    df, prov = make_experiment(
-        s, {"ks_ratio": 3.0, "r": 0.5}, stiffness_factor=(1.0, 1.0), damping_factor=(1.0, 1.0), dt_s=1e-4, seed=2
-    )
-    path = tmp_path / "exact.parquet"
-    write_experiment(df, prov, path)
-    scene = dataclasses.replace(
-        s,
-        experiment=ExperimentConfig(table=str(path), channels={"model1_floor3_mm": "b1f3", "model2_floor3_mm": "b2f3"}),
-        calibrate=CalibrateConfig(
-            parameters={"ks_ratio": [0.1, 20.0], "r": [0.05, 1.0]}, global_points=8, profile_points=0, noise_m=5e-5
-        ),
-    )
+    bounds = {"ks_ratio": [0.1, 20.0], "r": [0.05, 1.0]}
+    scene = exact_6hz(tmp_path, 2, parameters=bounds, global_points=8, profile_points=0, noise_m=5e-5)
     fit = calibrate(scene, 2)[0]
     assert fit.misfit_ratio < 1.5
     assert fit.quote == "noise" and fit.ci95_model == {} and fit.windows == []

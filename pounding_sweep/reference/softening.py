@@ -145,7 +145,8 @@ def softening_reference(
             raise RuntimeError(f"softening_reference: solve_ivp failed at t = {sol.t[-1]}: {sol.message}")
         t1 = sol.t[-1]
         on = np.flatnonzero((grid >= t0 - 1e-12) & (grid <= t1 + 1e-12))  # the output instants in this piece
-        Y[on], ACT[on] = sol.sol(np.clip(grid[on], t0, t1)).T, active
+        if on.size:
+            Y[on], ACT[on] = sol.sol(np.clip(grid[on], t0, t1)).T, active
         if sol.status == 1:  # a contact event ended the piece: the earliest pair flips
             j = int(np.argmin([tev[0] if tev.size else np.inf for tev in sol.t_events]))
             te, y = float(sol.t_events[j][0]), sol.y_events[j][0].copy()

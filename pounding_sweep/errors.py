@@ -25,6 +25,10 @@ class ExperimentError(InputError):
     """A tracked-displacement table that cannot be scored against: names the file and column."""
 
 
+class SensorError(InputError):
+    """A raw sensor export that cannot be imported (model/sensors): names the file, the line or column, the value."""
+
+
 class ResultError(InputError):
     """A file given as a sweep's result that is not one (a scene, a histories dataset, a best table):
     the message names the file, what it is, and what to give instead."""

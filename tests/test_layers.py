@@ -30,6 +30,7 @@ LAYERS = {
     "synthetic": 7,  # demo data (synthetic experiments), made by the engine or by the references
     "accuracy": 7,
     "gaps": 7,  # error against run time, stability of runs; seismic-gap studies
+    "risk": 7.5,  # probabilistic pounding: above the gap studies (their rules), below plots
     "plots": 8,
     "cli": 9,
     "__main__": 10,

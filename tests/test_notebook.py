@@ -17,7 +17,7 @@ pytest.importorskip("matplotlib", reason="the notebook test needs the 'notebook'
 
 NOTEBOOK = REPO / "notebooks" / "analysis.ipynb"
 KERNEL = "pounding-sweep-test"
-FIGURES = 5  # heatmaps, displacement history, SSP, pounding force, error against run time
+FIGURES = 8  # heatmaps, displacement history, SSP, pounding force, error against run time; risk: P vs gap, fragility, required gap
 
 
 def _kernel_manager(tmp_path):

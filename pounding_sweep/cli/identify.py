@@ -38,12 +38,20 @@ def _identify_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--input",
         default="auto",
-        help="column with the table's motion (displacement; acceleration if its name says acc): modes from the "
-        "transmissibility floor / table; 'none': from the floors alone (default: the column named table* or "
-        "ground*, if there is one)",
+        help="column with the table's motion: modes from the transmissibility floor / table; 'none': from the "
+        "floors alone (default: the column named table* or ground*, if there is one; with --free-vibration none)",
     )
     p.add_argument(
-        "--free-vibration", action="store_true", help="the record is free vibration: also logarithmic decrement"
+        "--input-kind",
+        choices=["displacement", "velocity", "acceleration"],
+        help="what the table's column measures (default: the table's metadata, as import writes it, else "
+        "displacement); it weighs the harmonic-table test",
+    )
+    p.add_argument(
+        "--free-vibration",
+        action="store_true",
+        help="the record is free vibration (the table at rest): modes from the floors alone (the table's column "
+        "is only checked to be quiet, unless --input names it), no harmonic refusal, logarithmic decrement too",
     )
     p.add_argument("--scene", help="scene whose buildings are updated to the identified first frequencies")
     p.add_argument(
@@ -64,11 +72,19 @@ def _print_identification(ident, forcing) -> None:
     from pounding_sweep.identify.safety import forcing_notes
 
     print(f"method: {ident.method}")
-    if ident.input_line is not None:
-        line = ident.input_line
+    if ident.table_line is not None:
+        line = ident.table_line
+        what = "broadband" if line.fraction < 0.5 else "one line dominates"
+        if not line.fraction > 0:
+            what = "nothing above its noise: a quiet table"
+        if line.fraction >= 0.5 and line.over_noise < 10:
+            what = "a line barely above its noise: a quiet table"
+        used = "" if ident.input_column else " (not the input)"
         print(
-            f"table motion '{ident.input_column}': largest line {line.frequency_Hz:.3f} Hz holds "
-            f"{100 * line.fraction:.1f} % of its acceleration power (broadband)"
+            f"table motion '{ident.table_column}'{used} ({line.kind}, from {ident.input_kind_source}): largest line "
+            f"{line.frequency_Hz:.3f} Hz holds {100 * line.fraction:.1f} % of its acceleration power above the noise"
+            + (f", {line.over_noise:.3g} times the noise" if line.fraction >= 0.5 else "")
+            + f" ({what})"
         )
     for b, r in sorted(ident.results.items()):
         head = f"building {b}" if b else "other columns"
@@ -79,10 +95,23 @@ def _print_identification(ident, forcing) -> None:
         if not r.modes:
             print("  no mode")
         for k, m in enumerate(r.modes, 1):
-            ld = "" if m.damping_log_decrement is None else f", log decrement {100 * m.damping_log_decrement:.2f} %"
+            ld = ""
+            if m.damping_log_decrement is not None:
+                se = m.damping_log_decrement_se
+                pm = f" +/- {100 * se:.2f}" if se is not None and np.isfinite(se) else ""
+                ld = f", log decrement {100 * m.damping_log_decrement:.2f}{pm} %"
+            lo, hi = m.damping_half_power_interval
             hp = "n/a" if not np.isfinite(m.damping_half_power) else f"{100 * m.damping_half_power:.2f} %"
+            if np.isfinite(m.damping_half_power):
+                hp += f" (within {100 * lo:.2f}-{100 * hi:.2f} %: +/- a resolution on the band)"
+            elif np.isfinite(hi):
+                hp += f" (at most {100 * hi:.2f} %: the band less the window's decay, plus a resolution)"
+            if np.isfinite(m.damping_fit):
+                a, b = m.damping_fit_ci95
+                ld += f", fitted {100 * m.damping_fit:.2f} % (95 % {100 * a:.2f} to {100 * b:.2f} %)"
+            merged = f"; merged peaks {', '.join(f'{f:.3f}' for f in m.merged_Hz)} Hz" if m.merged_Hz else ""
             shape = ", ".join(f"{c} {v:+.3f}" for c, v in m.shape.items())
-            print(f"  mode {k}: {m.frequency_Hz:.4f} Hz, damping half-power {hp}{ld}; shape {shape}")
+            print(f"  mode {k}: {m.frequency_Hz:.4f} Hz, damping half-power {hp}{ld}; shape {shape}{merged}")
         for n in list(r.notes) + forcing_notes(r, forcing):
             print(f"  note: {n}")
 
@@ -105,7 +134,7 @@ def identify_main(argv: list[str]) -> int:
             )
         if args.out and not args.scene:
             raise Bad(args.out, "--out writes updated buildings: it needs --scene", "--out without --scene")
-        df, _ = read_table(src)
+        df, md = read_table(src)
         scene = load_scene(args.scene) if args.scene else None
         ident = identify_table(
             df,
@@ -118,6 +147,8 @@ def identify_main(argv: list[str]) -> int:
             args.start,
             args.free_vibration,
             args.input,
+            args.input_kind,
+            md,
         )
         forcing = forcing_frequencies(ident, scene)
         _print_identification(ident, forcing)

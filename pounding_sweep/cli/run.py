@@ -27,6 +27,8 @@ SUBCOMMANDS = {
     "track": "pounding_sweep.cli.track:track_main",
     "identify": "pounding_sweep.cli.identify:identify_main",
     "gaps": "pounding_sweep.cli.gaps:gaps_main",
+    "import": "pounding_sweep.cli.import_:import_main",
+    "risk": "pounding_sweep.cli.risk:risk_main",
 }
 #: one line per subcommand for --help (each has its own: python -m pounding_sweep NAME --help)
 SUBCOMMAND_HELP = {
@@ -34,13 +36,15 @@ SUBCOMMAND_HELP = {
     "identify": "identify TABLE [--scene S --out T]: frequencies, damping and mode shapes; the model update",
     "plot": "plot RESULTS: PNG figures of a result file (heatmaps, best run's histories, error vs run time)",
     "gaps": "gaps SCENE [--out T]: the seismic gap each floor pair needs, by rule and from the histories",
+    "import": "import NAME=FILE ... --out DIR: raw sensor exports -> an experiment table, a record, provenance",
+    "risk": "risk SCENE [--out D]: probability of pounding against the gap, fragility, required gap ([risk])",
 }
 
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="python -m pounding_sweep",
-        usage="%(prog)s [options] SCENE.toml\n       %(prog)s {track,identify,plot,gaps} ... (see below)",
+        usage="%(prog)s [options] SCENE.toml\n       %(prog)s {track,identify,plot,gaps,import,risk} ... (see below)",
         description="Run a pounding scene: every grid point of its [sweep] through the Newmark/Kelvin-Voigt "
         "kernel, one Parquet row per run (metrics with units in the column names; the scene, its hash and "
         "the package versions in the file metadata).",
@@ -165,6 +169,16 @@ def _print_warning(w) -> None:
     print(f"warning: {w.message}", file=sys.stderr, flush=True)
 
 
+def check_execution_options(args) -> None:
+    """--threads, --workers and --dask-address, checked before anything is read (shared by the subcommands)."""
+    if args.threads is not None:
+        check_workers(args.threads, "--threads")
+    if args.workers is not None:
+        check_workers(args.workers, "--workers")
+    if args.dask_address:
+        check_dask_address(args.dask_address, "--dask-address")
+
+
 def _with_execution(scene, args):
     """The scene with the command line's executor choices in place of its [execution] ones."""
     import dataclasses
@@ -200,12 +214,7 @@ def main(argv: list[str] | None = None) -> int:
     scene = None
     try:
         with _terminated_as_interrupt():
-            if args.threads is not None:
-                check_workers(args.threads, "--threads")
-            if args.workers is not None:
-                check_workers(args.workers, "--workers")
-            if args.dask_address:
-                check_dask_address(args.dask_address, "--dask-address")
+            check_execution_options(args)
             scene = load_scene(args.scene)
             from pounding_sweep.sweep.run import (
                 run_scene,

@@ -125,7 +125,7 @@ def required_gaps(scene: Scene, length_scale: float | None = None, threads: int 
             closing = SEPARATED_GAP_M - m[f"closest_approach_f{j}_m"][0]  # the largest u1 - u2
             u1, u2 = m[f"peak_disp_b1f{j}_m"][0], m[f"peak_disp_b2f{j}_m"][0]
             row = {
-                "record": "harmonic" if rec is None else _name(rec),
+                "record": _label(scene, rec),
                 "pair": j,
                 "height_m": np.nan if heights is None else float(heights[j - 1]),
                 "exact_m": max(0.0, closing),
@@ -160,7 +160,7 @@ def response_ratios(scene: Scene, required, relative_gaps=RELATIVE_GAPS, contact
     model = CoupledModel.from_scene(scene)
     rows = []
     for rec in _records(scene):
-        name = "harmonic" if rec is None else _name(rec)
+        name = _label(scene, rec)
         g_req = float(required[required.record == name].exact_m.max())
         rel = np.asarray(relative_gaps, dtype=float)
         m = _metrics(_point(scene, rec, tuple(rel * g_req) + (SEPARATED_GAP_M,), contact), threads)
@@ -200,6 +200,13 @@ def gap_study(
     ratios = response_ratios(scene, req, relative_gaps, point, threads)
     lam = float(req.length_scale.iloc[0])
     return GapStudy(scene.name, lam, point, req, ratios)
+
+
+def _label(scene: Scene, record) -> str:
+    """The motion's name in the tables: the record's, 'harmonic', or the stochastic realisation's seed."""
+    if record is not None:
+        return _name(record)
+    return "harmonic" if scene.excitation.type == "harmonic" else f"stochastic seed {scene.stochastic.seed}"
 
 
 def _name(path: str) -> str:

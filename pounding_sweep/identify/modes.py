@@ -50,6 +50,7 @@ NumPy and SciPy only (no OpenCV).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -122,6 +123,9 @@ class InputLine:
     fraction: float  # of the acceleration power above the noise floor, in the line's main lobe
     kind: str  # 'displacement', 'velocity' or 'acceleration'
     resolution_Hz: float
+    #: the line's power over the table's noise power in the whole band (the median PSD level times the band's
+    #: width, in the motion's own quantity): a driven table's line stands far above its noise, a quiet one's not
+    over_noise: float = float("inf")
 
 
 def input_line(x, fs: float, kind: str = "displacement") -> InputLine:
@@ -142,14 +146,16 @@ def input_line(x, fs: float, kind: str = "displacement") -> InputLine:
     keep = band & (p > 4.0 * float(np.median(p[band])))
     q = np.where(keep, p * f ** TO_ACCELERATION[kind], 0.0)
     if q.sum() <= 0:
-        return InputLine(float("nan"), 0.0, kind, res)
+        return InputLine(float("nan"), 0.0, kind, res, 0.0)
     i = int(np.argmax(q))
     lobe = np.abs(f - f[i]) <= 2.0 * res
+    noise_power = float(np.median(p[band])) * (f[band][-1] - f[band][0])
+    over = float(np.sum(p[lobe]) * (f[1] - f[0]) / noise_power) if noise_power > 0 else float("inf")
     # the line's frequency, read between bins on the whole record's spectrum
     a = amplitude_spectrum(scipy.signal.detrend(x), fs)
     near = np.nonzero(np.abs(a.frequency_Hz - f[i]) <= 2.0 * res)[0]
     j = int(near[np.argmax(a.values[near])])
-    return InputLine(refine_peak(a.frequency_Hz, a.values, j)[0], float(q[lobe].sum() / q.sum()), kind, res)
+    return InputLine(refine_peak(a.frequency_Hz, a.values, j)[0], float(q[lobe].sum() / q.sum()), kind, res, over)
 
 
 @dataclass(frozen=True)
@@ -223,6 +229,7 @@ class Peak:
     frequency_Hz: float
     height: float
     bin: int
+    prominence: float = float("nan")  # scipy.signal.find_peaks' prominence on the spectrum searched
 
 
 def _band(s: Spectrum, fmin: float, fmax: float | None) -> tuple[float, float, np.ndarray]:
@@ -283,8 +290,9 @@ def find_peaks(
             higher = (v[found] > v[found[k]]) & (d > 1.0)
             if np.any(v[found[k]] <= 2.0 * sidelobes(d[higher]) * v[found[higher]]):
                 inside[k] = False
-    order = found[inside][np.argsort(-props["prominences"][inside])]
-    peaks = [Peak(*refine_peak(f, v, int(i)), int(i)) for i in order]
+    prom = props["prominences"][inside]
+    order = np.argsort(-prom)
+    peaks = [Peak(*refine_peak(f, v, int(i)), int(i), float(p)) for i, p in zip(found[inside][order], prom[order])]
     if valid is not None:
         peaks = [p for p in peaks if valid(p)]
     return sorted(peaks[:n], key=lambda p: p.frequency_Hz)
@@ -339,6 +347,7 @@ class LogDecrement:
     peak_times_s: np.ndarray
     peak_values: np.ndarray
     cycles: int
+    damping_std_error: float = float("nan")  # from the line's slope (least squares), nan with 3 peaks
 
 
 def log_decrement(
@@ -389,10 +398,18 @@ def log_decrement(
     if vp.size < 3:
         raise ValueError(f"need at least 3 decaying peaks above the noise, found {vp.size}")
     k = np.arange(vp.size)
-    slope = np.polyfit(k, np.log(vp), 1)[0]
+    (slope, icpt) = np.polyfit(k, np.log(vp), 1)
     delta = -float(slope)
     fd = (vp.size - 1) / (tp[-1] - tp[0])
-    return LogDecrement(float(delta / np.sqrt(4 * np.pi**2 + delta**2)), delta, float(fd), tp, vp, int(vp.size - 1))
+    # the slope's standard error (ordinary least squares), through d zeta / d delta = 4 pi^2 / (4 pi^2 + delta^2)^1.5
+    resid = np.log(vp) - (slope * k + icpt)
+    se_slope = (
+        float(np.sqrt(resid @ resid / (vp.size - 2) / np.sum((k - k.mean()) ** 2))) if vp.size > 3 else float("nan")
+    )
+    se = se_slope * 4 * np.pi**2 / (4 * np.pi**2 + delta**2) ** 1.5
+    return LogDecrement(
+        float(delta / np.sqrt(4 * np.pi**2 + delta**2)), delta, float(fd), tp, vp, int(vp.size - 1), float(se)
+    )
 
 
 def fourier_coefficients(X, fs: float, f: float, window: str = "hann") -> np.ndarray:
@@ -434,6 +451,26 @@ class Mode:
     damping_half_power: float  # NaN when the band is not resolved
     damping_log_decrement: float | None  # free vibration only
     shape: dict  # channel -> signed ratio to the reference channel
+    #: the half-power damping's interval: each half-power frequency known to half a resolution, so the band to
+    #: one resolution: zeta +/- resolution / (2 f) (the lower end clipped at 0)
+    damping_half_power_interval: tuple[float, float] = (float("nan"), float("nan"))
+    damping_log_decrement_se: float | None = None  # its standard error (the log line's slope)
+    merged_Hz: tuple[float, ...] = ()  # other peaks of the same shape merged into this mode (MAC >= MAC_SAME)
+    prominence: float = float("nan")
+    #: transmissibility only: one mode fitted to the complex ratio near the peak (fit_peak), the window's decay
+    #: removed; its 95 % interval from the fit's standard error inflated for the window's bin correlation
+    damping_fit: float = float("nan")
+    damping_fit_ci95: tuple[float, float] = (float("nan"), float("nan"))
+    frequency_fit_Hz: float = float("nan")
+
+
+#: two peaks whose shapes have a MAC at least this are one mode (a split peak): Allemang, "The modal assurance
+#: criterion - twenty years of use and abuse", Sound and Vibration 37 (2003): above 0.9, consistent shapes
+MAC_SAME = 0.9
+#: ... and lie within this share of each other's frequency: a split peak (a frequency that drifts with the
+#: amplitude during a record, beating) is a few percent wide; a forced response's peaks (output-only: the
+#: input's spectrum) have the first mode's shape too, and lie further off
+MERGE_SPAN = 0.05
 
 
 @dataclass(frozen=True)
@@ -493,7 +530,7 @@ def identify(
         tot = sum(s.values / max(s.values[1:].max(), 1e-300) for s in specs)
         sumspec = Spectrum(specs[0].frequency_Hz, tot, "amplitude", specs[0].resolution_Hz)
         lobes = hann_sidelobes if win == "hann" else None
-        peaks = find_peaks(sumspec, n_modes, fmin, fmax, min_snr=min_snr, sidelobes=lobes)
+        peaks = find_peaks(sumspec, 2 * n_modes, fmin, fmax, min_snr=min_snr, sidelobes=lobes)
         rect = amplitude_spectrum(Xs[:, reference], fs, window="boxcar")
         method = "output-only"
     else:
@@ -515,7 +552,7 @@ def identify(
             dropped.append(p)
             return False
 
-        peaks = find_peaks(sumspec, n_modes, fmin, fmax, min_snr=min_snr, valid=above_noise)
+        peaks = find_peaks(sumspec, 2 * n_modes, fmin, fmax, min_snr=min_snr, valid=above_noise)
         for p in sorted(dropped[:n_modes], key=lambda p: p.frequency_Hz):
             notes.append(
                 f"{p.frequency_Hz:.3f} Hz: a peak of the transmissibility where the floors' response is at its "
@@ -530,7 +567,7 @@ def identify(
         for p in peaks:
             a, b = max(p.bin - half, 1), min(p.bin + half, f.size - 2)
             i = a + int(np.argmax(rawsum[a : b + 1]))
-            placed.append(Peak(*refine_peak(f, rawsum, i), i) if a < i < b else p)
+            placed.append(Peak(*refine_peak(f, rawsum, i), i, p.prominence) if a < i < b else p)
         peaks = placed
         # damping: the unsmoothed ratio keeps the peak's width (the exponential window's sigma is removed below)
         rect = Spectrum(f, np.abs(tr.raw[:, reference]), "amplitude", fs / Xs.shape[0])
@@ -547,31 +584,190 @@ def identify(
     modes = []
     for p in peaks:
         zhp = half_power_damping(rect, p.frequency_Hz)
+        interval = (float("nan"), float("nan"))
         if np.isfinite(zhp):
             # the band as measured; under the exponential window it is widened by sigma / pi, removed here
             band = 2 * zhp * p.frequency_Hz
             zhp -= sigma / (2 * np.pi * p.frequency_Hz)
-            if band < 2 * rect.resolution_Hz or zhp <= 0:
+            half = rect.resolution_Hz / (2 * p.frequency_Hz)
+            interval = (max(zhp - half, 0.0), max(zhp + half, 0.0))
+            if zhp <= 0:
+                notes.append(
+                    f"{p.frequency_Hz:.3f} Hz: half-power damping {100 * zhp:.2f} % after the window's decay "
+                    f"{sigma:.3g} 1/s is removed, not above 0: the peak is no wider than the window makes it (record "
+                    "too short, or not a resonance): damping unreliable"
+                )
+                zhp = float("nan")
+            elif band < 2 * rect.resolution_Hz:
                 notes.append(
                     f"{p.frequency_Hz:.3f} Hz: half-power band {band:.3g} Hz is not wider than twice the resolution "
                     f"{rect.resolution_Hz:.3g} Hz (record too short): damping unreliable"
                 )
-            if zhp <= 0:
-                zhp = float("nan")
-        zld = None
+        zld, zse = None, None
         if free_vibration:
             hi_bp = min(1.25 * p.frequency_Hz, 0.49 * fs)
             try:
-                zld = log_decrement(Xs[:, reference], fs, band_Hz=(0.75 * p.frequency_Hz, hi_bp)).damping_ratio
+                ld = log_decrement(Xs[:, reference], fs, band_Hz=(0.75 * p.frequency_Hz, hi_bp))
+                zld, zse = ld.damping_ratio, ld.damping_std_error
+                if zld <= 0:
+                    notes.append(
+                        f"{p.frequency_Hz:.3f} Hz: logarithmic decrement {100 * zld:.2f} %: the peaks do not decay "
+                        "(forced, or beating of two close modes): damping unreliable"
+                    )
             except ValueError as e:
                 notes.append(f"{p.frequency_Hz:.3f} Hz: no logarithmic decrement ({e})")
+        zfit, zci, ffit = float("nan"), (float("nan"), float("nan")), float("nan")
+        if table is not None:
+            zfit, zci, ffit = _fitted_damping(tr, reference, p.frequency_Hz, zhp, Xs.shape[0], fs, notes)
         if table is None:
             ratios, _ = mode_shape_ratios(Xs, fs, p.frequency_Hz, reference, window=win)
         else:
             h = tr.H[p.bin]
             r = h / h[reference] if abs(h[reference]) > 0 else np.full(h.shape, np.nan)
             ratios = np.abs(r) * np.sign(np.cos(np.angle(r)))
-        modes.append(Mode(p.frequency_Hz, zhp, zld, dict(zip(channels, ratios.tolist()))))
+        modes.append(
+            Mode(
+                p.frequency_Hz,
+                zhp,
+                zld,
+                dict(zip(channels, ratios.tolist())),
+                interval,
+                zse,
+                (),
+                p.prominence,
+                zfit,
+                zci,
+                ffit,
+            )
+        )
+    found = {f"{m.frequency_Hz:.3f}" for m in modes}
+    modes = merge_same_shapes(modes, notes)
+    # the n most prominent of the peaks looked for (twice as many, so that a merged split peak leaves room)
+    if len(modes) > n_modes:
+        order = sorted(range(len(modes)), key=lambda k: -modes[k].prominence if np.isfinite(modes[k].prominence) else 0)
+        modes = sorted((modes[k] for k in order[:n_modes]), key=lambda m: m.frequency_Hz)
+    # the notes on a peak merged into another or left out are not about a mode reported
+    gone = found - {f"{m.frequency_Hz:.3f}" for m in modes}
+    notes = [n for n in notes if n.split(" Hz: ")[0] not in gone]
     return ModalResult(
         channels, float(fs), channels[reference], tuple(modes), sumspec, tuple(notes), method, sigma, (lo, hi)
     )
+
+
+def _fitted_damping(tr: Transmissibility, reference: int, f_peak: float, zhp: float, n: int, fs: float, notes: list):
+    """(damping, its 95 % interval, frequency) of the mode at f_peak fitted to the unsmoothed ratio (fit_peak)
+    over +/- 3 half-power bandwidths of the windowed response (at least 6 bins of 1 / T), the window's decay
+    sigma / omega removed. The bins are 1 / T apart (every pad-th of the zero-padded transform); the window
+    correlates neighbours over about 1 + sigma T / pi of them (its transform's width), so the standard error is
+    inflated by the square root of that (the effective number of independent bins)."""
+    T = n / fs
+    df = tr.frequency_Hz[1] - tr.frequency_Hz[0]
+    step = max(1, int(round(1.0 / (T * df))))
+    z_window = tr.decay_per_s / (2 * np.pi * f_peak)
+    z_est = (zhp if np.isfinite(zhp) else 0.0) + z_window
+    half = max(3 * 2 * z_est * f_peak, 6.0 / T)
+    fit = fit_peak(tr.frequency_Hz, tr.raw[:, reference], f_peak, half, step)
+    nan = float("nan")
+    if fit is None:
+        notes.append(f"{f_peak:.3f} Hz: no damping fit (too few bins near the peak)")
+        return nan, (nan, nan), nan
+    z = fit.damping_ratio - tr.decay_per_s / (2 * np.pi * fit.frequency_Hz)
+    from scipy.stats import t as student_t
+
+    inflate = np.sqrt(1.0 + tr.decay_per_s * T / np.pi)
+    q = float(student_t.ppf(0.975, max(2 * fit.points - 6, 1)))
+    ci = (z - q * inflate * fit.damping_se, z + q * inflate * fit.damping_se)
+    if z <= 0:
+        notes.append(
+            f"{f_peak:.3f} Hz: fitted damping {100 * z:.2f} % (95 % {100 * ci[0]:.2f} to {100 * ci[1]:.2f} %) is not "
+            "above 0 once the window's decay is removed: damping unreliable (the record too short for it)"
+        )
+    elif ci[0] <= 0:
+        notes.append(
+            f"{f_peak:.3f} Hz: fitted damping {100 * z:.2f} %, but its 95 % interval ({100 * ci[0]:.2f} to "
+            f"{100 * ci[1]:.2f} %) reaches 0: not told from no damping by this record"
+        )
+    if fit.rms_misfit > 0.5:
+        notes.append(
+            f"{f_peak:.3f} Hz: one mode fits the response near the peak only to {100 * fit.rms_misfit:.0f} % "
+            "RMS: close modes or noise; the fitted damping unreliable"
+        )
+    return z, ci, fit.frequency_Hz
+
+
+def merge_same_shapes(modes: list[Mode], notes: list[str]) -> list[Mode]:
+    """Neighbouring peaks (in frequency, within MERGE_SPAN) whose shapes have a MAC of MAC_SAME or more are one mode: the more
+    prominent peak is kept, the other listed in its merged_Hz, and a note says so. With one channel every shape
+    is the same: nothing is merged (a single channel cannot tell a split peak from two modes)."""
+    if not modes or len(modes[0].shape) < 2:
+        return modes
+    out = [modes[0]]
+    for m in modes[1:]:
+        prev = out[-1]
+        a, b = np.array(list(prev.shape.values())), np.array(list(m.shape.values()))
+        near = m.frequency_Hz - prev.frequency_Hz <= MERGE_SPAN * m.frequency_Hz
+        if near and np.all(np.isfinite(a)) and np.all(np.isfinite(b)) and mac(a, b) >= MAC_SAME:
+            keep, drop = (prev, m) if not (m.prominence > prev.prominence) else (m, prev)
+            notes.append(
+                f"{drop.frequency_Hz:.3f} and {keep.frequency_Hz:.3f} Hz have the same shape (MAC {mac(a, b):.3f} >= "
+                f"{MAC_SAME:g}): one mode, a split peak; kept {keep.frequency_Hz:.3f} Hz, the more prominent"
+            )
+            out[-1] = dataclasses.replace(keep, merged_Hz=(*keep.merged_Hz, drop.frequency_Hz, *drop.merged_Hz))
+        else:
+            out.append(m)
+    return out
+
+
+@dataclass(frozen=True)
+class PeakFit:
+    """One mode fitted to a complex frequency response near its peak (fit_peak)."""
+
+    frequency_Hz: float
+    damping_ratio: float  # as in the response fitted (the exponential window's share not yet removed)
+    frequency_se_Hz: float
+    damping_se: float
+    points: int  # independent bins used
+    rms_misfit: float  # RMS residual over RMS |H| in the fitted band
+
+
+def fit_peak(f: np.ndarray, H: np.ndarray, f_peak: float, half_band_Hz: float, step: int = 1) -> PeakFit | None:
+    """Fit H(f) ~ A f0^2 / (f0^2 - f^2 + 2 i zeta f0 f) + C (one mode and a constant for the others: the
+    single-degree-of-freedom form of a modal model, as rational-fraction fitting does, Richardson & Formenti,
+    Proc. 1st IMAC 1982) to the complex response in f_peak +/- half_band_Hz, every `step`-th bin (independent
+    bins: 1 / record length apart). Variable projection: A and C by linear least squares for each (f0, zeta),
+    those two by scipy.optimize.least_squares; standard errors from the Gauss-Newton covariance
+    s^2 (J^T J)^-1 of the residuals. None when fewer than 6 bins or the fit fails."""
+    from scipy.optimize import least_squares
+
+    sel = np.nonzero(np.abs(f - f_peak) <= half_band_Hz)[0][::step]
+    if sel.size < 6:
+        return None
+    ff, hh = f[sel], H[sel]
+
+    def basis(p):
+        f0, z = p
+        return np.column_stack([f0 * f0 / (f0 * f0 - ff * ff + 2j * z * f0 * ff), np.ones(ff.size)])
+
+    def resid(p):
+        B = basis(p)
+        coef, *_ = np.linalg.lstsq(B, hh, rcond=None)
+        r = B @ coef - hh
+        return np.concatenate([r.real, r.imag])
+
+    z0 = max(half_band_Hz / (4 * f_peak), 1e-4)
+    try:
+        res = least_squares(resid, [f_peak, z0], bounds=([ff[0], 1e-6], [ff[-1], 0.5]), x_scale=[half_band_Hz, z0])
+    except (ValueError, np.linalg.LinAlgError):
+        return None
+    J = res.jac
+    dof = 2 * sel.size - 2 - 4  # real residuals less (f0, zeta) and the complex A, C
+    if dof <= 0:
+        return None
+    s2 = float(res.fun @ res.fun) / dof
+    try:
+        cov = np.linalg.inv(J.T @ J) * s2
+    except np.linalg.LinAlgError:
+        return None
+    se = np.sqrt(np.clip(np.diag(cov), 0, None))
+    misfit = float(np.sqrt(np.mean(res.fun**2) * 2) / np.sqrt(np.mean(np.abs(hh) ** 2)))
+    return PeakFit(float(res.x[0]), float(res.x[1]), float(se[0]), float(se[1]), int(sel.size), misfit)

@@ -3,8 +3,10 @@ table motion is refused, a peak at a forcing frequency is called the forcing, an
 lands on a forcing frequency or changes a stiffness by more than 30 % is not written unless forced.
 
 Where the forcing frequencies come from:
-- the table channel's largest line, when it holds half of the table's acceleration power or more
-  (a line holding 80 % or more is a harmonic test, refused before any peak is picked);
+- the table channel's largest line, when it holds half of the table's acceleration power or more and stands
+  HARMONIC_OVER_NOISE times above the table's noise (a line holding 80 % or more is a harmonic test, refused
+  before any peak is picked; a quiet table's line, in free vibration, is no forcing); a broadband table shows
+  no forcing, and then no harmonic series is looked for among the peaks;
 - without a table channel, the scene's harmonic excitation (the record is taken to be its response)
   and the fundamental of any harmonic series among a building's peaks (f, 2f, 3f ...: a periodic,
   i.e. forced, response; pounding under harmonic forcing makes exactly such series). A shear frame's
@@ -20,12 +22,16 @@ from dataclasses import dataclass
 
 #: a table motion with this share of its acceleration power in one line is a harmonic test (refused)
 HARMONIC_INPUT_FRACTION = 0.8
+#: ... and its line's power is at least this many times the table's noise power over the whole band
+HARMONIC_OVER_NOISE = 10.0
 #: a table line with this share is a forcing frequency (peaks near it are suspect)
 FORCING_LINE_FRACTION = 0.5
 #: a peak this close (relative) to a forcing frequency or its harmonic is taken for the forcing
 FORCING_TOLERANCE = 0.03
-#: peaks this close (relative) to k f0 make a harmonic series f0, 2 f0, ...
-HARMONIC_TOLERANCE = 0.01
+#: peaks this close (relative) to k f0 make a harmonic series f0, 2 f0, ... (or within k half resolutions):
+#: a forcing's harmonics are exact lines, read to a small part of a resolution; two modes near an integer
+#: ratio are off by more on a record long enough to resolve them
+HARMONIC_TOLERANCE = 0.002
 #: harmonics k f of a forcing frequency checked, k = 1 .. HARMONICS
 HARMONICS = 3
 #: a model update that scales a stiffness by more than this (relative) is not written unless forced
@@ -38,15 +44,32 @@ class Forcing:
     source: str  # where it was seen, for the messages
 
 
-def input_kind(column: str) -> str:
-    """What a table column measures, from its name: '..acc..' acceleration, '..vel..' velocity, else
-    displacement (a tracked table: mm)."""
-    name = str(column).lower()
-    if "acc" in name:
-        return "acceleration"
-    if "vel" in name:
-        return "velocity"
-    return "displacement"
+#: what a table column may measure (identify --input-kind)
+INPUT_KINDS = ("displacement", "velocity", "acceleration")
+
+
+def input_kind(column: str, given: str | None = None, metadata: dict | None = None) -> tuple[str, str]:
+    """(what the table column measures, where that was learnt): `given` (--input-kind), else the table's
+    metadata (`column_kinds`, which `python -m pounding_sweep import` writes), else displacement (the
+    tracked-displacement table's format). Never guessed from the column's name."""
+    import json
+
+    if given is not None:
+        return given, "--input-kind"
+    try:
+        kinds = json.loads((metadata or {}).get("column_kinds", "{}"))
+    except (TypeError, ValueError):
+        kinds = {}
+    if isinstance(kinds, dict) and kinds.get(str(column)) in INPUT_KINDS:
+        return kinds[str(column)], "the table's metadata"
+    return "displacement", "default: a tracked-displacement table; --input-kind acceleration if it is not"
+
+
+def is_harmonic(line) -> bool:
+    """A table motion is harmonic when one line holds HARMONIC_INPUT_FRACTION of its power above the noise and
+    stands HARMONIC_OVER_NOISE times above the table's whole noise power: a quiet table (free vibration) has a
+    line of its own noise or of the structure's reaction, not a forcing."""
+    return line.fraction >= HARMONIC_INPUT_FRACTION and line.over_noise >= HARMONIC_OVER_NOISE
 
 
 def close(f: float, g: float, resolution_Hz: float) -> bool:
@@ -56,15 +79,15 @@ def close(f: float, g: float, resolution_Hz: float) -> bool:
 
 def harmonic_fundamentals(freqs, resolution_Hz: float) -> list[float]:
     """Frequencies f0 among `freqs` with another of them at k f0 (k = 2 .. HARMONICS), within
-    HARMONIC_TOLERANCE or half a resolution (a harmonic made by the forcing or by impacts is exact, to
-    the peaks' precision)."""
+    HARMONIC_TOLERANCE or k half resolutions (a harmonic made by the forcing or by impacts is exact, to
+    the peaks' precision: k f0 carries k times f0's error)."""
     fs = sorted(freqs)
     out = []
     for i, f0 in enumerate(fs):
         if f0 <= 0:
             continue
         if any(
-            abs(g - k * f0) <= max(HARMONIC_TOLERANCE * k * f0, resolution_Hz / 2)
+            abs(g - k * f0) <= max(HARMONIC_TOLERANCE * k * f0, k * resolution_Hz / 2)
             for g in fs[i + 1 :]
             for k in range(2, HARMONICS + 1)
         ):
@@ -75,14 +98,13 @@ def harmonic_fundamentals(freqs, resolution_Hz: float) -> list[float]:
 def forcing_frequencies(ident, scene=None) -> list[Forcing]:
     """The forcing frequencies a TableIdentification and (optionally) the scene reveal (module docstring)."""
     out = []
-    line = ident.input_line
+    line = ident.input_line if ident.input_line is not None else getattr(ident, "table_line", None)
+    col = ident.input_column or getattr(ident, "table_column", None)
     if line is not None:
-        if line.fraction >= FORCING_LINE_FRACTION:
-            out.append(
-                Forcing(
-                    line.frequency_Hz, f"table column '{ident.input_column}', {100 * line.fraction:.0f} % of its power"
-                )
-            )
+        # the table's own motion says whether there is a forcing: a broadband table has none, and peaks near an
+        # integer ratio are then modes, not a forcing's harmonics
+        if line.fraction >= FORCING_LINE_FRACTION and line.over_noise >= HARMONIC_OVER_NOISE:
+            out.append(Forcing(line.frequency_Hz, f"table column '{col}', {100 * line.fraction:.0f} % of its power"))
         return out
     if scene is not None and scene.excitation.type == "harmonic":
         freqs = {scene.excitation.frequency_Hz}

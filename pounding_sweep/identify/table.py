@@ -7,16 +7,22 @@ ExperimentError naming the file, what is wrong and the value; so is a single-fre
 
 from __future__ import annotations
 
+import dataclasses
+import re
 from dataclasses import dataclass
 
 import numpy as np
 
 from pounding_sweep.errors import ExperimentError
 from pounding_sweep.identify.modes import InputLine, ModalResult, identify, input_line
-from pounding_sweep.identify.safety import HARMONIC_INPUT_FRACTION, input_kind
+from pounding_sweep.identify.safety import HARMONIC_INPUT_FRACTION, HARMONIC_OVER_NOISE, input_kind, is_harmonic
 from pounding_sweep.identify.update import StiffnessUpdate, update_scene
+from pounding_sweep.model.experiment import MAX_TABLE_STEP_S
+from pounding_sweep.model.records import TIME_UNITS, time_unit_guess
 from pounding_sweep.scene.video import floor_code
 
+#: a column name's unit suffix ('b1f3_acc_m_s2', 'b1f3_mm'), dropped before its floor is read from it
+UNIT_SUFFIX = re.compile(r"(_acc)?_(m_s2|mm_s2|m|mm|g)$")
 #: columns a tracked table carries besides the floors' displacements
 NOT_DISPLACEMENT = {"frame", "table_in_camera_mm"}
 #: a column whose name starts so holds the table's motion (track writes table_in_camera_mm)
@@ -32,10 +38,20 @@ class TableIdentification:
     results: dict[int, ModalResult]
     input_column: str | None = None  # the table's motion, when used (transmissibility)
     input_line: InputLine | None = None  # its largest spectral line and that line's share of its power
+    table_column: str | None = None  # the table's motion found in the table, used as the input or not
+    table_line: InputLine | None = None  # its line, also when it is not the input (--input none, free vibration)
+    input_kind_source: str = ""  # where the table column's kind was learnt (--input-kind, metadata, default)
+    free_vibration: bool = False
 
     @property
     def method(self) -> str:
         """One line: how the modes were found."""
+        if self.input_column is None and self.free_vibration:
+            return (
+                "output-only, free vibration: peaks of the floors' spectra (window flat, then tapered over the "
+                "record's second half), logarithmic decrement of each mode"
+                + (f"; the table's column '{self.table_column}' is not the input" if self.table_column else "")
+            )
         if self.input_column is None:
             return (
                 "output-only: peaks of the floors' spectra (no table channel; a forced record's peaks are "
@@ -45,7 +61,7 @@ class TableIdentification:
         extra = "" if r is None else f", window decay {r.decay_per_s:.3g} 1/s removed from the damping"
         return (
             f"transmissibility floor / table, H1 = cross-spectrum / auto-spectrum of '{self.input_column}' "
-            f"({self.input_line.kind}; exponential window{extra}, 3-bin smoothing)"
+            f"({self.input_line.kind}, from {self.input_kind_source}; exponential window{extra}, 3-bin smoothing)"
         )
 
     @property
@@ -61,7 +77,7 @@ def building_groups(columns) -> dict[int, list[str]]:
     """Columns by building ('b1f3' or 'model1_floor3_mm' -> building 1), floor 1 first; 0: no floor name."""
     g: dict = {}
     for c in columns:
-        code = floor_code(c)
+        code = floor_code(UNIT_SUFFIX.sub("", str(c)))
         b, f = (int(code[1:].split("f")[0]), int(code.split("f")[1])) if code else (0, 0)
         g.setdefault(b, []).append((f, c))
     return {b: [c for _, c in sorted(v)] for b, v in g.items()}
@@ -102,11 +118,17 @@ def identify_table(
     start_s: float = 0.0,
     free_vibration: bool = False,
     table_column: str | None = "auto",
+    input_kind_given: str | None = None,
+    metadata: dict | None = None,
 ) -> TableIdentification:
     """Check the table (a uniformly sampled time column, finite numeric columns) and identify each
     building's modes from its floors' columns (default: every numeric column but the tracker's extras
     and the table's motion), against the table's motion when there is a column for it
-    (`table_motion_column`); a single-frequency table motion is refused (HARMONIC_INPUT_FRACTION)."""
+    (`table_motion_column`); a harmonic table motion is refused (safety.is_harmonic). With free_vibration the
+    table's column (unless named by table_column) is not the input: a quiet table's motion is its noise, and a
+    ratio of two noises has peaks of its own; its line is still read (table_line) for what it says of a forcing.
+    The column's kind (displacement, velocity, acceleration) is `input_kind_given`, else the metadata's, else
+    displacement (safety.input_kind)."""
     if n_modes < 1:
         raise _bad(src, "--modes must be >= 1", n_modes)
     if time_column not in df.columns:
@@ -121,7 +143,20 @@ def identify_table(
             f"column '{time_column}' is not uniformly sampled (within 1 %)",
             f"steps {dt.min():.6g} .. {dt.max():.6g} s",
         )
-    fs = 1.0 / float(np.median(dt))
+    step = float(np.median(dt))
+    unit = time_unit_guess(step)
+    if step > MAX_TABLE_STEP_S or step < 1e-6:
+        raise _bad(
+            src,
+            f"column '{time_column}' steps by {step:.6g} s: implausible for a time in seconds"
+            + (
+                f" (in {unit} it is {step * TIME_UNITS[unit]:.6g} s: divide it by {1 / TIME_UNITS[unit]:g})"
+                if unit
+                else ""
+            ),
+            f"{1 / step:.6g} samples/s",
+        )
+    fs = 1.0 / step
     top = fmax if fmax is not None else fs / 2
     if not (np.isfinite(fmin) and np.isfinite(top) and 0 <= fmin < top <= fs / 2):
         raise _bad(
@@ -129,12 +164,14 @@ def identify_table(
             f"--fmin and --fmax must satisfy 0 <= fmin < fmax <= {fs / 2:g} Hz (half the sampling rate)",
             f"fmin {fmin:g}, fmax {top:g}",
         )
-    table_col = table_motion_column(df, src, time_column, table_column)
+    found_col = table_motion_column(df, src, time_column, table_column)
+    explicit = table_column not in (None, "auto") and str(table_column).lower() != "none"
+    table_col = None if (free_vibration and not explicit) else found_col
     if columns:
         for c in columns:
             if c not in df.columns:
                 raise _bad(src, f"no column '{c}'", ", ".join(map(str, df.columns)))
-            if c == table_col:
+            if c == found_col:
                 raise _bad(src, f"column '{c}' is the table's motion, not a floor (--input none to analyse it)")
         cols = list(columns)
     else:
@@ -143,7 +180,7 @@ def identify_table(
             for c in df.columns
             if c != time_column
             and c not in NOT_DISPLACEMENT
-            and c != table_col
+            and c != found_col
             and not str(c).endswith(("_quality", "_px"))
             and np.issubdtype(df[c].dtype, np.number)
         ]
@@ -153,26 +190,30 @@ def identify_table(
         x = df[c].to_numpy(dtype=float)
         if not np.all(np.isfinite(x)):
             raise _bad(src, f"column '{c}' holds non-finite values", f"row {int(np.argmax(~np.isfinite(x))) + 1}")
-    table, line = None, None
-    if table_col is not None:
-        table = df[table_col].to_numpy(dtype=float)
-        if not np.all(np.isfinite(table)):
+    table, line, tline, kind_source = None, None, None, ""
+    if found_col is not None:
+        motion = df[found_col].to_numpy(dtype=float)
+        if not np.all(np.isfinite(motion)):
             raise _bad(
-                src, f"column '{table_col}' holds non-finite values", f"row {int(np.argmax(~np.isfinite(table))) + 1}"
+                src, f"column '{found_col}' holds non-finite values", f"row {int(np.argmax(~np.isfinite(motion))) + 1}"
             )
+        kind, kind_source = input_kind(found_col, input_kind_given, metadata)
         try:
-            line = input_line(table[t - t[0] >= start_s], fs, input_kind(table_col))
+            tline = input_line(motion[t - t[0] >= start_s], fs, kind)
         except ValueError as e:
-            raise _bad(src, f"cannot analyse the table's motion '{table_col}'", e) from None
-        if line.fraction >= HARMONIC_INPUT_FRACTION:
-            raise _bad(
-                src,
-                f"column '{table_col}' is a single-frequency (harmonic) table motion: "
-                f"{100 * line.fraction:.1f} % of its power at {line.frequency_Hz:.3f} Hz; the floors of a harmonic "
-                "test move at the forcing frequency, not at their modes: identify from free vibration or a "
-                "broadband record",
-                f"{HARMONIC_INPUT_FRACTION:.0%} or more in one line is refused",
-            )
+            raise _bad(src, f"cannot analyse the table's motion '{found_col}'", e) from None
+        if table_col is not None:
+            table, line = motion, tline
+            if is_harmonic(line):
+                raise _bad(
+                    src,
+                    f"column '{table_col}' is a single-frequency (harmonic) table motion: "
+                    f"{100 * line.fraction:.1f} % of its power at {line.frequency_Hz:.3f} Hz, {line.over_noise:.3g} "
+                    "times its noise; the floors of a harmonic test move at the forcing frequency, not at their "
+                    "modes: identify from free vibration (--free-vibration) or a broadband record",
+                    f"{HARMONIC_INPUT_FRACTION:.0%} or more in one line, {HARMONIC_OVER_NOISE:g} times the noise, "
+                    "is refused",
+                )
     results = {}
     for b, cs in sorted(building_groups(cols).items()):
         X = np.column_stack([df[c].to_numpy(dtype=float) for c in cs])
@@ -190,7 +231,28 @@ def identify_table(
             )
         except ValueError as e:
             raise _bad(src, f"cannot identify {', '.join(cs)}", e) from None
-    return TableIdentification(src, fs, results, table_col, line)
+    for b, r in results.items():
+        if b and (note := floor_order_note(r)) is not None:
+            results[b] = dataclasses.replace(r, notes=(*r.notes, note))
+    return TableIdentification(src, fs, results, table_col, line, found_col, tline, kind_source, free_vibration)
+
+
+def floor_order_note(r: ModalResult) -> str | None:
+    """A note when the first mode's shape does not grow with height: a shear frame's first mode has every floor
+    on the same side, each further out than the one below (Chopra, Dynamics of Structures, sec. 10.2), so a
+    shape that does not is two floors' files swapped, or a floor reversed."""
+    if not r.modes or len(r.channels) < 2:
+        return None
+    floors = [int(floor_code(UNIT_SUFFIX.sub("", c)).split("f")[1]) for c in r.channels]
+    shape = np.array([r.modes[0].shape[c] for c in r.channels])[np.argsort(floors)]
+    names = [r.channels[k] for k in np.argsort(floors)]
+    if np.all(np.diff(np.concatenate([[0.0], shape])) > 0):
+        return None
+    return (
+        f"mode 1 ({r.modes[0].frequency_Hz:.3f} Hz) shape {', '.join(f'{c} {v:+.3f}' for c, v in zip(names, shape))} "
+        "does not grow with height as a shear frame's first mode does: are two floors' files swapped, or one "
+        "reversed?"
+    )
 
 
 def empty_reason(ident: TableIdentification) -> str:

@@ -26,6 +26,7 @@ from pounding_sweep.model.records import G_STANDARD
 from pounding_sweep.scene import ExperimentConfig
 from pounding_sweep.scene.channels import experiment_channel
 from pounding_sweep.scene.files import MAX_TABLE_BYTES, open_regular, text_problem
+from pounding_sweep.warn import warn
 
 
 @dataclass(frozen=True)
@@ -39,6 +40,8 @@ class Experiment:
     columns: dict[str, str]  # channel code -> table column
     metadata: dict
     kinds: dict[str, int] = field(default_factory=dict)  # channel code -> codes.H_DISP or codes.H_ABS_ACC
+    noise: dict[str, float] = field(default_factory=dict)  # channel code -> noise standard deviation, SI, where known
+    noise_source: dict[str, str] = field(default_factory=dict)  # channel code -> how it was known
 
     @property
     def dt_sample(self) -> float:
@@ -137,6 +140,7 @@ def experiment_from_table(
             f"{where}: column '{cfg.time_column}' must be strictly increasing: {kind} time {float(t[k])!r} at row {k + 1} "
             f"(after {float(t[k - 1])!r})"
         )
+    _time_unit(t, where, cfg.time_column)
     dev = np.abs(d / np.median(d) - 1.0)
     if np.any(dev > 0.01):
         k = int(np.argmax(dev)) + 1
@@ -167,7 +171,92 @@ def experiment_from_table(
             raise ExperimentError(f"{where}: column '{col}' (floor {code}) is {what}: {why}")
         chans[code] = x * UNIT_FACTORS[units]
         cols[code] = col
-    return Experiment(str(where), t, chans, cols, md, kinds)
+    noise, how = channel_noise(t, chans, cols, kinds, cfg, where)
+    exp = Experiment(str(where), t, chans, cols, md, kinds, noise, how)
+    for kind, msg in experiment_problems(exp):
+        warn(kind, msg)
+    return exp
+
+
+def experiment_problems(exp) -> list[tuple[str, str]]:
+    """(kind, message) for each problem the table's channels show (model/experiment.py Experiment): offsets in
+    its acceleration channels, and each channel's sign and lag against the other floors of its building with a
+    channel of the same kind (checks.consensus_problems)."""
+    from pounding_sweep.model.sensors.checks import consensus_problems, offset_problem
+
+    out = []
+    fs = 1.0 / exp.dt_sample
+    floors: dict[tuple[int, int], list[tuple[int, str]]] = {}
+    for code, x in exp.channels.items():
+        kind = exp.kinds.get(code, codes.H_DISP)
+        name = f"{exp.path}: column '{exp.columns[code]}' ({code})"
+        if kind == codes.H_ABS_ACC:
+            if (w := offset_problem(name, x, exp.dt_sample, exp.noise.get(code, 0.0))) is not None:
+                out.append(("channel_offset", w))
+        b, f = (int(v) for v in code.removeprefix("abs_acc_")[1:].split("f"))
+        floors.setdefault((kind, b), []).append((f, code))
+    for group in floors.values():
+        group.sort()
+        names = [f"{exp.path}: column '{exp.columns[c]}' ({c})" for _, c in group]
+        out += consensus_problems(names, [exp.channels[c] for _, c in group], fs)
+    return out
+
+
+#: a table's sample step beyond which nothing sensible can follow (no structure's mode is resolved) [s]
+MAX_TABLE_STEP_S = 1.0
+
+
+def _time_unit(t: np.ndarray, where: str, col: str) -> None:
+    """An error when the time column's step is implausible as seconds by far (over MAX_TABLE_STEP_S, or under
+    1 us): named with the unit that makes it plausible; a warning for steps above records.PLAUSIBLE_STEP_S."""
+    from pounding_sweep.model.records import PLAUSIBLE_STEP_S, TIME_UNITS, time_unit_guess
+
+    step = float(np.median(np.diff(t)))
+    unit = time_unit_guess(step)
+    hint = (
+        f": is it in {unit}? In {unit} the step is {step * TIME_UNITS[unit]:.6g} s ({1 / (step * TIME_UNITS[unit]):.6g} "
+        f"samples/s): divide the column by {1 / TIME_UNITS[unit]:g}"
+        if unit
+        else ""
+    )
+    if step > MAX_TABLE_STEP_S or step < 1e-6:
+        raise ExperimentError(
+            f"{where}: column '{col}' steps by {step:.6g} s (median): implausible for a time in seconds{hint}"
+        )
+    if step > PLAUSIBLE_STEP_S:
+        warn(
+            "table_timing",
+            f"{where}: column '{col}' steps by {step:.6g} s ({1 / step:.3g} samples/s): too coarse for a structure's "
+            f"modes; is it in ms rather than s?{hint.removeprefix(':') if unit else ''}",
+        )
+
+
+def channel_noise(t, chans, cols, kinds, cfg: ExperimentConfig, where) -> tuple[dict, dict]:
+    """Each channel's noise standard deviation [SI] where the scene gives it (`noise`, in the column's own
+    units) or a quiet window to measure it in (`noise_window_s`, experiment time: the sample standard deviation
+    there); channels without either are left out (the noise floor is then estimated from the data)."""
+    given = getattr(cfg, "noise", None) or {}
+    window = getattr(cfg, "noise_window_s", None)
+    noise, how = {}, {}
+    for code, col in cols.items():
+        units = cfg.acc_units if kinds[code] == codes.H_ABS_ACC else cfg.units
+        if col in given:
+            noise[code] = float(given[col]) * UNIT_FACTORS[units]
+            how[code] = f"[experiment] noise.{col} = {given[col]!r} {units}"
+        elif window is not None:
+            inside = (t >= window[0]) & (t <= window[1])
+            if inside.sum() < NOISE_MIN_DIFFERENCES:
+                raise ExperimentError(
+                    f"[experiment] noise_window_s = {list(window)}: holds {int(inside.sum())} sample(s) of {where} "
+                    f"(at least {NOISE_MIN_DIFFERENCES}; its time runs {t[0]:.6g} .. {t[-1]:.6g} s)"
+                )
+            noise[code] = float(np.std(chans[code][inside], ddof=1))
+            how[code] = f"standard deviation in noise_window_s = [{window[0]:g}, {window[1]:g}] s"
+            if not noise[code] > 0:
+                raise ExperimentError(
+                    f"[experiment] noise_window_s = {list(window)}: column '{col}' is constant there: no noise to measure"
+                )
+    return noise, how
 
 
 #: SI factor of each unit a table's columns may be in (scene/schema.py ExperimentConfig units, acc_units)

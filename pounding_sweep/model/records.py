@@ -374,6 +374,24 @@ PLAUSIBLE_STEP_S = 0.05
 PLAUSIBLE_LENGTH_S = 600.0
 
 
+#: plausible sample steps of a measured record or table [s]: 10 kHz down to 20 Hz
+PLAUSIBLE_STEPS_S = (1e-4, PLAUSIBLE_STEP_S)
+#: time units a column may have been written in by mistake, and their factor to s
+TIME_UNITS = {"ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+
+
+def time_unit_guess(step_s: float) -> str | None:
+    """The unit ('ms', 'us' or 'ns') that turns an implausible sample step read as seconds into a plausible one
+    (PLAUSIBLE_STEPS_S), or None."""
+    lo, hi = PLAUSIBLE_STEPS_S
+    if lo <= step_s <= hi:
+        return None
+    for unit, f in TIME_UNITS.items():
+        if lo <= step_s * f <= hi:
+            return unit
+    return None
+
+
 def implausible_timing(rec: GroundRecord) -> str | None:
     """What is odd about a record's time axis as read (before similitude scaling), or None."""
     odd, limits = [], []
@@ -385,10 +403,17 @@ def implausible_timing(rec: GroundRecord) -> str | None:
         limits.append(f"lengths above {PLAUSIBLE_LENGTH_S:g} s")
     if not odd:
         return None
+    unit = time_unit_guess(rec.dt_s) or "ms"
     return (
         f"{rec.source}: {' and '.join(odd)} {'are' if len(odd) > 1 else 'is'} implausible for a ground-motion "
         f"record ({', '.join(limits)}): "
-        "is its time in ms rather than s?"
+        f"is its time in {unit} rather than s?"
+        + (
+            f" (in {unit} the step is {rec.dt_s * TIME_UNITS[unit]:.6g} s: divide the time column by "
+            f"{1 / TIME_UNITS[unit]:g})"
+            if unit != "ms"
+            else ""
+        )
     )
 
 
@@ -432,7 +457,11 @@ def resample(rec: GroundRecord, dt_s: float, duration_s: float | None = None) ->
         raise RecordError(f"{rec.source}: resample duration_s must be finite and >= 0, got {duration_s!r}")
     n = math.floor(dur / dt + 1e-9) + 1
     if n > _MAX_SAMPLES:
-        raise RecordError(f"{rec.source}: resampling to dt={dt!r} s over {dur!r} s needs {n} samples; dt too small?")
+        odd = implausible_timing(rec)
+        raise RecordError(
+            f"{rec.source}: resampling to dt={dt!r} s over {dur!r} s needs {n} samples; "
+            + (odd.removeprefix(f"{rec.source}: ") if odd else "dt too small?")
+        )
 
     t = np.arange(n, dtype=np.float64) * dt
     t_end = rec.duration_s

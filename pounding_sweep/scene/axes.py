@@ -18,6 +18,7 @@ SWEEPABLE = {
     "frequency_Hz": ("excitation", "frequency_Hz"),
     "scale": ("excitation", "scale"),
     "record": ("excitation", "record"),
+    "seed": ("stochastic", "seed"),  # a stochastic motion's realisation (scene/stochastic.py)
     # the structure and the experiment's clock: model error, swept or fitted (sweep/calibrate.py)
     "stiffness_scale_b1": ("building1", "stiffness_scale"),
     "stiffness_scale_b2": ("building2", "stiffness_scale"),

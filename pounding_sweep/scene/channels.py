@@ -63,3 +63,16 @@ def parse_channel(name: str, floors: tuple[int, int]) -> tuple[int, int, str]:
     raise ConfigError(
         f"[output] histories: unknown channel '{name}' (use disp_b1f3, vel_b2f1, abs_acc_b1f2, force_f3, ground_acc)"
     )
+
+
+def channel_unit(code: str) -> tuple[str, str]:
+    """An experiment channel's SI unit and its name in keys: ('m', 'm') for a displacement 'b1f3', ('m/s^2',
+    'm_s2') for an absolute acceleration 'abs_acc_b1f3'."""
+    return ("m/s^2", "m_s2") if code.startswith(ACC_PREFIX) else ("m", "m")
+
+
+def shown_value(code: str, value_si: float) -> str:
+    """A channel's value in its own quantity, for a message: displacements in mm, accelerations in m/s^2."""
+    if code.startswith(ACC_PREFIX):
+        return f"{value_si:.4g} m/s^2"
+    return f"{value_si * 1e3:.4g} mm"

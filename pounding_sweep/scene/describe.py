@@ -8,6 +8,7 @@ import dataclasses
 from pounding_sweep.scene.axes import SWEEPABLE
 from pounding_sweep.scene.files import MAX_RECORD_BYTES, MAX_SCENE_BYTES, MAX_TABLE_BYTES, MiB
 from pounding_sweep.scene.parse import MAX_NESTING
+from pounding_sweep.scene.risk import RiskConfig
 from pounding_sweep.scene.schema import (
     MAX_AXIS_VALUES,
     MAX_FLOORS,
@@ -18,6 +19,7 @@ from pounding_sweep.scene.schema import (
     CalibrateConfig,
     ExperimentConfig,
 )
+from pounding_sweep.scene.stochastic import StochasticConfig
 
 MAX_EVENTS = 16  # engine.events.MAX_EVENTS: the scene layer loads no Numba (tests/scene checks they agree)
 
@@ -46,7 +48,8 @@ def describe() -> str:
     """Every section and key with its meaning: the reference for writing scenes."""
     lines = ["(top level)  keys outside any section"]
     lines += [f"  {k}: {doc} (default {d})" for k, doc, d in TOP]
-    for name, cls in {**SECTIONS, "experiment": ExperimentConfig, "calibrate": CalibrateConfig}.items():
+    optional = {"experiment": ExperimentConfig, "calibrate": CalibrateConfig, "stochastic": StochasticConfig}
+    for name, cls in {**SECTIONS, **optional, "risk": RiskConfig}.items():
         need = " (required section)" if name in REQUIRED_SECTIONS else " (optional section)"
         lines.append(f"[{name}]{need}  {cls.__doc__}")
         for f in dataclasses.fields(cls):

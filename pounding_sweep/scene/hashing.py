@@ -17,7 +17,19 @@ from pathlib import Path
 #: before they existed: at these values they are left out of the canonical form, so a scene that does not
 #: use them keeps its hash (and its results resume). Written out, not read from the schema: were a default
 #: ever changed, a scene at the new default would differ from these values and hash differently, as it must.
-ADDED_EXPERIMENT_KEYS = {"acc_units": "m/s2", "lowpass_Hz": None, "lowpass_order": 4, "use": "both", "weights": "equal"}
+ADDED_EXPERIMENT_KEYS = {
+    "acc_units": "m/s2",
+    "lowpass_Hz": None,
+    "lowpass_order": 4,
+    "use": "both",
+    "weights": "equal",
+    "noise": None,
+    "noise_window_s": None,
+}
+#: [excitation] keys and sections added for ensembles of ground motions (intensity measures, stochastic
+#: motions), left out at the values they had before they existed, like ADDED_EXPERIMENT_KEYS
+ADDED_EXCITATION_KEYS = {"intensity": "none", "scaling": "factor", "intensity_period_s": None}
+ADDED_SECTIONS = ("stochastic",)
 
 
 def canonical(scene) -> dict:
@@ -29,6 +41,13 @@ def canonical(scene) -> dict:
     d.pop("toml_text")
     d.pop("execution")
     d.pop("calibrate", None)  # the fit after the grid: changes no run of the grid (its parts resume)
+    d.pop("risk", None)  # the study over the runs ([risk]): changes no run either
+    for key, before in ADDED_EXCITATION_KEYS.items():
+        if d["excitation"].get(key, before) == before:
+            d["excitation"].pop(key, None)
+    for section in ADDED_SECTIONS:
+        if d.get(section, 0) is None:
+            del d[section]
     d["output"].pop("path")
     digests: dict[str, dict] = {}
 

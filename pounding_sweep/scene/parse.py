@@ -15,6 +15,7 @@ from pounding_sweep.errors import ConfigError, shown
 from pounding_sweep.scene.axes import SWEEPABLE
 from pounding_sweep.scene.files import MAX_SCENE_BYTES, read_regular, resolve, text_problem
 from pounding_sweep.scene.keys import check_keys
+from pounding_sweep.scene.risk import RiskConfig
 from pounding_sweep.scene.schema import (
     MAX_AXIS_VALUES,
     SECTIONS,
@@ -25,6 +26,7 @@ from pounding_sweep.scene.schema import (
     ExperimentConfig,
     Scene,
 )
+from pounding_sweep.scene.stochastic import StochasticConfig
 from pounding_sweep.scene.validate import one_storey_damping_modes, validate
 
 
@@ -142,6 +144,12 @@ def scene_from_dict(raw: dict, base_dir: Path, source: str = "<dict>", toml_text
         if not isinstance(raw["calibrate"], dict):
             raise ConfigError(f"'calibrate' must be a table [calibrate], got {shown(raw['calibrate'])}")
         calibrate = _build(CalibrateConfig, raw["calibrate"], "calibrate")
+    stochastic = _section(raw, "stochastic", StochasticConfig)
+    risk = _section(raw, "risk", RiskConfig)
+    if risk is not None:
+        out_risk = risk.path or f"results/{name}.risk"
+        hazard = str(resolve(base_dir / risk.hazard)) if risk.hazard is not None else None
+        risk = dataclasses.replace(risk, path=str(resolve(base_dir / out_risk)), hazard=hazard)
     scene = Scene(
         name=name,
         description=desc,
@@ -150,10 +158,21 @@ def scene_from_dict(raw: dict, base_dir: Path, source: str = "<dict>", toml_text
         toml_text=toml_text,
         experiment=experiment,
         calibrate=calibrate,
+        stochastic=stochastic,
+        risk=risk,
         **sections,
     )
     validate(scene)
     return scene
+
+
+def _section(raw: dict, name: str, cls):
+    """An optional section [name] built as cls, or None."""
+    if name not in raw:
+        return None
+    if not isinstance(raw[name], dict):
+        raise ConfigError(f"'{name}' must be a table [{name}], got {shown(raw[name])}")
+    return _build(cls, raw[name], name)
 
 
 def _build(cls, table: dict, section: str):

@@ -9,6 +9,8 @@ import dataclasses
 from dataclasses import dataclass, field
 
 from pounding_sweep import codes
+from pounding_sweep.scene.risk import RiskConfig
+from pounding_sweep.scene.stochastic import StochasticConfig
 from pounding_sweep.scene.video import VideoSpec  # plain data; OpenCV stays unimported
 
 
@@ -128,9 +130,9 @@ class ContactConfig:
 
 @dataclass(frozen=True)
 class ExcitationConfig:
-    """Table motion: harmonic displacement, or a recorded ground acceleration."""
+    """Table motion: harmonic displacement, a recorded ground acceleration, or a stochastic one ([stochastic])."""
 
-    type: str = _f("'harmonic' or 'record'")
+    type: str = _f("'harmonic', 'record' or 'stochastic' (filtered white noise: the [stochastic] section)")
     name: str = _f("label used in outputs", "")
     amplitude_m: float | None = _f(
         "harmonic: table displacement amplitude [m]", None, when="required for type = 'harmonic'"
@@ -152,9 +154,25 @@ class ExcitationConfig:
         None,
         when="default: an AT2's header's units, else g; a CSV's m/s2",
     )
-    scale: float = _f("factor on the record's acceleration", 1.0)
+    scale: float = _f("factor on the motion's acceleration (scaling = 'intensity': the motion's intensity in g)", 1.0)
     length_scale: float = _f(
         "similitude length scale lambda_L (eqs. 17-19): time / sqrt(lambda_L), acceleration kept", 1.0
+    )
+    intensity: str = _f(
+        "record or stochastic: each motion's intensity measure, 'pga' or 'sa' (5 %-damped pseudo-spectral "
+        "acceleration at intensity_period_s, exact for piecewise-linear input: Nigam & Jennings 1969), written "
+        "per run as intensity_g; 'none': not computed",
+        "none",
+    )
+    scaling: str = _f(
+        "'factor': scale multiplies each motion (cloud analysis); 'intensity': each motion is scaled so that its "
+        "intensity is scale g (incremental dynamic analysis with [sweep] scale as the levels)",
+        "factor",
+    )
+    intensity_period_s: float | None = _f(
+        "intensity = 'sa': the period T of Sa(T) [s]",
+        None,
+        "default: the geometric mean of the two buildings' first periods",
     )
 
 
@@ -267,6 +285,19 @@ class ExperimentConfig:
     window_s: tuple[float, ...] | None = _f(
         "[start, end] of the compared window in simulation time [s]", None, when="default: all overlap"
     )
+    noise: dict[str, float] | None = _f(
+        "table column -> its measurement noise (standard deviation) in the column's own units (units for a "
+        "displacement, acc_units for an acceleration), e.g. {b1f3_acc_m_s2 = 0.0095}: the noise floor of 'noise' "
+        "weights and of [calibrate]'s residuals",
+        None,
+        when="optional; else noise_window_s, else estimated from the table by differences (an upper bound)",
+    )
+    noise_window_s: tuple[float, ...] | None = _f(
+        "[start, end] of a quiet stretch of the table in experiment time [s] (nothing moves: before the shaking): "
+        "each channel's standard deviation there is its noise",
+        None,
+        when="optional; noise gives a channel's value directly",
+    )
     time_offset_s: float = _f(
         "experiment time minus simulation time [s] (the table's t = offset is the simulation's t = 0)", 0.0
     )
@@ -311,7 +342,10 @@ class CalibrateConfig:
         "the parameters to profile", (), when="optional; by default the fitted contact parameters (k_s or k_h, r)"
     )
     noise_m: float | None = _f(
-        "the tracking noise (RMS) of every channel [m]", None, when="optional; by default estimated from the data"
+        "the tracking noise (RMS) of every displacement channel [m] (an acceleration channel's: [experiment] noise "
+        "or noise_window_s)",
+        None,
+        when="optional; by default estimated from the data",
     )
     misfit_factor: float = _f("warn when the best fit's residual exceeds this many times the noise floor", 3.0)
 
@@ -334,6 +368,8 @@ class Scene:
     toml_text: str  # the scene file as written
     experiment: ExperimentConfig | None = None
     calibrate: CalibrateConfig | None = None
+    stochastic: StochasticConfig | None = None
+    risk: RiskConfig | None = None
 
     def canonical(self) -> dict:
         """Resolved scene as plain data (what the hash covers): scene/hashing.py."""
@@ -364,4 +400,4 @@ SECTIONS = {
     "output": OutputConfig,
     "execution": ExecutionConfig,
 }
-TOP_KEYS = {"name", "description", "sweep", "experiment", "calibrate", *SECTIONS}
+TOP_KEYS = {"name", "description", "sweep", "experiment", "calibrate", "stochastic", "risk", *SECTIONS}

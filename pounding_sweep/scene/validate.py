@@ -31,6 +31,7 @@ from pounding_sweep.scene.schema import (
     BuildingConfig,
     Scene,
 )
+from pounding_sweep.scene.stochastic import validate_ensemble
 
 
 def _positive(value, key):
@@ -121,9 +122,12 @@ def validate(s: Scene) -> None:
         if v < 0:
             raise ConfigError(f"[sweep] gap_m = {v!r}: must be >= 0")
     e = s.excitation
-    if e.type not in ("harmonic", "record"):
-        raise ConfigError(f"[excitation] type = {e.type!r}: expected 'harmonic' or 'record'")
-    if e.type == "harmonic":
+    if e.type not in ("harmonic", "record", "stochastic"):
+        raise ConfigError(f"[excitation] type = {e.type!r}: expected 'harmonic', 'record' or 'stochastic'")
+    validate_ensemble(s)  # [stochastic], the seed axis, the intensity keys, [risk]
+    if e.type == "stochastic":
+        pass
+    elif e.type == "harmonic":
         for k in ("amplitude_m", "frequency_Hz", "duration_s"):
             if getattr(e, k) is None and k not in axes:
                 raise ConfigError(f"[excitation] missing key '{k}' for a harmonic excitation")
@@ -245,6 +249,17 @@ def _validate_experiment(s: Scene) -> None:
         raise ConfigError(f"[experiment] combine = {x.combine!r}: expected 'mean', 'max' or 'rms'")
     if x.window_s is not None and (len(x.window_s) != 2 or not x.window_s[0] < x.window_s[1]):
         raise ConfigError(f"[experiment] window_s = {shown(list(x.window_s))}: expected [start, end] with start < end")
+    if x.noise_window_s is not None and (len(x.noise_window_s) != 2 or not x.noise_window_s[0] < x.noise_window_s[1]):
+        raise ConfigError(
+            f"[experiment] noise_window_s = {shown(list(x.noise_window_s))}: expected [start, end] with start < end"
+        )
+    for col, v in (x.noise or {}).items():
+        if col not in (x.channels or {}):
+            raise ConfigError(
+                f"[experiment] noise.{col} = {v!r}: '{col}' is not a mapped channel (channels: {', '.join(x.channels or {})})"
+            )
+        if not (math.isfinite(v) and v > 0):
+            raise ConfigError(f"[experiment] noise.{col} = {v!r}: a noise standard deviation must be > 0")
     if x.max_lag_s < 0:
         raise ConfigError(f"[experiment] max_lag_s = {x.max_lag_s!r}: must be >= 0")
     _positive(x.refine_max_evals, "[experiment] refine_max_evals")

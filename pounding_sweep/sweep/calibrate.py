@@ -13,9 +13,10 @@ Method.
   acceleration ([experiment] acceleration channels): linear interpolation between steps, as the kernel's
   scoring samples it, then the experiment's low-pass filter (lowpass_Hz: the same causal sections from rest at
   the window's first sample) on both sides. Channels that [experiment] use leaves out are left out here too.
-* Noise floor sigma_c: the [calibrate] noise_m (displacement channels; m), else estimated from the data by the
-  difference method (model/experiment.py noise_floor: an upper bound), times the filter's noise gain for a
-  filtered channel.
+* Noise floor sigma_c: the channel's own noise where the scene gives it ([experiment] noise, in the channel's
+  unit, or noise_window_s: the standard deviation in a quiet window), else the [calibrate] noise_m (displacement
+  channels; m), else estimated from the data by the difference method (model/experiment.py noise_floor: an upper
+  bound), times the filter's noise gain for a filtered channel.
 * Global stage (sweep/globalsearch.py): incremental single shooting: a Sobol design of max(global_points, 16 p)
   points (scipy.stats.qmc, scrambled, fixed seed; log scale for stiffnesses) and the sweep's best cell on a
   leading horizon of the record, least squares from the best of them, carried over horizons doubling to the
@@ -61,6 +62,7 @@ from scipy.signal import sosfilt
 from pounding_sweep import codes as C
 from pounding_sweep.model.experiment import noise_floor
 from pounding_sweep.scene import Scene
+from pounding_sweep.scene.channels import channel_unit, shown_value
 from pounding_sweep.sweep.fitstats import LOG_SCALE, gauss_newton, interval, local_fit, misfit_of
 from pounding_sweep.sweep.globalsearch import find_basin
 from pounding_sweep.sweep.lawcompare import compare_laws as compare_on_one_basis
@@ -114,8 +116,8 @@ class Fit:
     n: int
     n_eff: float
     rho: float
-    rms_m: dict[str, float]  # per channel RMS residual [m]
-    noise_m: dict[str, float]
+    rms_m: dict[str, float]  # per channel RMS residual, in the channel's SI unit (m, or m/s^2 for abs_acc_)
+    noise_m: dict[str, float]  # per channel noise floor, likewise
     misfit_ratio: float  # RMS residual / noise floor, over the channels
     error_pct: float  # eq. 20 relative RMS at the optimum, mean over channels
     evaluations: int
@@ -196,6 +198,7 @@ class Problem:
             impulse[0] = 1.0
             gain = float(np.sqrt(np.sum(sosfilt(sos, impulse) ** 2)))  # white noise's RMS through the filter
         times, values, sig = [], [], []
+        self.noise_source: dict[str, str] = {}  # channel -> where its noise floor came from
         t_sim = exp.time_s - self.offset0
         inside = (t_sim >= lo) & (t_sim <= hi)
         for c, a in zip(codes, acc):
@@ -205,9 +208,28 @@ class Problem:
                 values.append(sosfilt(sos, y))
             else:
                 values.append(y)
-            s0 = noise_m if (noise_m is not None and not a) else noise_floor(y)[0]
+            if sigma is not None:  # a window of a record: the whole record's noise floors, as they are
+                sig.append(float(sigma[len(sig)]))
+                self.noise_source[c] = "the whole record's"
+                continue
+            if c in exp.noise:  # [experiment] noise or noise_window_s: the channel's own unit, any kind
+                s0 = exp.noise[c]
+                self.noise_source[c] = exp.noise_source[c]
+            elif noise_m is not None and not a:
+                s0 = noise_m
+                self.noise_source[c] = f"[calibrate] noise_m = {noise_m!r} m"
+            else:
+                s0 = noise_floor(y)[0]
+                self.noise_source[c] = "estimated from the data by differences (an upper bound)"
+                if noise_m is not None:
+                    warn(
+                        "calibration",
+                        f"[calibrate] noise_m = {noise_m!r} m is a displacement's noise: acceleration channel "
+                        f"{exp.columns[c]} ({c}) takes its noise from the data ({shown_value(c, s0)}); give it in "
+                        "[experiment] noise (its own unit) or noise_window_s",
+                    )
             sig.append(s0 * (gain if a else 1.0))
-        self.target = Target(codes, acc, times, values, np.asarray(sig) if sigma is None else np.asarray(sigma), sos)
+        self.target = Target(codes, acc, times, values, np.asarray(sig), sos)
         self.dt = self.prep.dt
         self._last: tuple[bytes, np.ndarray] | None = None  # the last residual vector fun() gave (its z)
 
@@ -501,7 +523,7 @@ def _warnings(fit: Fit, z_opt, lo, hi, cal) -> None:
     if fit.misfit_ratio > cal.misfit_factor:
         fit.warnings.append(
             f"calibration ({law}): the best fit's residual is {fit.misfit_ratio:.1f} times the noise floor "
-            f"({', '.join(f'{c} {fit.rms_m[c] * 1e3:.3f} mm vs {fit.noise_m[c] * 1e3:.3f} mm' for c in fit.rms_m)}): "
+            f"({', '.join(f'{c} {shown_value(c, fit.rms_m[c])} vs {shown_value(c, fit.noise_m[c])}' for c in fit.rms_m)}): "
             "the model cannot explain the data; the fitted values are not to be trusted as measurements"
         )
     if fit.quote == "model_error":
@@ -618,8 +640,12 @@ def calibration_metadata(fits: list[Fit]) -> dict:
             f.law: {
                 "parameters": f.names,
                 "correlation": np.where(np.isfinite(f.correlation), f.correlation, None).tolist(),
-                "noise_floor_m": f.noise_m,
-                "rms_residual_m": f.rms_m,
+                # each channel under its unit's key: displacements [m], accelerations [m/s^2]
+                **{
+                    f"{what}_{unit}": {c: v for c, v in values.items() if channel_unit(c)[1] == unit}
+                    for what, values in (("noise_floor", f.noise_m), ("rms_residual", f.rms_m))
+                    for unit in ("m", "m_s2")
+                },
                 "misfit_over_noise": f.misfit_ratio,
                 "n_samples": f.n,
                 "n_effective": f.n_eff,

@@ -29,6 +29,7 @@ from pounding_sweep.model.laws import hertz_stiffness, law_arrays
 from pounding_sweep.scene import SWEEPABLE, Scene, contact_stiffness
 from pounding_sweep.scene.axes import STRUCTURE_AXES
 from pounding_sweep.scene.channels import parse_channel
+from pounding_sweep.warn import warn
 
 LAW_NAMES = {code: name for name, code in CONTACT_LAWS.items()}
 
@@ -65,7 +66,7 @@ class Prepared:
         groups = structure_groups(self.scene, params)
         if groups is not None:
             return self._run_groups(groups, params, threads, batch_runs, done)
-        runs, rec, derived = self.kernel_inputs(params)
+        runs, rec, derived = self.kernel_inputs(params, threads)
         metrics, run_time, hist, scores = run_chunk(
             self.sysarr,
             runs,
@@ -109,16 +110,17 @@ class Prepared:
             )
         return self.variants[values]
 
-    def kernel_inputs(self, params: dict[str, np.ndarray]):
+    def kernel_inputs(self, params: dict[str, np.ndarray], threads: int = 1):
         """The kernel's inputs for `params` at the scene's dt: (RunArrays, record arrays, the derived
         contact columns). Each run's law: law_codes(params)."""
         k, c, derived, status = contact_arrays(self.model, self.scene, params, self.dt)
-        ex = self.excitation.run_arrays(params)
+        ex, rec = self.excitation.chunk_inputs(params, threads)  # a stochastic chunk's motions are generated here
         runs = RunArrays(
             k, c, params["gap_m"], ex["exc_kind"], ex["exc_amp"], ex["exc_omega"], ex["rec_id"], ex["nsteps"], status
         )
-        rec = Records(self.excitation.rec_flat, self.excitation.rec_off, self.excitation.rec_len)
-        return runs, rec, derived
+        if "intensity_g" in ex:
+            derived["intensity_g"] = ex["intensity_g"]
+        return runs, Records(*rec), derived
 
     @property
     def law_codes_used(self) -> list[int]:
@@ -142,9 +144,11 @@ def prepare(scene: Scene, kernel: str = "auto") -> Prepared:
     hspec, hcols = history_spec(scene, model.floors)
     score, codes, comb = ScoreSpec.none(), [], None
     if scene.experiment is not None:
-        from pounding_sweep.sweep.scoring import load_experiment, score_spec
+        from pounding_sweep.sweep.scoring import load_experiment, score_spec, sensor_warnings
 
         exp = load_experiment(scene.experiment, model.floors)
+        for kind, message in sensor_warnings(exp, scene.experiment, model, exc):
+            warn(kind, message)
         score, comb = score_spec(exp, scene.experiment, model.floors, exc.max_duration_s, dt)
         codes = list(exp.channels)
     else:

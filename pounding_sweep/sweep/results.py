@@ -32,6 +32,10 @@ COLUMN_DOCS = {
     "ks_N_per_m": "contact stiffness k_s [N/m]",
     "r": "coefficient of restitution [-]",
     "gap_m": "gap d between facing floors at rest [m]",
+    "seed": "stochastic excitation: the seed of the run's ground-motion realisation [-]",
+    "intensity_g": "the run's ground-motion intensity ([excitation] intensity: PGA or Sa(T, 5 %), metadata "
+    "'intensity'), as run [g]",
+    "scale": "factor on the motion's acceleration; with [excitation] scaling = 'intensity': its intensity [g]",
     "contact_law": "the run's pounding law: classic, no_tension (eq. 8), hertz, hertzdamp, jankowski",
     "kh_N_per_m1_5": "Hertz-type laws: k_h [N/m^1.5] (given, or k_s / sqrt(reference_penetration_m))",
     "contact_damping_ratio": "xi from r by the law's relation: eq. 10 (classic, no_tension), Jankowski 2006 [-]",

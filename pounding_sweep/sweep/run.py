@@ -455,6 +455,7 @@ def _model_facts(prep: Prepared) -> dict:
             {"name": r.name, "source": Path(r.source).name, "dt_s": r.dt_s, "description": r.description}
             for r in prep.excitation.records
         ],
+        **prep.excitation.facts(),  # the intensity measure, the stochastic motion
     }
     if prep.score_codes:
         x = scene.experiment
@@ -507,11 +508,13 @@ def _param_columns(exc: Excitation, params: dict, derived: dict, grid: Grid) -> 
     if exc.kind == "harmonic":
         cols["amplitude_m"] = params["amplitude_m"]
         cols["frequency_Hz"] = params["frequency_Hz"]
+    elif exc.kind == "stochastic":
+        cols["seed"] = np.asarray(params["seed"], dtype=np.int64)
     else:
         cols["record"] = np.array([exc.record_name(p) for p in params["record"]], dtype=object)
     cols["scale"] = params["scale"]
     cols["contact_law"] = np.asarray(params["law"], dtype=object)
-    for key in ("kh_N_per_m1_5", "contact_damping_ratio", "hertzdamp_a", "r_single_impact"):
+    for key in ("intensity_g", "kh_N_per_m1_5", "contact_damping_ratio", "hertzdamp_a", "r_single_impact"):
         if key in derived:
             cols[key] = derived[key]
     swept = {name for name, _ in grid.axes}

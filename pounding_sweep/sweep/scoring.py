@@ -20,7 +20,7 @@ from pounding_sweep.model.experiment import (
     read_table,
 )
 from pounding_sweep.scene import ExperimentConfig
-from pounding_sweep.scene.channels import experiment_channel
+from pounding_sweep.scene.channels import channel_unit, experiment_channel
 from pounding_sweep.scene.schema import USES
 
 
@@ -133,8 +133,8 @@ def combination(exp: Experiment, cfg: ExperimentConfig, spec: ScoreSpec, raw: np
 
     'equal' over every channel is the plain mean, max or rms. 'noise' weights channel c by
     w_c = (RMS_c / sigma_c)^2, its signal-to-noise ratio squared, with RMS_c the root mean square of the
-    experiment's (filtered) samples and sigma_c the noise floor in them: model/experiment.py noise_floor on
-    the raw samples, times sqrt(sum h_k^2) for a filtered channel (white noise through a filter of impulse
+    experiment's (filtered) samples and sigma_c the noise floor in them: the scene's per-channel noise where
+    it gives one ([experiment] noise or noise_window_s), else model/experiment.py noise_floor on the raw samples, times sqrt(sum h_k^2) for a filtered channel (white noise through a filter of impulse
     response h). Why: under independent white Gaussian noise the log-likelihood of a run is
     -sum_c ||x_num,c - x_exp,c||^2 / (2 sigma_c^2), and ||x_num,c - x_exp,c||^2 = N (eps_c / 100)^2 RMS_c^2
     (eq. 20, N samples per channel, the same for all on one time axis), so sum_c w_c eps_c^2 orders runs
@@ -157,7 +157,11 @@ def combination(exp: Experiment, cfg: ExperimentConfig, spec: ScoreSpec, raw: np
     for c, code in enumerate(exp.channels):
         if not used[c]:
             continue
-        sigma, order = noise_floor(raw[c])
+        if code in exp.noise:  # the scene's: [experiment] noise or noise_window_s
+            sigma, order, source = exp.noise[code], 0, exp.noise_source[code]
+        else:
+            sigma, order = noise_floor(raw[c])
+            source = "estimated from the table by differences"
         gain = 1.0
         if kinds[c] == codes.H_ABS_ACC and spec.sos.shape[0]:
             from scipy.signal import sosfilt
@@ -175,6 +179,8 @@ def combination(exp: Experiment, cfg: ExperimentConfig, spec: ScoreSpec, raw: np
             )
         w[c] = (rms / (sigma * gain)) ** 2
         noise[code] = {
+            "unit": channel_unit(code)[0],
+            "source": source,
             "noise_floor": float(sigma * gain),
             "noise_floor_raw": float(sigma),
             "difference_order": order,
@@ -186,3 +192,37 @@ def combination(exp: Experiment, cfg: ExperimentConfig, spec: ScoreSpec, raw: np
         if code in noise:
             noise[code]["weight"] = float(w[c])
     return Combination(cfg.combine, w, noise)
+
+
+def sensor_warnings(exp: Experiment, cfg: ExperimentConfig, model, excitation) -> list[tuple[str, str]]:
+    """(kind, message) for what the experiment's sampling and the scene's record say against each other
+    (model/sensors/checks.py): a sample rate below twice a building's modes (aliasing), and the lowest
+    acceleration channel of each building reversed or lagging against the record that drives it (its
+    absolute acceleration follows the table's in the band where the two move together)."""
+    from pounding_sweep.model.sensors.checks import aliasing_problems, pair_problems
+
+    out = []
+    fs = 1.0 / exp.dt_sample
+    seen = {int(c.removeprefix("abs_acc_")[1:].split("f")[0]) for c in exp.channels}  # buildings measured
+    modes = {
+        f"building {b}": list(frame.modes().frequency_Hz) for b, frame in ((1, model.b1), (2, model.b2)) if b in seen
+    }
+    out += [("aliasing", w) for w in aliasing_problems(f"{Path(exp.path).name}", fs, modes)]
+    if excitation.kind != "record" or len(excitation.records) != 1:
+        return out
+    rec = excitation.records[0]
+    t_sim = exp.time_s - cfg.time_offset_s
+    inside = (t_sim >= 0) & (t_sim <= rec.duration_s)
+    if inside.sum() < 16:
+        return out
+    ground = np.interp(t_sim[inside], rec.time_s, rec.acc_m_s2)
+    lowest: dict[str, str] = {}
+    for code in exp.channels:
+        if exp.kinds.get(code) == codes.H_ABS_ACC:
+            b = code.removeprefix("abs_acc_").split("f")[0]
+            if b not in lowest or int(code.split("f")[-1]) < int(lowest[b].split("f")[-1]):
+                lowest[b] = code
+    for code in lowest.values():
+        name = f"{exp.path}: column '{exp.columns[code]}' ({code})"
+        out += pair_problems(name, exp.channels[code][inside], f"the record {Path(rec.source).name}", ground, fs)
+    return out

@@ -180,6 +180,31 @@ def table_csv(rows: int = 21, t=None, b1=None, b2=None, header: str = "t_s,b1f3,
     return "\n".join(lines) + "\n"
 
 
+# ----------------------------------------------------------------------------- raw sensor exports (issue 27)
+
+
+def xsens_csv(rows: int = 64, ticks=None, acc_x=None, tag: str = "Xsens DOT") -> str:
+    """A small Xsens DOT export (120 Hz, gravity on Z): overrides {row: 'text'} for SampleTimeFine or Acc_X."""
+    head = (
+        f"sep=,\nDeviceTag:,{tag}\nFirmwareVersion:,3.0.0\nAppVersion:,2023.6.0\n"
+        "StartTime: ,2025-03-06_12:43:39_000 PST\n\u00a9 Movella Technologies B. V. 2005-2025\n\n"
+        "PacketCounter,SampleTimeFine,Euler_X,Euler_Y,Euler_Z,Acc_X,Acc_Y,Acc_Z,Gyr_X,Gyr_Y,Gyr_Z\n"
+    )
+    lines = []
+    for i in range(rows):
+        tick = (ticks or {}).get(i, str(2042652963 + 8333 * i))
+        ax = (acc_x or {}).get(i, f"{0.5 * np.sin(0.3 * i):.5f}")
+        lines.append(f"{i},{tick},1.0,2.0,3.0,{ax},0.01,9.81,0.0,0.0,0.0")
+    return head + "\n".join(lines) + "\n"
+
+
+def import_argv(*extra: str, names=("ground", "b1f1")) -> tuple[str, ...]:
+    return ("import", *[f"{n}={{dir}}/{n}.csv" for n in names], "--out", "{dir}/imported", *extra)
+
+
+XSENS_PAIR = {"ground.csv": xsens_csv(), "b1f1.csv": xsens_csv(tag="floor")}
+
+
 PICKLE = b"\x80\x04K\x01."  # pickle.dumps(1, protocol=4): bytes a reader must never unpickle
 
 
@@ -1897,6 +1922,114 @@ CASES += [
         files=result_folder(scene_text=OTHER_DT),
     ),
     # ------------------------------------------------------------------ how it runs
+    # ------------------------------------------------------------------ raw sensor exports (import, issue 27)
+    _c(
+        "import_unknown_format",
+        "table",
+        "import of a two-column CSV record (not a sensor export)",
+        ["ground.csv"],
+        "not a sensor export this reader knows",
+        None,
+        {"ground.csv": GOOD_CSV_RECORD, "b1f1.csv": xsens_csv()},
+        import_argv(),
+    ),
+    _c(
+        "import_sensor_without_name",
+        "table",
+        "import ground.csv (NAME=FILE expected)",
+        ["ground.csv"],
+        "a sensor is NAME=FILE",
+        None,
+        XSENS_PAIR,
+        ("import", "{dir}/ground.csv", "--out", "{dir}/imported"),
+    ),
+    _c(
+        "import_reference_missing",
+        "table",
+        "import --reference table (no sensor of that name)",
+        ["--reference table"],
+        "no sensor of that name",
+        None,
+        XSENS_PAIR,
+        import_argv("--reference", "table"),
+    ),
+    _c(
+        "import_clock_repeats",
+        "table",
+        "an Xsens export whose SampleTimeFine repeats a row",
+        ["b1f1.csv", "line 20"],
+        "SampleTimeFine 2042736293 repeats the row before",
+        None,
+        {"ground.csv": xsens_csv(), "b1f1.csv": xsens_csv(ticks={10: "2042736293", 11: "2042736293"})},
+        import_argv(),
+    ),
+    _c(
+        "import_acc_not_a_number",
+        "table",
+        "an Xsens export with 'n/a' in Acc_X",
+        ["b1f1.csv", "line 14", "column Acc_X"],
+        "is not a finite number",
+        None,
+        {"ground.csv": xsens_csv(), "b1f1.csv": xsens_csv(acc_x={5: "n/a"})},
+        import_argv(),
+    ),
+    _c(
+        "import_quiet_window_outside",
+        "table",
+        "import --quiet 50,51 on 0.5 s of data",
+        ["--quiet 50,51"],
+        "holds 0 samples of the common span",
+        None,
+        XSENS_PAIR,
+        import_argv("--quiet", "50,51", "--band", "1,10"),
+    ),
+    _c(
+        "import_out_not_ours",
+        "table",
+        "import --out a folder holding a user's notes",
+        ["imported"],
+        "exists and is not an earlier import's output",
+        None,
+        {**XSENS_PAIR, "imported/notes.txt": NOTES},
+        import_argv(),
+    ),
+    _c(
+        "table_time_in_us",
+        "table",
+        "experiment table whose time column is in microseconds",
+        [S.replace("scene.toml", "exp.csv"), "column 't_s'"],
+        ["steps by 10000 s", "is it in us?"],
+        table_scene(),
+        {"exp.csv": table_csv(t={i: f"{1e4 * i:.0f}" for i in range(21)})},
+    ),
+    _c(
+        "identify_time_in_us",
+        "table",
+        "identify on a table whose time column is in microseconds",
+        ["exp.csv", "column 't_s'"],
+        ["steps by 10000 s", "in us it is 0.01 s"],
+        None,
+        {"exp.csv": table_csv(rows=40, t={i: f"{1e4 * i:.0f}" for i in range(40)})},
+        ("identify", "{dir}/exp.csv"),
+    ),
+    _c(
+        "experiment_noise_unmapped",
+        "table",
+        "[experiment] noise for a column that is not a channel",
+        [S, "[experiment] noise.b9f9"],
+        "'b9f9' is not a mapped channel",
+        table_scene().replace("max_lag_s = 0.05", "max_lag_s = 0.05\nnoise = { b9f9 = 0.05 }"),
+        {"exp.csv": table_csv()},
+    ),
+    _c(
+        "experiment_noise_window_empty",
+        "table",
+        "[experiment] noise_window_s = [5, 6] beyond a 0.2 s table",
+        ["[experiment] noise_window_s"],
+        "holds 0 sample(s)",
+        table_scene().replace("max_lag_s = 0.05", "max_lag_s = 0.05\nnoise_window_s = [5.0, 6.0]"),
+        {"exp.csv": table_csv()},
+    ),
     _c(
         "threads_100000",
         "execution",
@@ -1945,6 +2078,126 @@ CASES += [
         ["tcp://127.0.0.1:9"],
         "cannot reach a Dask scheduler",
         argv=("{scene}", "--out", "{out}", "--dask-address", "tcp://127.0.0.1:9"),
+    ),
+]
+
+# ----------------------------------------------------------------------------- risk studies (issue 29)
+
+STOCHASTIC = (
+    BASE.split("[excitation]")[0]
+    + """\
+[excitation]
+type = "stochastic"
+duration_s = 1.0
+intensity = "sa"
+scaling = "intensity"
+
+[stochastic]
+ground_frequency_Hz = 2.5
+ground_damping = 0.6
+s0_m2_per_s3 = 0.01
+
+[integration]
+dt_s = 0.005
+
+[sweep]
+seed = [0, 1, 2]
+scale = [0.2, 0.4]
+
+[risk]
+intensities_g = [0.4]
+"""
+)
+RISK = ("risk", "{scene}", "--out", "{dir}/study.risk")
+
+CASES += [
+    _c(
+        "risk_without_intensity",
+        "risk",
+        "[risk] with [excitation] intensity = 'none'",
+        [S, "[risk]"],
+        "intensity",
+        edit(edit(STOCHASTIC, 'intensity = "sa"', 'intensity = "none"'), 'scaling = "intensity"', 'scaling = "factor"'),
+    ),
+    _c(
+        "risk_seed_fraction",
+        "risk",
+        "[sweep] seed = [0, 1.5]",
+        [S, "[sweep] seed"],
+        "1.5",
+        edit(STOCHASTIC, "seed = [0, 1, 2]", "seed = [0, 1.5]"),
+    ),
+    _c(
+        "risk_stochastic_section_missing",
+        "risk",
+        "type = 'stochastic' without a [stochastic] section",
+        [S, "[excitation] type"],
+        "[stochastic]",
+        STOCHASTIC.split("[stochastic]")[0] + "[integration]" + STOCHASTIC.split("[integration]")[1],
+    ),
+    _c(
+        "risk_intensity_not_a_level",
+        "risk",
+        "[risk] intensities_g = [0.3] with [sweep] scale = [0.2, 0.4]",
+        [S, "[risk] intensities_g"],
+        "0.3",
+        edit(STOCHASTIC, "intensities_g = [0.4]", "intensities_g = [0.3]"),
+        argv=RISK,
+    ),
+    _c(
+        "risk_gap_axis",
+        "risk",
+        "[sweep] gap_m in a risk scene",
+        [S, "[sweep] gap_m"],
+        "sets the gaps itself",
+        edit(STOCHASTIC, "scale = [0.2, 0.4]", "scale = [0.2, 0.4]\ngap_m = [0.1, 0.2]"),
+        argv=RISK,
+    ),
+    _c(
+        "risk_hazard_missing",
+        "risk",
+        "[risk] hazard = 'nowhere.csv' (no such file)",
+        ["nowhere.csv"],
+        "hazard table",
+        edit(STOCHASTIC, "intensities_g = [0.4]", 'intensities_g = [0.4]\nhazard = "nowhere.csv"'),
+        argv=RISK,
+    ),
+    _c(
+        "risk_hazard_increasing",
+        "risk",
+        "a hazard table whose rate grows with the intensity",
+        ["haz.csv"],
+        "must decrease",
+        edit(STOCHASTIC, "intensities_g = [0.4]", 'intensities_g = [0.4]\nhazard = "haz.csv"'),
+        files={"haz.csv": "intensity_g,annual_rate\n0.1,0.01\n0.2,0.02\n"},
+        argv=RISK,
+    ),
+    _c(
+        "risk_subcommand_without_risk",
+        "risk",
+        "`risk` on a scene without a [risk] section",
+        [S],
+        "no [risk] section",
+        argv=RISK,
+        sub=True,
+    ),
+    _c(
+        "risk_out_is_a_file",
+        "risk",
+        "`risk --out` naming a file",
+        ["scene.toml"],
+        "not a risk study folder",
+        STOCHASTIC,
+        argv=("risk", "{scene}", "--out", "{scene}"),
+    ),
+    _c(
+        "risk_sweeps_contact",
+        "risk",
+        "a risk scene sweeping r (its contact runs take [contact]'s)",
+        [S, "[sweep] r"],
+        "ensemble",
+        edit(STOCHASTIC, "scale = [0.2, 0.4]", "scale = [0.2, 0.4]\nr = [0.2, 0.4]"),
+        argv=RISK,
     ),
 ]
 

@@ -67,9 +67,10 @@ def test_corpus_covers_the_issue():
         "output",  # issue 17: where results go,
         "resume",  # what an existing result folder holds,
         "execution",  # and how the sweep runs
+        "risk",  # issue 29: ensembles, [stochastic], [risk] and the risk subcommand
     }
     assert min(counts.values()) >= 5, counts
-    assert 10 <= sum(c.subprocess for c in CASES) <= 16  # the real-process dozen
+    assert 10 <= sum(c.subprocess for c in CASES) <= 17  # the real-process dozen (and one more for risk)
     assert {c.category for c in CASES if c.subprocess} == set(counts)  # one of each kind at least
 
 
@@ -247,10 +248,10 @@ def test_scene_strings_are_never_executed_and_files_never_unpickled(tmp_path):
 
 # Reading user files: these calls only. A new reader (or pickle, eval, YAML) must be added here on purpose.
 ALLOWED_READERS = {
-    "pd.read_csv": {"model/experiment.py", "plots.py"},
+    "pd.read_csv": {"model/experiment.py", "model/sensors/formats.py", "plots.py"},  # sensor exports: dtype=float
     "pd.read_parquet": {"plots.py"},  # result files the sweep wrote
     # tables; our own parts (read back, and rewritten to store warnings); the track cache
-    "pq.read_table": {"model/experiment.py", "sweep/run.py", "sweep/results.py", "video/tracker.py"},
+    "pq.read_table": {"model/experiment.py", "sweep/run.py", "sweep/results.py", "video/tracker.py", "risk/study.py"},
     "pq.read_schema": {"model/experiment.py", "sweep/results.py"},  # a table's column names; our own parts
     "pq.read_metadata": {"sweep/results.py", "sweep/resume.py"},  # footers: parts, and the best-runs file, as ours
     "cv2.VideoCapture": {"video/io.py"},

@@ -148,7 +148,7 @@ def test_a_harmonic_table_motion_is_refused(records, capsys, tmp_path):
     assert share > 95.0
     # its frequency, read between bins: a tenth of the 0.2 Hz resolution
     assert float(line.split("of its power at ")[1].split(" Hz")[0]) == pytest.approx(6.0, abs=0.02)
-    assert "not at their modes" in line and "(80% or more in one line is refused)" in line
+    assert "not at their modes" in line and "(80% or more in one line, 10 times the noise, is refused)" in line
 
 
 def test_the_shipped_6hz_experiment_update_is_refused_unless_forced(capsys, tmp_path):

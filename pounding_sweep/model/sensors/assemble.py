@@ -1,0 +1,356 @@
+"""From per-sensor exports to the engine's inputs: one table (a time column in s and one absolute-acceleration
+column per sensor, in m/s^2, on one clock) and the table sensor's record, with a note of every step.
+
+Steps, in order (docs/real_data.md says why each):
+1. read each file (formats.py: the device clock in s, unwrapped; SI units);
+2. the shaking axis of each sensor: gravity's axis is the one whose mean is nearest +/- g; the shaking axis
+   the horizontal one with the largest variance (or the one asked for);
+3. the clocks: a shared device clock where the sensors' clock ranges overlap (the same instant reads the same
+   value on each), else each sensor aligned to the reference by band-limited cross-correlation in the band
+   where the floors follow the table (signals.py); the lag found is reported in both cases (on a shared
+   clock it should be below a sample);
+4. one time grid: the reference's samples over the span every sensor covers; a sensor whose samples fall on
+   them is copied, another is interpolated (a not-a-knot cubic spline: amplitude error below
+   5/384 (2 pi f dt)^4, Hall & Meyer 1976, 4e-4 at f = fs / 15), after a zero-phase low-pass at 0.4 x the
+   grid's rate where its own rate is higher (no aliasing);
+5. the offset (gravity's projection from tilt, the sensor's bias): the mean of a stated quiet window,
+   subtracted; the window's standard deviation is the channel's noise (docs: noise in each channel's unit);
+6. the sign: each sensor's against the reference in the band below half the first resonance, where a
+   floor moves with the table (signals.py); a negative correlation is reversed.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pounding_sweep.errors import SensorError
+from pounding_sweep.model.records import G_STANDARD
+from pounding_sweep.model.sensors.formats import SensorFile, read_sensor
+from pounding_sweep.model.sensors.signals import first_resonance, physical_delay_bound, relation, rigid_band
+
+#: a sensor whose clock range overlaps the reference's by this share of the shorter one shares its clock
+SHARED_CLOCK_OVERLAP = 0.5
+#: a correlation in the rigid band weaker than this cannot tell a sign (or an alignment)
+MIN_CORRELATION = 0.5
+#: an alignment by cross-correlation whose second-best lobe comes this close to the best is ambiguous
+AMBIGUOUS = 0.9
+#: a quiet window whose standard deviation is above this many times the sensor's quietest stretch: not quiet
+QUIET_FACTOR = 3.0
+#: the length of the quiet window found when none is stated [s]
+QUIET_LENGTH_S = 1.0
+
+
+@dataclass(frozen=True)
+class Imported:
+    """The import's result: the table, the reference's record, each sensor's findings, warnings."""
+
+    time_s: np.ndarray  # from 0, the reference's samples over the common span
+    columns: dict[str, np.ndarray]  # '<name>_acc_m_s2' -> absolute acceleration [m/s^2], offset removed, sign fixed
+    reference: str  # the table's sensor name
+    sensors: dict[str, dict]  # name -> what was found and done (axis, sign, offset, noise, lag, clock, file)
+    settings: dict
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def dt_s(self) -> float:
+        return float((self.time_s[-1] - self.time_s[0]) / (self.time_s.size - 1))
+
+    def column(self, name: str) -> str:
+        return f"{name}_acc_m_s2"
+
+    def summary(self) -> list[str]:
+        """What was found, a line for the whole and one per sensor (the command prints them)."""
+        s = self.settings
+        out = [
+            f"imported {len(self.sensors)} sensors, reference {self.reference}: {self.time_s.size} samples at "
+            f"{s['rate_Hz']:.6g} Hz ({self.time_s[-1]:.3f} s); first resonance {s['first_resonance_Hz']:.4g} Hz, "
+            f"band {s['band_Hz'][0]:.3g}-{s['band_Hz'][1]:.3g} Hz; quiet window {s['quiet_s'][0]:.3f}-"
+            f"{s['quiet_s'][1]:.3f} s"
+        ]
+        for n, i in self.sensors.items():
+            lag = f", lag found {1e3 * i['lag_found_s']:+.2f} ms" if "lag_found_s" in i else ""
+            corr = f" (correlation {i['sign_correlation']:+.3f})" if "sign_correlation" in i else ""
+            out.append(
+                f"  {n}: axis {i['axis']}, sign {'+1' if i['sign'] > 0 else '-1 (reversed)'}{corr}, offset "
+                f"{i['offset_removed_m_s2']:+.4f} m/s^2, noise {i['noise_m_s2']:.4f} m/s^2; {i['alignment']}"
+                f", clock offset {i['clock_offset_s']:.6f} s{lag}"
+            )
+        return out
+
+
+def _axis(sf: SensorFile, choice: str) -> tuple[str, str, dict]:
+    """(shaking axis, gravity axis, per-axis statistics) of a sensor's accelerations."""
+    acc = {c: v for c, v in sf.channels.items() if sf.kinds[c] == "acceleration"}
+    stats = {c: {"mean": float(np.mean(v)), "std": float(np.std(v))} for c, v in acc.items()}
+    grav = min(acc, key=lambda c: abs(abs(stats[c]["mean"]) - G_STANDARD))
+    if choice != "auto":
+        col = f"Acc_{choice.upper()}"
+        if col not in acc:
+            raise SensorError(f"{sf.path}: --axis {choice}: no column {col} (columns: {', '.join(acc)})")
+        return col, grav, stats
+    horizontal = [c for c in acc if c != grav] or list(acc)
+    return max(horizontal, key=lambda c: stats[c]["std"]), grav, stats
+
+
+def import_sensors(
+    files: dict[str, str],
+    reference: str,
+    fmt: str = "auto",
+    axis: str = "auto",
+    clock: str = "auto",
+    quiet_s: tuple[float, float] | None = None,
+    band_Hz: tuple[float, float] | None = None,
+    max_lag_s: float | None = None,
+) -> Imported:
+    """Import the sensors `files` (name -> path; `reference` names the table's sensor) as the module docstring
+    says. `clock`: 'auto', 'device' (trust a shared clock) or 'xcorr' (align every sensor by correlation);
+    `quiet_s`: the window [s from the common start] whose mean is each channel's offset; `band_Hz`: the band of
+    sign and alignment (default: from the first resonance); `max_lag_s`: the largest alignment searched
+    (default: half the shortest record)."""
+    from scipy.interpolate import make_interp_spline
+
+    if reference not in files:
+        raise SensorError(f"--reference {reference}: no sensor of that name (sensors: {', '.join(files)})")
+    if clock not in ("auto", "device", "xcorr"):
+        raise SensorError(f"--clock {clock}: one of auto, device, xcorr")
+    sens = {n: read_sensor(p, fmt) for n, p in files.items()}
+    info: dict[str, dict] = {}
+    series: dict[str, np.ndarray] = {}
+    warnings: list[str] = []
+    for n, sf in sens.items():
+        col, grav, stats = _axis(sf, axis)
+        horiz = [c for c in stats if c != grav]
+        share = stats[col]["std"] ** 2 / max(sum(stats[c]["std"] ** 2 for c in horiz), 1e-300) if col in horiz else 1.0
+        info[n] = {
+            "file": sf.path,
+            "format": sf.format,
+            "device": sf.device,
+            "samples": int(sf.time_s.size),
+            "rate_Hz": sf.rate_Hz,
+            "clock": sf.clock,
+            "axis": col,
+            "gravity_axis": grav,
+            "gravity_axis_mean_m_s2": stats[grav]["mean"],
+            "axis_std_m_s2": stats[col]["std"],
+            "axis_share_of_horizontal_variance": share,
+            "reader_notes": list(sf.notes),
+        }
+        series[n] = sf.channels[col]
+        if col == grav:
+            warnings.append(
+                f"{sf.path}: axis {col} is the one gravity acts along (mean {stats[grav]['mean']:.3f} m/s^2): the "
+                "vertical axis, not the shaking one; choose a horizontal axis (--axis)"
+            )
+        elif share < 0.8:
+            warnings.append(
+                f"{sf.path}: the shaking axis {col} holds only {100 * share:.0f} % of the horizontal variance: the "
+                "sensor is turned about the vertical, and the other horizontal axis sees part of the motion"
+            )
+    ref = sens[reference]
+    fs = ref.rate_Hz
+    # the first resonance and the rigid band, from the spectra alone (no alignment needed)
+    durations = {n: float(sf.time_s[-1] - sf.time_s[0]) for n, sf in sens.items()}
+    top = max((n for n in sens if n != reference), key=lambda n: info[n]["axis_std_m_s2"], default=None)
+    if band_Hz is None:
+        if top is None:
+            raise SensorError(f"{ref.path}: one sensor only: give --band for sign and alignment checks")
+        m = min(series[reference].size, series[top].size)
+        f1 = first_resonance(series[reference][:m], series[top][:m], min(fs, sens[top].rate_Hz))
+        band = rigid_band(f1, min(durations.values()), min(sf.rate_Hz for sf in sens.values()))
+    else:
+        f1, band = float("nan"), tuple(band_Hz)
+    lag_limit = max_lag_s if max_lag_s is not None else 0.5 * min(durations.values())
+    # clocks: shared or aligned; each sensor's time on the reference's clock
+    on_ref: dict[str, np.ndarray] = {}
+    for n, sf in sens.items():
+        if n == reference:
+            on_ref[n] = sf.time_s
+            info[n]["clock_offset_s"] = 0.0
+            info[n]["alignment"] = "reference"
+            continue
+        period = sf.clock_period_s
+        shift = sf.time_s[0] - ref.time_s[0]
+        if math.isfinite(period):  # the same counter read at another wrap: compare modulo the period
+            t_sf = sf.time_s - (shift - ((shift + period / 2) % period - period / 2))
+        else:
+            t_sf = sf.time_s
+        overlap = (min(ref.time_s[-1], t_sf[-1]) - max(ref.time_s[0], t_sf[0])) / min(
+            durations[n], durations[reference]
+        )
+        shared = sf.clock == ref.clock and overlap >= SHARED_CLOCK_OVERLAP
+        # the relation on a common grid: the sensor interpolated onto the reference's samples by its own clock
+        t_own = sf.time_s - (sf.time_s[0] - ref.time_s[0])  # both from the same start, for the correlation
+        use = clock == "device" or (clock == "auto" and shared)
+        if clock == "device" and not shared:
+            raise SensorError(
+                f"{sf.path}: --clock device, but its clock ({sf.clock}, {sf.time_s[0]:.6f} .. {sf.time_s[-1]:.6f} s) "
+                f"does not overlap the reference's ({ref.time_s[0]:.6f} .. {ref.time_s[-1]:.6f} s): not a shared clock"
+            )
+        t_guess = t_sf if use else t_own
+        y = np.interp(ref.time_s, t_guess, series[n], left=0.0, right=0.0)
+        inside = (ref.time_s >= t_guess[0]) & (ref.time_s <= t_guess[-1])
+        limit = min(lag_limit, 1.0) if use else lag_limit
+        rel = relation(series[reference][inside], y[inside], fs, band, limit)
+        # the sensor's clock minus the reference's at the same instant
+        offset = float(sf.time_s[0] - (t_sf[0] if use else ref.time_s[0] - rel.lag_s))
+        info[n]["alignment"] = (
+            "shared device clock" if use else f"cross-correlation with {reference} in {band[0]:.3g}-{band[1]:.3g} Hz"
+        )
+        info[n]["clock_offset_s"] = float(offset)
+        info[n]["lag_found_s"] = rel.lag_s
+        info[n]["correlation_at_lag"] = rel.correlation
+        info[n]["runner_up_correlation"] = rel.runner_up
+        on_ref[n] = sf.time_s - offset
+        if abs(rel.correlation) < MIN_CORRELATION:
+            warnings.append(
+                f"{sf.path}: correlates with {reference} at {rel.correlation:+.2f} only in {band[0]:.3g}-"
+                f"{band[1]:.3g} Hz: its alignment and sign cannot be trusted (another test's file? give --band)"
+            )
+        elif not use and rel.runner_up >= AMBIGUOUS * abs(rel.correlation):
+            warnings.append(
+                f"{sf.path}: its alignment by cross-correlation is ambiguous (another lag correlates "
+                f"{rel.runner_up:.2f} against {abs(rel.correlation):.2f}: a periodic motion); align it by a shared "
+                "clock or trim the files to a broadband part"
+            )
+        bound = max(1.5 / fs, 2 * physical_delay_bound(f1) if math.isfinite(f1) else 0.0)
+        if use and abs(rel.lag_s) > bound:
+            warnings.append(
+                f"{sf.path}: lags {reference} by {1e3 * rel.lag_s:+.1f} ms on the shared clock (cross-correlation in "
+                f"{band[0]:.3g}-{band[1]:.3g} Hz; more than {1e3 * bound:.1f} ms): its clock is not the reference's; "
+                "import with --clock xcorr"
+            )
+    # one grid: the reference's samples over the span every sensor covers
+    start = max(t[0] for t in on_ref.values())
+    end = min(t[-1] for t in on_ref.values())
+    if end - start < 16 / fs:
+        raise SensorError(
+            "the sensors cover no common span: "
+            + ", ".join(f"{n} {t[0]:.3f}..{t[-1]:.3f} s" for n, t in on_ref.items())
+        )
+    grid = ref.time_s[(ref.time_s >= start - 1e-9) & (ref.time_s <= end + 1e-9)]
+    cols: dict[str, np.ndarray] = {}
+    for n, sf in sens.items():
+        t, x = on_ref[n], series[n]
+        j = np.searchsorted(t, grid)
+        j = np.clip(j, 0, t.size - 1)
+        jm = np.clip(j - 1, 0, t.size - 1)
+        near = np.where(np.abs(t[j] - grid) <= np.abs(t[jm] - grid), j, jm)
+        if np.all(np.abs(t[near] - grid) <= 1e-3 / fs):
+            y = x[near]
+            info[n]["resampled"] = "samples on the grid: copied"
+        else:
+            if sf.rate_Hz > 1.05 * fs:
+                import scipy.signal
+
+                sos = scipy.signal.butter(8, 0.4 * fs, fs=sf.rate_Hz, output="sos")
+                x = scipy.signal.sosfiltfilt(sos, x)
+            y = make_interp_spline(t, x, k=3)(grid)
+            info[n]["resampled"] = f"cubic spline onto the grid ({sf.rate_Hz:.6g} -> {fs:.6g} Hz" + (
+                ", low-passed at 0.4 x the grid rate first)" if sf.rate_Hz > 1.05 * fs else ")"
+            )
+        cols[n] = y
+    time = grid - grid[0]
+    # offsets: the mean of the quiet window (stated, or the quietest QUIET_LENGTH_S of the common span)
+    stds = {n: _moving_std(cols[n], max(16, int(round(QUIET_LENGTH_S * fs)))) for n in sens}
+    if quiet_s is None:
+        score = sum(s / np.median(s) for s in stds.values())  # each sensor relative to its typical level
+        k = int(np.argmin(score))
+        quiet_s = (float(time[k]), float(time[min(k + max(16, int(round(QUIET_LENGTH_S * fs))) - 1, time.size - 1)]))
+        how = "the quietest window of the common span (least sum over sensors of the moving standard deviation)"
+    else:
+        how = "stated (--quiet)"
+    q0, q1 = quiet_s
+    quiet = (time >= q0 - 0.5 / fs) & (time <= q1 + 0.5 / fs)
+    if quiet.sum() < 16:
+        raise SensorError(
+            f"--quiet {q0:g},{q1:g}: holds {int(quiet.sum())} samples of the common span 0..{time[-1]:.3f} s "
+            "(at least 16 needed)"
+        )
+    for n in sens:
+        w = cols[n][quiet]
+        off, sd = float(np.mean(w)), float(np.std(w, ddof=1))
+        cols[n] = cols[n] - off
+        info[n]["offset_removed_m_s2"] = off
+        info[n]["noise_m_s2"] = sd
+        least = float(stds[n].min()) * np.sqrt(quiet.sum() / max(quiet.sum() - 1, 1))
+        if sd > QUIET_FACTOR * least:
+            k = int(np.argmin(stds[n]))
+            warnings.append(
+                f"{files[n]}: the quiet window {q0:g}-{q1:g} s is not quiet on {n} (standard deviation {sd:.4g} m/s^2, "
+                f"{sd / least:.1f} x that of its quietest {QUIET_LENGTH_S:g} s, from {time[k]:.2f} s): the offset and "
+                "noise taken there include motion; give --quiet a window where nothing moves"
+            )
+    # signs against the reference, in the rigid band
+    for n in sens:
+        if n == reference:
+            info[n]["sign"] = +1
+            continue
+        rel = relation(cols[reference], cols[n], fs, band, 1.5 / fs)
+        info[n]["sign"] = rel.sign if abs(rel.correlation) >= MIN_CORRELATION else +1
+        info[n]["sign_correlation"] = rel.correlation
+        cols[n] = cols[n] * info[n]["sign"]
+    settings = {
+        "reference": reference,
+        "format": fmt,
+        "axis": axis,
+        "clock": clock,
+        "quiet_s": [float(q0), float(q1)],
+        "quiet_window": how,
+        "band_Hz": [float(band[0]), float(band[1])],
+        "first_resonance_Hz": f1,
+        "rate_Hz": fs,
+        "span_on_reference_clock_s": [float(grid[0]), float(grid[-1])],
+    }
+    return Imported(time, {f"{n}_acc_m_s2": cols[n] for n in sens}, reference, info, settings, warnings)
+
+
+def _moving_std(x: np.ndarray, m: int) -> np.ndarray:
+    """Standard deviation of every window of m consecutive samples (from running sums, in float64)."""
+    c1 = np.concatenate([[0.0], np.cumsum(x - x.mean())])
+    c2 = np.concatenate([[0.0], np.cumsum((x - x.mean()) ** 2)])
+    s1, s2 = c1[m:] - c1[:-m], c2[m:] - c2[:-m]
+    return np.sqrt(np.maximum(s2 - s1 * s1 / m, 0.0) / (m - 1))
+
+
+#: the first line of every provenance note the import writes: how a folder is known to be its output
+PROVENANCE_HEAD = "# Imported by python -m pounding_sweep import"
+
+
+def provenance_text(im: Imported, command: str) -> str:
+    """The provenance note: what was read, found and done, sensor by sensor (Markdown)."""
+    s = im.settings
+    lines = [
+        PROVENANCE_HEAD,
+        "",
+        f"Command: `{command}`",
+        "",
+        f"- reference (the shaking table): `{im.reference}`; one time grid, its samples at {s['rate_Hz']:.6g} Hz over "
+        f"{s['span_on_reference_clock_s'][0]:.6f} .. {s['span_on_reference_clock_s'][1]:.6f} s of its clock, "
+        f"written from t_s = 0 ({im.time_s.size} samples, {im.time_s[-1]:.3f} s)",
+        f"- first resonance from the spectra (top floor / table): {s['first_resonance_Hz']:.4g} Hz; band of sign and "
+        f"alignment {s['band_Hz'][0]:.4g}-{s['band_Hz'][1]:.4g} Hz (below half of it the floors follow the table)",
+        f"- quiet window {s['quiet_s'][0]:.3f}-{s['quiet_s'][1]:.3f} s ({s['quiet_window']}): its mean subtracted "
+        "from each channel (the offset), its standard deviation the channel's noise",
+        "",
+        "| sensor | file | device | axis (gravity on) | clock | clock offset s | lag found ms | sign (correlation) | "
+        "offset removed m/s^2 | noise m/s^2 | resampling |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for n, i in im.sensors.items():
+        sign = "+1" if i["sign"] > 0 else "-1 (reversed)"
+        corr = f" ({i['sign_correlation']:+.3f})" if "sign_correlation" in i else " (reference)"
+        lines.append(
+            f"| {n} | {i['file']} | {i['device']} | {i['axis']} ({i['gravity_axis']}, mean "
+            f"{i['gravity_axis_mean_m_s2']:.3f}) | {i['alignment']} | {i['clock_offset_s']:.6f} | "
+            f"{1e3 * i.get('lag_found_s', 0.0):+.2f} | {sign}{corr} | {i['offset_removed_m_s2']:+.5f} | "
+            f"{i['noise_m_s2']:.5f} | {i['resampled']} |"
+        )
+    notes = [f"- {n}: {x}" for n, i in im.sensors.items() for x in i["reader_notes"]]
+    if notes:
+        lines += ["", "Reader notes:", *notes]
+    if im.warnings:
+        lines += ["", "Warnings:", *[f"- {w}" for w in im.warnings]]
+    return "\n".join(lines) + "\n"

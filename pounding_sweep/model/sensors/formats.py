@@ -1,0 +1,201 @@
+"""Raw sensor exports and the registry of their formats: each format turns one file into a SensorFile
+(time on the sensor's own clock in s, named channels in SI units, what was dropped on the way).
+
+Adding a format: write `read(path, head) -> SensorFile` and `sniff(head) -> bool` (head: the file's first
+4 kB as text), and `register(SensorFormat("name", "what it is", sniff, read))`; `read_sensor` then finds it
+by its sniff (or by name, `--format name`). Every problem is a SensorError naming the file, the line or
+column and the value. Times are converted here, once: a device clock in its own unit (Xsens SampleTimeFine:
+microseconds, 32-bit, wrapping) becomes seconds, unwrapped.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from pounding_sweep.errors import SensorError
+from pounding_sweep.scene.files import MAX_TABLE_BYTES, read_regular, text_problem
+
+
+@dataclass(frozen=True, eq=False)
+class SensorFile:
+    """One sensor's export as read: its clock (s, unwrapped, as the device counts: two sensors on a shared
+    clock read the same value at the same instant), channels in SI units, and what the reader did."""
+
+    path: str
+    format: str
+    device: str  # the device's tag or id, as the file names it ('' when none)
+    time_s: np.ndarray  # the device clock [s], strictly increasing
+    clock: str  # what the time is: 'SampleTimeFine (device clock, us, 32-bit)', or a file column
+    clock_period_s: float  # where the clock wraps (inf: it does not)
+    channels: dict[str, np.ndarray]  # 'Acc_X' -> values in `units`
+    units: dict[str, str]  # 'Acc_X' -> 'm/s^2'
+    kinds: dict[str, str]  # 'Acc_X' -> 'acceleration' (what a table column holding it measures)
+    notes: tuple[str, ...] = field(default_factory=tuple)  # rows dropped, clock wraps, ...
+
+    @property
+    def rate_Hz(self) -> float:
+        return 1.0 / float(np.median(np.diff(self.time_s)))
+
+
+@dataclass(frozen=True)
+class SensorFormat:
+    name: str
+    description: str
+    sniff: Callable[[str], bool]
+    read: Callable[[Path, str], SensorFile]
+
+
+FORMATS: dict[str, SensorFormat] = {}
+
+
+def register(fmt: SensorFormat) -> None:
+    """Make a format known to read_sensor (by its sniff, and by name)."""
+    FORMATS[fmt.name] = fmt
+
+
+def read_sensor(path, format: str = "auto") -> SensorFile:
+    """Read one sensor's export; format 'auto' tries each registered format's sniff on the file's head."""
+    p = Path(path)
+    raw = read_regular(p, "sensor export", MAX_TABLE_BYTES, SensorError)
+    if (why := text_problem(p, "sensor export", raw[:4096])) is not None:
+        raise SensorError(why)
+    text = raw.decode("utf-8-sig", errors="replace")
+    head = text[:4096]
+    if format == "auto":
+        found = [f for f in FORMATS.values() if f.sniff(head)]
+        if not found:
+            raise SensorError(
+                f"{p}: not a sensor export this reader knows (formats: {', '.join(FORMATS)}; first line "
+                f"{head.splitlines()[0][:60] if head.strip() else '(empty)'!r}); docs/real_data.md says how to add one"
+            )
+        fmt = found[0]
+    elif format in FORMATS:
+        fmt = FORMATS[format]
+    else:
+        raise SensorError(f"{p}: unknown sensor format {format!r} (known: {', '.join(FORMATS)})")
+    return fmt.read(p, text)
+
+
+# ----------------------------------------------------------------------------- Xsens DOT (Movella)
+
+#: SampleTimeFine: microseconds on a 32-bit counter (Movella DOT user manual: "SampleTimeFine ... in us")
+XSENS_TICK_S = 1e-6
+XSENS_WRAP = 2**32
+#: the export's columns and what they hold (Movella DOT export: Euler in deg, Acc in m/s^2 with gravity, Gyr deg/s)
+XSENS_COLUMNS = {
+    "Acc_X": ("m/s^2", "acceleration", 1.0),
+    "Acc_Y": ("m/s^2", "acceleration", 1.0),
+    "Acc_Z": ("m/s^2", "acceleration", 1.0),
+    "Gyr_X": ("rad/s", "angular_velocity", math.pi / 180),
+    "Gyr_Y": ("rad/s", "angular_velocity", math.pi / 180),
+    "Gyr_Z": ("rad/s", "angular_velocity", math.pi / 180),
+    "Euler_X": ("rad", "angle", math.pi / 180),
+    "Euler_Y": ("rad", "angle", math.pi / 180),
+    "Euler_Z": ("rad", "angle", math.pi / 180),
+}
+
+
+def _xsens_sniff(head: str) -> bool:
+    lines = head.splitlines()
+    return any(ln.startswith("DeviceTag:") for ln in lines[:8]) and any(
+        ln.startswith("PacketCounter,SampleTimeFine") for ln in lines[:20]
+    )
+
+
+def _xsens_read(p: Path, text: str) -> SensorFile:
+    """An Xsens/Movella DOT CSV export: `key:,value` header lines to a blank line, then a header row
+    `PacketCounter,SampleTimeFine,...`. Leading rows whose accelerations and angular velocities are all exactly
+    zero (the device writes one before its first measurement) are dropped; the clock is unwrapped modulo 2^32 us."""
+    import pandas as pd
+
+    lines = text.splitlines()
+    try:
+        k = next(i for i, ln in enumerate(lines[:50]) if ln.startswith("PacketCounter,"))
+    except StopIteration:
+        raise SensorError(f"{p}: no 'PacketCounter,SampleTimeFine,...' header row in its first 50 lines") from None
+    meta = {}
+    for ln in lines[:k]:
+        if ":" in ln:
+            key, _, val = ln.partition(":")
+            meta[key.strip()] = val.lstrip(",").strip()
+    try:
+        df = pd.read_csv(io.StringIO("\n".join(lines[k:])), dtype=float)
+    except Exception as e:  # noqa: BLE001 - pandas raises many types
+        raise SensorError(f"{p}: cannot read the rows after line {k + 1} ({type(e).__name__}: {e})") from None
+    if "SampleTimeFine" not in df.columns:
+        raise SensorError(f"{p}, line {k + 1}: no column SampleTimeFine (columns: {', '.join(df.columns)})")
+    measured = [c for c in df.columns if c in XSENS_COLUMNS]
+    if not any(c.startswith("Acc_") for c in measured):
+        raise SensorError(f"{p}, line {k + 1}: no acceleration column Acc_X/Y/Z (columns: {', '.join(df.columns)})")
+    for c in ["SampleTimeFine", *measured]:
+        bad = ~np.isfinite(df[c].to_numpy())
+        if bad.any():
+            raise SensorError(f"{p}, line {k + 2 + int(np.argmax(bad))}: column {c} is not a finite number")
+    notes = []
+    inertial = [c for c in measured if XSENS_COLUMNS[c][1] in ("acceleration", "angular_velocity")]
+    vals = df[inertial].to_numpy()
+    lead = 0
+    while lead < len(df) and np.all(vals[lead] == 0.0):
+        lead += 1
+    if lead:
+        notes.append(
+            f"dropped {lead} leading row(s) whose accelerations and angular velocities are all exactly zero (the device's first row: no measurement yet)"
+        )
+    df = df.iloc[lead:]
+    if len(df) < 16:
+        raise SensorError(f"{p}: {len(df)} sample row(s) after the header: at least 16 needed")
+    raw = df["SampleTimeFine"].to_numpy(dtype=np.int64)
+    if raw.min() < 0 or raw.max() >= XSENS_WRAP:
+        i = int(np.argmax((raw < 0) | (raw >= XSENS_WRAP)))
+        raise SensorError(f"{p}, line {k + 2 + lead + i}: SampleTimeFine {raw[i]} is not a 32-bit microsecond count")
+    step = np.diff(raw) % XSENS_WRAP  # a wrap of the 32-bit counter reads as a step back
+    wraps = int(np.sum(np.diff(raw) < 0))
+    if wraps:
+        notes.append(f"SampleTimeFine wrapped {wraps} time(s) (32-bit us counter, every {XSENS_WRAP * 1e-6:.1f} s)")
+    if np.any(step == 0):
+        i = int(np.argmax(step == 0)) + 1
+        raise SensorError(f"{p}, line {k + 2 + lead + i}: SampleTimeFine {raw[i]} repeats the row before")
+    med = float(np.median(step))
+    if np.any(step > XSENS_WRAP // 2):
+        i = int(np.argmax(step > XSENS_WRAP // 2)) + 1
+        raise SensorError(f"{p}, line {k + 2 + lead + i}: SampleTimeFine steps back ({raw[i - 1]} -> {raw[i]})")
+    gaps = np.flatnonzero(step > 1.5 * med)
+    if gaps.size:
+        notes.append(
+            f"{gaps.size} gap(s) in the clock (largest {step.max() * XSENS_TICK_S:.4g} s against the step "
+            f"{med * XSENS_TICK_S:.4g} s): samples missing there"
+        )
+    t = (raw[0] + np.concatenate([[0], np.cumsum(step)])) * XSENS_TICK_S
+    chans, units, kinds = {}, {}, {}
+    for c in measured:
+        unit, kind, factor = XSENS_COLUMNS[c]
+        chans[c] = df[c].to_numpy(dtype=float) * factor
+        units[c], kinds[c] = unit, kind
+    return SensorFile(
+        str(p),
+        "xsens_dot",
+        meta.get("DeviceTag", ""),
+        t,
+        "SampleTimeFine (device clock, us, 32-bit)",
+        XSENS_WRAP * XSENS_TICK_S,
+        chans,
+        units,
+        kinds,
+        tuple(notes),
+    )
+
+
+register(
+    SensorFormat(
+        "xsens_dot",
+        "Movella/Xsens DOT CSV export (header lines, PacketCounter, SampleTimeFine in us, Euler, Acc m/s^2, Gyr deg/s)",
+        _xsens_sniff,
+        _xsens_read,
+    )
+)

@@ -1,0 +1,102 @@
+"""What each column of a risk study's tables means (stored in each table's metadata; docs/risk.md)."""
+
+from __future__ import annotations
+
+_GROUP = {
+    "scale": "the runs' [sweep] scale: the intensity level [g] (scaling = 'intensity') or the factor on the motions",
+    "intensity_g": "the group's intensity [g]: its level, or the median of its motions' intensities (a cloud)",
+    "motions": "motions in the group (or the study) [-]",
+}
+_CI = {
+    "ci_low": "lower end of the exact (Clopper-Pearson) interval at [risk] confidence [-]",
+    "ci_high": "upper end of that interval [-]",
+}
+
+COLUMN_DOCS = {
+    "demand": {
+        "motion": "the record's name or the stochastic motion's seed",
+        "motion_index": "the motion's place on the [sweep] record or seed axis [-]",
+        "scale": _GROUP["scale"],
+        "intensity_g": "the run's intensity as run [g]",
+        "required_gap_f*_m": "gap floor pair * needs in this run: its largest closing relative displacement u1 - u2 [m]",
+        "required_gap_m": "the largest over the pairs: pounding at gap g exactly when this exceeds g [m]",
+        "governing_pair": "the pair that needs it [-]",
+        "abs_gap_m": "ABS rule, u1 + u2 of the run's peak displacements, largest over the pairs [m]",
+        "srss_gap_m": "SRSS rule, sqrt(u1^2 + u2^2), largest over the pairs [m]",
+        "ddc_gap_m": "double-difference rule with Der Kiureghian's correlation, largest over the pairs [m]",
+        "peak_disp_b*f*_m": "the run's peak |displacement| of building b, floor f, without contact [m]",
+    },
+    "probability": {
+        **_GROUP,
+        "gap_m": "gap between the buildings at rest [m]",
+        "pounding": "motions whose required gap exceeds gap_m [-]",
+        "probability": "pounding / motions: P(pounding | gap, group) [-]",
+        **_CI,
+    },
+    "fragility": {
+        "gap_m": "gap [m]",
+        "median_g": "lognormal fragility's median theta: P(pounding | x) = Phi(ln(x / theta) / beta) [g]",
+        "beta": "its dispersion (log standard deviation) [-]",
+        "status": "'ok'; 'separated' (outcomes do not overlap in intensity: beta -> 0, median between them); "
+        "'none' (no pounding: median inf); 'all' (pounding at every point: median 0)",
+        "loglik": "log-likelihood of the fit (binomial, Baker 2015) [-]",
+        "median_ci_low_g": "bootstrap (over motions) percentile interval of the median [g]",
+        "median_ci_high_g": "its upper end [g]",
+        "beta_ci_low": "bootstrap percentile interval of beta [-]",
+        "beta_ci_high": "its upper end [-]",
+        "bootstrap_ok_fraction": "fraction of bootstrap replicates whose fit is 'ok' [-]",
+        "motions": "motions of the study [-]",
+    },
+    "required_gap": {
+        "intensity_g": "intensity [g]",
+        "target_probability": "target probability of pounding [-]",
+        "empirical_gap_m": "the order statistic of the stripe's required gaps exceeded by at most that fraction [m]",
+        "empirical_ci_low_m": "distribution-free interval (order statistics) at [risk] confidence; NaN: too few motions [m]",
+        "empirical_ci_high_m": "its upper end [m]",
+        "motions": "motions behind it [-]",
+        "lognormal_gap_m": "gap at which the lognormal fragilities give the target (interpolated in ln gap) [m]",
+        "lognormal_ci_low_m": "bootstrap percentile interval [m]",
+        "lognormal_ci_high_m": "its upper end [m]",
+        "bootstrap_found_fraction": "fraction of replicates whose target lies inside the gaps studied [-]",
+    },
+    "code_rules": {
+        "intensity_g": "intensity [g]",
+        "rule": "ABS, SRSS, DDC (from the median peak displacements of the motions at this intensity) or "
+        "TBEC2018_min (30 mm up to 6 m, 10 mm per further started 3 m, at the top facing floor)",
+        "gap_m": "the gap the rule asks for [m]",
+        "motions": "motions [-]",
+        "pounding": "motions that pound at that gap [-]",
+        "probability": "pounding / motions [-]",
+        **_CI,
+        "lognormal_probability": "the lognormal fragility of that gap at this intensity [-]",
+        "lognormal_ci_low": "bootstrap percentile interval [-]",
+        "lognormal_ci_high": "its upper end [-]",
+        "per_motion_pounding": "motions that pound at the gap the rule gives from their own peaks [-]",
+        "per_motion_probability": "per_motion_pounding / motions [-]",
+        "per_motion_ci_low": "Clopper-Pearson interval [-]",
+        "per_motion_ci_high": "its upper end [-]",
+    },
+    "consequences": {
+        "gap_m": "gap of the contact runs [m]",
+        "scale": _GROUP["scale"],
+        "intensity_g": "median intensity of the motions [g]",
+        "quantity": "disp_ratio_b* (top floor peak displacement with / without contact), drift_ratio_b* (largest "
+        "story drift), acc_ratio_b* (top floor peak absolute acceleration), peak_force_N (largest pounding force "
+        "over the pairs [N]), impacts (contact phases over the pairs)",
+        "motions": "motions [-]",
+        "pounded": "motions with at least one impact [-]",
+        "mean": "mean over the motions (the quantity's unit)",
+        "q05": "5 % quantile over the motions",
+        "q16": "16 %",
+        "q50": "median",
+        "q84": "84 %",
+        "q95": "95 %",
+    },
+    "annual_rate": {
+        "gap_m": "gap [m]",
+        "annual_rate_per_yr": "annual rate of pounding: the fragility integrated over the hazard curve [1/yr]",
+        "ci_low_per_yr": "bootstrap percentile interval [1/yr]",
+        "ci_high_per_yr": "its upper end [1/yr]",
+        "return_period_yr": "1 / annual rate [yr]",
+    },
+}

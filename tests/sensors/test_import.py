@@ -1,0 +1,229 @@
+"""The import of raw sensor exports (model/sensors, cli/import_.py): on Xsens DOT files of a known test written
+here (synthetic_xsens.py), every finding is checked against what was put in; on the real IMU shake-table tests
+in ../shared (skipped where absent) against facts of those tests."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import SHARED
+
+sys.path.insert(0, str(Path(__file__).parent))
+from synthetic_xsens import FINE, RATE, TICK_US, shear_frame_test, write_sensor  # noqa: E402
+
+from pounding_sweep.cli.run import main  # noqa: E402
+from pounding_sweep.errors import SensorError  # noqa: E402
+from pounding_sweep.model.sensors.assemble import import_sensors  # noqa: E402
+from pounding_sweep.model.sensors.formats import FORMATS, SensorFile, SensorFormat, read_sensor, register  # noqa: E402
+
+IMU = SHARED / "data" / "imu_shake_table" / "stiff_3story"
+DT = TICK_US * 1e-6
+
+
+@pytest.fixture(scope="module")
+def truth():
+    return shear_frame_test()
+
+
+def _files(tmp: Path, truth, shared_clock: bool, reversed_: str | None = None, wrap: bool = False) -> dict:
+    """Four exports; on a shared clock the sensors start at the same fine sample and tick, else each starts at
+    its own fine sample (sub-sample offsets) and its own unrelated tick. `wrap`: the clock wraps mid-record."""
+    starts = (
+        {"ground": 0, "b1f1": 0, "b1f2": 0, "b1f3": 0}
+        if shared_clock
+        else {"ground": 0, "b1f1": 37, "b1f2": 123, "b1f3": 64}
+    )
+    ticks = {"ground": 2**32 - 10_000_000 if wrap else 2_042_652_963}
+    for n in ("b1f1", "b1f2", "b1f3"):
+        ticks[n] = (
+            ticks["ground"]
+            if shared_clock
+            else {"b1f1": 1_499_458_488, "b1f2": 2_549_622_740, "b1f3": 1_518_873_877}[n]
+        )
+    tilts = {"ground": 0.08, "b1f1": -0.003, "b1f2": -0.11, "b1f3": -0.06}
+    out = {}
+    for k, n in enumerate(starts):
+        p = tmp / f"{n}.csv"
+        write_sensor(
+            p,
+            truth.acc[n],
+            ticks[n],
+            starts[n],
+            sign=-1 if n == reversed_ else 1,
+            tilt=tilts[n],
+            seed=k,
+            samples=4500 - starts[n] // FINE,
+        )
+        out[n] = str(p)
+    return out
+
+
+def test_xsens_reader_drops_the_zero_row_unwraps_the_clock_and_converts_units(tmp_path, truth):
+    files = _files(tmp_path, truth, shared_clock=True, wrap=True)
+    sf = read_sensor(files["ground"])
+    assert sf.format == "xsens_dot" and sf.device == "Xsens DOT"
+    assert any("dropped 1 leading row" in n for n in sf.notes) and any("wrapped 1 time" in n for n in sf.notes)
+    # unwrapped: strictly increasing, every step the DOT's 8333 us (exact integers times 1e-6: rounding only)
+    assert np.allclose(np.diff(sf.time_s), DT, rtol=0, atol=1e-9)
+    assert sf.units["Gyr_X"] == "rad/s" and sf.channels["Gyr_X"][0] == pytest.approx(0.01 * np.pi / 180)
+    assert sf.rate_Hz == pytest.approx(1e6 / TICK_US)
+
+
+def test_shared_clock_import_finds_axis_offsets_noise_and_a_reversed_sensor(tmp_path, truth):
+    files = _files(tmp_path, truth, shared_clock=True, reversed_="b1f2", wrap=True)
+    im = import_sensors(files, "ground")
+    assert not im.warnings
+    s = im.sensors
+    assert {i["axis"] for i in s.values()} == {"Acc_X"} and {i["gravity_axis"] for i in s.values()} == {"Acc_Z"}
+    assert [s[n]["sign"] for n in ("ground", "b1f1", "b1f2", "b1f3")] == [1, 1, -1, 1]
+    assert all(i["alignment"] in ("reference", "shared device clock") for i in s.values())
+    # the quiet window found lies in the 3 s of rest; its mean is the tilt offset (signed as the raw sensor), known
+    # to the noise's standard error 0.01 / sqrt(120): 5 standard errors
+    assert im.settings["quiet_s"][1] <= 3.0
+    for n, tilt in {"ground": 0.08, "b1f1": -0.003, "b1f2": -0.11, "b1f3": -0.06}.items():
+        assert s[n]["offset_removed_m_s2"] == pytest.approx(tilt, abs=5 * 0.01 / np.sqrt(120))
+        # the noise's standard deviation from 120 samples: within 4 of its standard errors (sigma / sqrt(2 n))
+        assert s[n]["noise_m_s2"] == pytest.approx(0.01, abs=4 * 0.01 / np.sqrt(240))
+    # the columns are the truth: sample i is fine sample FINE i (shared clock, no interpolation), plus noise
+    for n in ("ground", "b1f1", "b1f2", "b1f3"):
+        x = im.columns[f"{n}_acc_m_s2"]
+        ref = truth.acc[n][::FINE][: x.size]
+        resid = x - ref
+        assert abs(np.mean(resid)) < 5 * 0.01 / np.sqrt(120)  # the offset estimate's error only
+        assert np.std(resid) == pytest.approx(0.01, rel=0.1)  # the sensor noise, 4500 samples: 3 % standard error
+
+
+def test_unsynchronised_clocks_are_aligned_by_cross_correlation(tmp_path, truth):
+    files = _files(tmp_path, truth, shared_clock=False, reversed_="b1f1")
+    im = import_sensors(files, "ground")
+    s = im.sensors
+    assert s["b1f1"]["sign"] == -1 and s["b1f2"]["sign"] == 1
+    ref0 = read_sensor(files["ground"]).time_s[0]
+    for n, fine in {"b1f1": 37, "b1f2": 123, "b1f3": 64}.items():
+        assert s[n]["alignment"].startswith("cross-correlation")
+        t0 = read_sensor(files[n]).time_s[0]
+        expected = t0 - (ref0 + fine / FINE * DT)
+        # the lag is read between samples by a parabola: well within a tenth of a sample on 37 s of broadband motion
+        assert s[n]["clock_offset_s"] == pytest.approx(expected, abs=0.1 * DT)
+    # interpolated onto the table's samples by a cubic spline: the content up to 20 Hz (the table's band; the modes
+    # above are lightly excited) read within 5/384 (2 pi 20 / 120)^4 = 1.6 % of the peak, plus the noise
+    x = im.columns["b1f3_acc_m_s2"]
+    t_ref = (np.arange(x.size) + round(im.settings["span_on_reference_clock_s"][0] / DT - ref0 / DT)) * FINE
+    ref = truth.acc["b1f3"][t_ref.astype(int)]
+    bound = 5 / 384 * (2 * np.pi * 20 / RATE) ** 4 * np.max(np.abs(ref)) + 5 * 0.01
+    assert np.percentile(np.abs(x - ref), 99) <= bound
+
+
+def test_a_sensor_that_lags_on_a_shared_clock_is_named(tmp_path, truth):
+    files = _files(tmp_path, truth, shared_clock=True)
+    # b1f3's file: samples 5 fine-grid samples (4.2 ms) ... no: 48 fine samples = 40 ms late, same clock ticks
+    write_sensor(
+        Path(files["b1f3"]),
+        np.concatenate([np.zeros(48), truth.acc["b1f3"]]),
+        2_042_652_963,
+        0,
+        tilt=-0.06,
+        seed=3,
+        samples=4500,
+    )
+    im = import_sensors(files, "ground")
+    (w,) = [w for w in im.warnings if "b1f3" in w]
+    assert "lags ground by +40." in w and "--clock xcorr" in w
+    assert im.sensors["b1f3"]["lag_found_s"] == pytest.approx(0.040, abs=0.1 * DT)
+
+
+def test_a_format_is_added_by_registering_it(tmp_path):
+    def sniff(head):
+        return head.startswith("# two-column test format")
+
+    def read(p, text):
+        rows = np.loadtxt(text.splitlines()[1:], delimiter=",")
+        return SensorFile(
+            str(p),
+            "two_column",
+            "",
+            rows[:, 0],
+            "file column t (s)",
+            float("inf"),
+            {"Acc_X": rows[:, 1], "Acc_Z": rows[:, 2]},
+            {"Acc_X": "m/s^2", "Acc_Z": "m/s^2"},
+            {"Acc_X": "acceleration", "Acc_Z": "acceleration"},
+        )
+
+    register(SensorFormat("two_column", "a test format", sniff, read))
+    try:
+        p = tmp_path / "x.txt"
+        t = np.arange(100) / 100
+        p.write_text("# two-column test format\n" + "".join(f"{a},{np.sin(a)},9.8\n" for a in t))
+        sf = read_sensor(p)
+        assert sf.format == "two_column" and sf.rate_Hz == pytest.approx(100)
+    finally:
+        del FORMATS["two_column"]
+    with pytest.raises(SensorError, match="not a sensor export this reader knows"):
+        read_sensor(p)
+
+
+def test_import_command_writes_table_record_and_provenance_and_refuses_a_folder_not_its_own(tmp_path, truth, capsys):
+    files = _files(tmp_path, truth, shared_clock=True, reversed_="b1f2")
+    out = tmp_path / "imported"
+    argv = ["import", *[f"{n}={p}" for n, p in files.items()], "--out", str(out)]
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    assert "b1f2: axis Acc_X, sign -1 (reversed)" in text
+    import pandas as pd
+    import pyarrow.parquet as pq
+
+    t = pq.read_table(out / "table.parquet")
+    md = {k.decode(): v.decode() for k, v in t.schema.metadata.items()}
+    assert json.loads(md["column_kinds"])["b1f1_acc_m_s2"] == "acceleration"
+    assert md["provenance"].startswith("# Imported by python -m pounding_sweep import")
+    rec = pd.read_csv(out / "record.csv")
+    assert np.allclose(rec["acc_m_s2"], t.column("ground_acc_m_s2").to_numpy(), atol=1e-8)
+    # the record reader accepts it: uniform, in s, from 0
+    from pounding_sweep.model.records import read_record
+
+    r = read_record(out / "record.csv")
+    assert r.dt_s == pytest.approx(DT, rel=1e-9)
+    assert main(argv) == 0  # our own output: replaced
+    other = tmp_path / "mine"
+    other.mkdir()
+    (other / "notes.txt").write_text("mine")
+    capsys.readouterr()
+    assert main(["import", *[f"{n}={p}" for n, p in files.items()], "--out", str(other)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"error: {other}: exists and is not an earlier import's output")
+    assert sorted(p.name for p in other.iterdir()) == ["notes.txt"]
+
+
+# ------------------------------------------------------------------ the real tests (../shared)
+
+
+def _real(test):
+    if not IMU.is_dir():
+        pytest.skip(f"{IMU} not present: the real IMU tests need ../shared beside the repo")
+    return {"ground": IMU / test / "ground.csv", **{f"b1f{k}": IMU / test / f"floor{k}.csv" for k in (1, 2, 3)}}
+
+
+def test_northridge_shares_one_clock_and_no_sensor_is_reversed():
+    im = import_sensors({n: str(p) for n, p in _real("northridge").items()}, "ground")
+    assert not im.warnings
+    for n, i in im.sensors.items():
+        assert i["axis"] == "Acc_X" and i["gravity_axis"] == "Acc_Z" and i["sign"] == 1
+        if n != "ground":
+            assert i["alignment"] == "shared device clock" and abs(i["lag_found_s"]) < 1.5 * DT
+    # the source's notebooks: first period 0.125-0.134 s; from the spectra alone
+    assert 1 / 0.134 <= im.settings["first_resonance_Hz"] <= 1 / 0.125
+
+
+def test_bonus_event_clocks_are_aligned_and_floor1_is_reversed():
+    im = import_sensors({n: str(p) for n, p in _real("bonus_event").items()}, "ground")
+    s = im.sensors
+    assert [s[n]["sign"] for n in ("b1f1", "b1f2", "b1f3")] == [-1, 1, 1]
+    for n in ("b1f1", "b1f2", "b1f3"):
+        assert s[n]["alignment"].startswith("cross-correlation")
+        # aligned: the floor follows the table in the rigid band at the found lag
+        assert abs(s[n]["correlation_at_lag"]) > 0.95 and s[n]["runner_up_correlation"] < 0.6

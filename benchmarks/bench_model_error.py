@@ -13,8 +13,9 @@ Cases:
   Xsens DOT per floor and on the table, about 120 samples/s; loaded by the private reader below: the shaking
   axis X, each channel's mean removed, floors aligned to the table by cross-correlation where the sensors'
   clocks are not shared, a floor's sign flipped when it moves against the table below the first mode). One
-  building, its twin placed 1 m away (no single-building scenes yet), the three floors' absolute acceleration
-  fitted with the table's acceleration as the ground motion: stiffness scale, damping ratio, clock offset.
+  building, its twin placed 1 m away, the three floors' absolute acceleration fitted with the table's
+  acceleration as the ground motion: stiffness scale, damping ratio, clock offset; each sensor's noise measured
+  in the first 1.5 s, before the shaking ([experiment] noise_window_s).
 
 Per case: the whole record fitted; then the windows fitted alone ([experiment] window_s, the same bounds and
 noise; where a refit of the window from the whole record's optimum ends lower, that one: a window's calibration
@@ -156,6 +157,7 @@ table = "{table}"
 channels = {{ floor1_acc = "abs_acc_b1f1", floor2_acc = "abs_acc_b1f2", floor3_acc = "abs_acc_b1f3" }}
 acc_units = "m/s2"
 use = "acceleration"
+noise_window_s = [0.0, 1.5]             # before the shaking: each sensor's own noise
 """
     path = folder / f"{name}.toml"
     path.write_text(text)

@@ -4,10 +4,11 @@ Why: pounding responses are sensitive to their parameters, more so the longer th
 contact stiffness or a building's frequency shifts the impacts, the shift grows impact after impact, and the
 misfit over a whole record is a landscape of narrow basins (on a 6 Hz test with k_s/k = 10 and r = 0.8 the
 misfit along k_s/k over 4 s has a dozen local minima, over the first second one). A design over the bounds
-and least squares from its best points then stop in a wrong basin (1 of 30 in the previous calibration's
-family; 11-19 times the noise floor on that test), and a population method on the whole record does not do
-better for its cost (scipy's differential_evolution, 70 members x 30 generations run as batches: 9.8 times the
-noise floor after 4000 runs).
+and least squares from its best points then stop in a wrong basin (9 of 30 in benchmarks/bench_calibration.py's
+family, 8 of its 10 stiff, high-r, low-noise tests; 11-19 times the noise floor on that test). A population
+method on the whole record gets there at many times the cost (benchmarks/bench_global_de.py: scipy's
+differential_evolution, 70 members x 30 generations run as batches, 3969 runs and 213 s to a member 12.6 times
+the noise floor, from which least squares reached the basin; this stage: 289 runs, 5 s).
 
 Method: incremental single shooting (Michalik, Hannemann & Marquardt 2009, "Incremental single shooting - a
 robust method for the estimation of parameters in dynamical systems", Comput. Chem. Eng. 33:1298): fit the

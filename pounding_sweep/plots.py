@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
+import stat
 import tomllib
 from pathlib import Path
 
@@ -25,7 +27,7 @@ import pandas as pd
 
 from pounding_sweep.errors import ResultError
 from pounding_sweep.scene import scene_from_dict, validate
-from pounding_sweep.sweep.results import META_KEY, read_metadata, read_schema, sidecar_path
+from pounding_sweep.sweep.results import META_KEY, part_files, read_metadata, read_schema, sidecar_path
 
 DPI = 120
 #: columns an error-against-run-time table needs (one row per scheme and dt); `accuracy_ladder` writes them
@@ -56,13 +58,45 @@ def _nice_log_ticks(lo: float, hi: float) -> list[float]:
     return [v for v in out if lo <= v <= hi] or [lo, hi]
 
 
-def scene_of(results: str | Path):
-    """The scene a result file was made from, rebuilt from its metadata (paths as in the original)."""
-    md = read_metadata(results)
+def _results_folder(results: str | Path) -> Path:
+    """The dataset folder of a result (given as the folder or as one of its parts)."""
+    p = Path(results).resolve()
+    return p if p.is_dir() else p.parent
 
+
+def scene_of(results: str | Path):
+    """The scene a result was made from, rebuilt from its metadata with every file it names (records, the
+    experiment's table or video) checked against the SHA-256 the sweep stored: the files where the scene was, or,
+    for a project folder moved or copied with its results, where they are now beside the results (the result
+    keeps the scene's folder relative to its own). A file changed, or found nowhere, is a ResultError naming it:
+    figures redrawn from another record or table would show another run."""
+    md = read_metadata(results)
     toml = read_schema(results).metadata[b"scene_toml"].decode()
     src = Path(md["scene_file"])
-    return scene_from_dict(tomllib.loads(toml), base_dir=src.resolve().parent, source=str(src), toml_text=toml)
+    places = [src.resolve().parent]
+    if md.get("scene_dir_from_results"):
+        moved = Path(os.path.normpath(_results_folder(results) / md["scene_dir_from_results"]))
+        if moved != places[0]:
+            places.append(moved)
+    reasons = []
+    for base in places:
+        scene = scene_from_dict(tomllib.loads(toml), base_dir=base, source=str(base / src.name), toml_text=toml)
+        changed = _changed_files(md.get("config") or {}, scene.canonical())
+        if not changed:
+            return scene
+        reasons.append(f"{changed[0]} (in {base})")
+    raise ResultError(
+        f"{Path(results)}: a file the sweep read is not there as it was: {'; '.join(reasons)}; figures from it would "
+        "show another run than the sweep made: put the sweep's file back, or run the sweep again"
+    )
+
+
+def _changed_files(stored: dict, now: dict) -> list[str]:
+    """The files (records, tables, videos) whose content differs between a stored canonical scene and now, each
+    as '<key> = <file> (sha256 <then>... there, ... now)'; a file that cannot be read says 'unreadable'."""
+    from pounding_sweep.scene.hashing import differences
+
+    return [d for d in differences(stored, now, limit=50) if "(sha256 " in d]
 
 
 def check_results(results: str | Path) -> dict:
@@ -71,6 +105,10 @@ def check_results(results: str | Path) -> dict:
     p = Path(results)
     if not p.exists():
         raise ResultError(f"{p}: no such file or folder (give a sweep's result, e.g. results/<scene>.parquet)")
+    _refuse_special(p)
+    if p.is_dir():
+        for part in part_files(p):
+            _refuse_special(part)
     if p.suffix.lower() == ".toml":
         raise ResultError(
             f"{p}: a scene file, not a result: run it first (python -m pounding_sweep {p}), "
@@ -98,6 +136,43 @@ def check_results(results: str | Path) -> dict:
     if md.get("kind") != "runs" or "run_id" not in schema.names:
         raise ResultError(f"{p}: not the result of a sweep (metadata kind {md.get('kind')!r})")
     return md
+
+
+def _refuse_special(path: Path) -> None:
+    """A FIFO, device or socket where a result file is expected would block its reader (a FIFO waits for a writer
+    for ever): refused by name before it is opened."""
+    from pounding_sweep.scene.files import kind_of
+
+    mode = os.stat(path).st_mode
+    if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
+        raise ResultError(f"{path}: {kind_of(mode)}, not a result file or folder")
+
+
+def read_best(results: str | Path, md: dict | None = None) -> pd.DataFrame | None:
+    """The best-runs table beside a scored result (None without one): refused (ResultError) when it is damaged, not a
+    regular file, or the best table of another result or of an earlier sweep into this folder (another config
+    hash), since the figures would then mark another run as the best."""
+    best_file = sidecar_path(_results_folder(results), "best")
+    if not best_file.exists():
+        return None
+    _refuse_special(best_file)
+    try:
+        info = read_metadata(best_file)
+        best = pd.read_parquet(best_file)
+    except Exception:  # noqa: BLE001 - pyarrow's errors for a damaged file vary
+        raise ResultError(
+            f"{best_file}: cannot be read as a best-runs table (damaged): run the sweep again to rewrite it"
+        ) from None
+    md = md if md is not None else read_metadata(results)
+    owner = info.get("results")
+    if (owner is not None and owner != _results_folder(results).name) or info.get("config_hash") != md.get(
+        "config_hash"
+    ):
+        raise ResultError(
+            f"{best_file}: the best runs of another sweep than {Path(results)} (its results folder or scene differs): "
+            "run the sweep again to rewrite it"
+        )
+    return best
 
 
 #: how each sweep axis is labelled, and the factor its values are shown with
@@ -379,8 +454,7 @@ def best_run(results: str | Path, df: pd.DataFrame) -> tuple[dict, str, pd.Serie
     grid run against the experiment (lowest combined eq. 20 error), or without one the run with the
     largest pounding force (run 0 when no run made contact)."""
     md = read_metadata(results)
-    best_file = sidecar_path(results, "best")
-    best = pd.read_parquet(best_file) if best_file.exists() else None
+    best = read_best(results, md)
     rows = best[best.criterion == "rel_rms_combined_pct"] if best is not None and "criterion" in best else ()
     swept = swept_axes(df, md)
     if len(rows) > 0:
@@ -731,9 +805,10 @@ def figures(
     is a ResultError (check_results)."""
     results = Path(results)
     md = check_results(results)
+    scene = scene_of(results)  # its files checked before anything is drawn
     df = pd.read_parquet(results)
-    best_file = sidecar_path(results, "best")
-    best = pd.read_parquet(best_file) if best_file.exists() else None
+    best = read_best(results, md)
+    best_file = sidecar_path(_results_folder(results), "best")
     out = {}
     if has_grid(df, md):
         out["heatmaps"] = heatmap_figure(df, md, best)
@@ -744,7 +819,6 @@ def figures(
         )
     if best is not None and "calibrated" in set(best.get("criterion", ())):
         out["calibration_profiles"] = calibration_profile_figure(best_file)
-    scene = scene_of(results)
     pick, label, _ = best_run(results, df)
     out.update(history_figures(scene, pick, label, md, skipped))
     if accuracy is None:
@@ -835,21 +909,76 @@ def posterior_corner_figure(post, fit=None):
     return fig
 
 
+#: the PNG text chunk that marks a figure as written by plot_results (an existing PNG without it is a user's)
+PNG_MARK = "pounding_sweep"
+
+
+def _ours_png(path: Path) -> bool:
+    try:
+        with open(path, "rb") as f:
+            head = f.read(1 << 16)  # matplotlib writes its text chunks before the image data
+    except OSError:
+        return False
+    return head.startswith(b"\x89PNG") and b"tEXt" + PNG_MARK.encode() + b"\x00" in head
+
+
+def check_plot_folder(results: Path, out_dir: Path, names) -> None:
+    """Refuse (ResultError) an output folder inside the result's own folders (PNGs among the parts make the dataset
+    unreadable) and a PNG there, of a name a figure takes, that plot did not write (a user's file)."""
+    inside = [_results_folder(results)]
+    inside.append(sidecar_path(inside[0], "histories"))
+    target = out_dir.resolve()
+    for folder in inside:
+        if target == folder or folder in target.parents:
+            raise ResultError(
+                f"{out_dir}: inside the result folder {folder}, whose every file readers take for a part: give "
+                "another --out"
+            )
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ResultError(f"{out_dir}: exists and is not a folder (the figures go into a folder): give another --out")
+    for name in names:
+        png = out_dir / f"{name}.png"
+        if (png.exists() or png.is_symlink()) and not (png.is_file() and _ours_png(png)):
+            raise ResultError(
+                f"{png}: exists and is not a figure plot wrote; plot never replaces another file: give another "
+                "--out, or move it away"
+            )
+
+
 def plot_results(
     results: str | Path,
     out_dir: str | Path | None = None,
     accuracy: str | Path | pd.DataFrame | None = None,
     skipped: dict | None = None,
 ) -> list[Path]:
-    """Write the figures of one result file as PNGs; return their paths (`skipped`: as in `figures`)."""
+    """Write the figures of one result file as PNGs; return their paths (`skipped`: as in `figures`). Each is
+    written whole to a hidden temporary name and renamed, marked as plot's own (PNG_MARK) so that a later plot may
+    replace it; nothing is written when the output folder is refused (check_plot_folder)."""
     results = Path(results)
     check_results(results)
     out_dir = Path(out_dir) if out_dir else results.with_suffix("").with_name(results.stem + "_plots")
+    check_plot_folder(results, out_dir, FIGURE_NAMES)
     figs = figures(results, accuracy, skipped)
     out_dir.mkdir(parents=True, exist_ok=True)
     written = []
     for name, fig in figs.items():
         path = out_dir / f"{name}.png"
-        fig.savefig(path, dpi=DPI)
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+        try:
+            fig.savefig(tmp, dpi=DPI, format="png", metadata={PNG_MARK: f"plot of {results.name}"})
+            os.replace(tmp, path)
+        finally:
+            tmp.unlink(missing_ok=True)
         written.append(path)
     return written
+
+
+#: every figure plot_results may write (figures' names)
+FIGURE_NAMES = (
+    "heatmaps",
+    "calibration_profiles",
+    "displacement_history",
+    "pounding_force",
+    "ssp",
+    "error_vs_runtime",
+)

@@ -4,6 +4,7 @@ separated run, bit for bit)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import subprocess
 import sys
@@ -147,3 +148,32 @@ def test_gaps_command_writes_the_study_and_refuses_bad_options(tmp_path):
         cwd=REPO,
     )
     assert r.returncode == 2 and r.stderr.startswith("error: --relative-gaps") and not bad.exists()
+
+
+def test_a_study_whose_figure_fails_writes_nothing_and_a_rerun_replaces_its_own_files(tmp_path, monkeypatch):
+    """Every file of a study is made in memory before the first is written (a figure that failed used to leave 5
+    of the 6 files); a second study into the same folder replaces the first's files (its table says it is a
+    study's), a user's file there is refused (the corpus: gaps_out_holds_a_users_csv)."""
+    import pounding_sweep.gaps.figures as figures
+    from pounding_sweep.cli.gaps import FILES, check_study_folder, write_study
+
+    s = load_scene(SWEEPS / "paper_6hz.toml")
+    s = dataclasses.replace(s, excitation=dataclasses.replace(s.excitation, duration_s=0.3))
+    study = gap_study(s, relative_gaps=(0.0, 1.0), ks_ratio=1.0, r=0.4)
+    out = tmp_path / "study"
+
+    def broken(*a, **k):
+        raise OverflowError("a figure that cannot be drawn")
+
+    monkeypatch.setattr(figures, "response_ratio_figure", broken)
+    with pytest.raises(OverflowError):
+        write_study(study, s, out)
+    assert not out.exists()
+    monkeypatch.undo()
+    write_study(study, s, out)
+    assert sorted(p.name for p in out.iterdir()) == sorted(FILES)
+    check_study_folder(out)  # its own files: may be replaced
+    first = (out / "required_gaps.parquet").stat().st_mtime_ns
+    write_study(study, s, out)
+    assert (out / "required_gaps.parquet").stat().st_mtime_ns >= first
+    assert sorted(p.name for p in out.iterdir()) == sorted(FILES)  # no temporaries left

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import json
 import sys
-import time
 
 import pytest
 from conftest import REPO
+from gates import SAFETY_S
 
 nbformat = pytest.importorskip("nbformat", reason="the notebook test needs the 'notebook' or 'test' extra")
 nbclient = pytest.importorskip("nbclient", reason="the notebook test needs the 'notebook' or 'test' extra")
@@ -66,11 +66,9 @@ def test_notebook_runs_top_to_bottom(tmp_path):
         nb, RESULTS=str(missing), WORK_DIR=str(tmp_path / "work"), SCENE=str(REPO / "sweeps" / "scored_6hz.toml")
     )  # found also from a non-editable install
     nb.cells.append(nbformat.v4.new_code_cell(CHECKS))
-    t0 = time.perf_counter()
-    nbclient.NotebookClient(
-        nb, km=_kernel_manager(tmp_path), timeout=180, resources={"metadata": {"path": str(tmp_path)}}
+    nbclient.NotebookClient(  # the cell timeout is a safety net (the whole notebook takes about 15 s warm)
+        nb, km=_kernel_manager(tmp_path), timeout=SAFETY_S, resources={"metadata": {"path": str(tmp_path)}}
     ).execute()
-    elapsed = time.perf_counter() - t0
     outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])]
     assert not [o for o in outputs if o.output_type == "error"]
     images = [
@@ -91,7 +89,6 @@ def test_notebook_runs_top_to_bottom(tmp_path):
     assert checks["table4_rows"] == [[k, r] for k in grid[0] for r in grid[1]]  # (k_s/k, r)
     assert checks["table4_columns"] == 2 * 2  # per channel: Disp. [mm], Diff. [%]
     assert "implicit" in checks["schemes"] and checks["accuracy_rows"] == 5 * len(checks["schemes"])
-    assert elapsed < 120, f"the notebook took {elapsed:.0f} s"
 
 
 def test_committed_notebook_is_clean():

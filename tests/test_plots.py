@@ -50,6 +50,8 @@ def test_plot_command_writes_pngs(tmp_path):
     for n in names:
         data = (tmp_path / "png" / n).read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10_000
+    plots.check_plot_folder(out, tmp_path / "png", plots.FIGURE_NAMES)  # its own figures: a rerun may replace them
+    assert not [q for q in (tmp_path / "png").iterdir() if q.name.startswith(".")]  # no temporaries left
 
 
 def test_plot_of_a_missing_file_is_a_clear_error(tmp_path):

@@ -2,6 +2,14 @@
 
 from __future__ import annotations
 
+import contextlib
+import os
+import signal
+import stat
+import threading
+from collections.abc import Callable
+from pathlib import Path
+
 EXIT_BAD_INPUT = 2
 
 
@@ -27,3 +35,58 @@ class Bad(Exception):
 
     def __init__(self, path, what, value=None):
         super().__init__(f"{path}: {what}" + ("" if value is None else f" ({value})"))
+
+
+@contextlib.contextmanager
+def interruptible():
+    """Ctrl-C raises KeyboardInterrupt while a command runs, even when this process inherited SIGINT ignored
+    (a background job of a non-interactive shell, `nohup ... &`, many batch runners): CPython installs its
+    handler only where SIGINT is not ignored at start-up, and a sweep would otherwise ignore the signal and run
+    to its end. The inherited disposition is restored afterwards (`main()` may be called in a process)."""
+    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) != signal.SIG_IGN:
+        yield
+        return
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def first_line(path: Path, limit: int = 65536) -> str:
+    """The first line of a regular file (at most `limit` bytes of it), '' when it cannot be read as text."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(limit)
+    except OSError:
+        return ""
+    return head.split(b"\n", 1)[0].decode("utf-8", errors="replace").rstrip("\r")
+
+
+def check_replaceable(out: Path, ours: Callable[[Path], bool], command: str) -> None:
+    """Refuse (Bad) an output path that holds anything but an earlier output of this command: a user's file is
+    never replaced. `ours(path)` says whether a regular file there is provably this command's own output. Checked
+    before any work, so that nothing is computed for an answer that could not be written."""
+    try:
+        mode = os.stat(out).st_mode
+    except FileNotFoundError:
+        if out.is_symlink():
+            raise Bad(out, "a symbolic link to nothing", "give another --out") from None
+        return
+    except OSError as e:
+        raise Bad(out, "cannot use this path for the output", e.strerror or e) from None
+    if not stat.S_ISREG(mode):
+        from pounding_sweep.scene.files import kind_of
+
+        raise Bad(out, f"exists and is {kind_of(mode)}, not a file {command} wrote", "give another --out")
+    if not ours(out):
+        raise Bad(
+            out,
+            f"exists and is not a file {command} wrote; {command} never replaces another file",
+            "give another --out, or move it away",
+        )
+
+
+def hidden_temporary(out: Path) -> Path:
+    """`.<name>.<pid>.tmp` beside `out`: where a command writes before renaming, never a user's name."""
+    return out.with_name(f".{out.name}.{os.getpid()}.tmp")

@@ -4,17 +4,33 @@ minimum, and the response ratios adjacent / separated over a ladder of gaps.
 
 Writes a folder (default results/<scene>.gaps/) holding required_gaps.parquet, response_ratios.parquet
 (CSV copies beside them) and their PNG figures; prints both tables. Exit 0, or 2 with one `error:` line
-on bad input (nothing written).
+on bad input (nothing written). A folder that already holds files of these names is written into only when
+its required_gaps.parquet is a study's (its metadata says so): a user's file is never replaced. Every file is
+made in memory first, then written under a hidden temporary name and renamed, the study's own Parquet table
+first (so a folder with any new file is marked as the study's).
 """
 
 from __future__ import annotations
 
 import argparse
+import io
 import json
+import math
+import os
 import sys
 from pathlib import Path
 
-from pounding_sweep.cli.common import EXIT_BAD_INPUT, split_list
+from pounding_sweep.cli.common import EXIT_BAD_INPUT, Bad, hidden_temporary, split_list
+
+#: the files a study writes into its folder, the one that marks the folder as a study's first
+FILES = (
+    "required_gaps.parquet",
+    "response_ratios.parquet",
+    "required_gaps.csv",
+    "response_ratios.csv",
+    "required_gaps.png",
+    "response_ratios.png",
+)
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -35,9 +51,67 @@ def _parser() -> argparse.ArgumentParser:
         "--ks-ratio", type=float, help="contact stiffness k_s / k_ref of the ratio runs (default: the scene's)"
     )
     p.add_argument("--r", type=float, help="coefficient of restitution of the ratio runs (default: the scene's)")
-    p.add_argument("--threads", type=int, default=0, help="worker threads (0: all cores)")
+    p.add_argument("--threads", type=int, default=0, help="worker threads (0: all cores, at most 1024)")
     p.add_argument("--quiet", action="store_true", help="print nothing")
     return p
+
+
+def _positive_finite(value: float, option: str) -> None:
+    if not (math.isfinite(value) and value > 0):
+        raise Bad(option, "must be a finite number > 0", value)
+
+
+def _check_options(args) -> list[float] | None:
+    """Every option, before the scene runs: the relative gaps (finite, >= 0), the length scale, k_s/k_ref, r and
+    the thread count."""
+    from pounding_sweep.errors import InputError
+    from pounding_sweep.scene.validate import check_workers
+
+    rel = None
+    if args.relative_gaps:
+        try:
+            rel = [float(x) for x in split_list(args.relative_gaps)]
+        except ValueError:
+            raise InputError(f"--relative-gaps {args.relative_gaps!r}: expected numbers separated by commas") from None
+        if not rel or any(not (math.isfinite(x) and x >= 0) for x in rel):
+            raise InputError(f"--relative-gaps {args.relative_gaps!r}: expected finite numbers >= 0")
+    if args.length_scale is not None:
+        _positive_finite(args.length_scale, "--length-scale")
+    if args.r is not None and not 0 <= args.r <= 1:
+        raise InputError(f"--r {args.r!r}: the coefficient of restitution must lie in [0, 1]")
+    if args.ks_ratio is not None:
+        _positive_finite(args.ks_ratio, "--ks-ratio")
+    check_workers(args.threads, "--threads")
+    return rel
+
+
+def _study_table(path: Path) -> bool:
+    """Whether `path` is a table a gap study wrote (its metadata says kind 'gap_study')."""
+    try:
+        import pyarrow.parquet as pq
+
+        md = pq.read_metadata(path).metadata or {}
+        return json.loads(md[b"pounding_sweep"]).get("kind") == "gap_study"
+    except Exception:  # noqa: BLE001 - not Parquet, damaged, not ours: not shown to be the study's
+        return False
+
+
+def check_study_folder(out: Path) -> None:
+    """Refuse (Bad) an output folder that is a file, or that holds a file of a study's names while it is not a
+    study's folder (its required_gaps.parquet is not one a study wrote)."""
+    if not (out.exists() or out.is_symlink()):
+        return
+    if not out.is_dir():
+        raise Bad(
+            out, "exists and is not a folder (the study writes a folder of tables and figures)", "give another --out"
+        )
+    taken = [name for name in FILES if (out / name).exists() or (out / name).is_symlink()]
+    if taken and not ((out / FILES[0]).is_file() and _study_table(out / FILES[0])):
+        raise Bad(
+            out / taken[0],
+            "exists and is not a file a gap study wrote; the study never replaces another file",
+            "give another --out, or move it away",
+        )
 
 
 def gaps_main(argv: list[str]) -> int:
@@ -46,31 +120,17 @@ def gaps_main(argv: list[str]) -> int:
     from pounding_sweep.scene import load_scene
 
     try:
+        rel = _check_options(args)
         scene = load_scene(args.scene)
-        rel = None
-        if args.relative_gaps:
-            try:
-                rel = [float(x) for x in split_list(args.relative_gaps)]
-            except ValueError:
-                raise InputError(
-                    f"--relative-gaps {args.relative_gaps!r}: expected numbers separated by commas"
-                ) from None
-            if not rel or any(not (x >= 0) for x in rel):
-                raise InputError(f"--relative-gaps {args.relative_gaps!r}: expected numbers >= 0")
-        if args.length_scale is not None and not args.length_scale > 0:
-            raise InputError(f"--length-scale {args.length_scale!r}: must be > 0")
-        if args.r is not None and not 0 <= args.r <= 1:
-            raise InputError(f"--r {args.r!r}: the coefficient of restitution must lie in [0, 1]")
-        if args.ks_ratio is not None and not args.ks_ratio > 0:
-            raise InputError(f"--ks-ratio {args.ks_ratio!r}: must be > 0")
         out = Path(args.out) if args.out else Path(scene.output.path).with_name(f"{scene.name}.gaps")
+        check_study_folder(out)
         from pounding_sweep.gaps import RELATIVE_GAPS, gap_study
 
         study = gap_study(
             scene, rel or RELATIVE_GAPS, args.length_scale, args.threads, ks_ratio=args.ks_ratio, r=args.r
         )
         write_study(study, scene, out)
-    except InputError as e:
+    except (Bad, InputError) as e:
         print(f"error: {e}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except OSError as e:
@@ -84,14 +144,13 @@ def gaps_main(argv: list[str]) -> int:
     return 0
 
 
-def write_study(study, scene, out: Path) -> None:
-    """The study's tables (Parquet with the scene in the metadata, and CSV) and figures, into `out`."""
+def study_files(study, scene) -> dict[str, bytes]:
+    """The study's tables (Parquet with the scene in the metadata, and CSV) and figures, by file name, in memory."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
     from pounding_sweep.gaps.figures import required_gap_figure, response_ratio_figure
 
-    out.mkdir(parents=True, exist_ok=True)
     meta = {
         b"pounding_sweep": json.dumps(
             {
@@ -104,19 +163,42 @@ def write_study(study, scene, out: Path) -> None:
         ).encode(),
         b"scene_toml": scene.toml_text.encode(),
     }
+    files = {}
     for name, df in (("required_gaps", study.required), ("response_ratios", study.ratios)):
-        t = pa.Table.from_pandas(df, preserve_index=False).replace_schema_metadata(meta)
-        pq.write_table(t, out / f"{name}.parquet")
-        df.to_csv(out / f"{name}.csv", index=False)
+        buf = io.BytesIO()
+        pq.write_table(pa.Table.from_pandas(df, preserve_index=False).replace_schema_metadata(meta), buf)
+        files[f"{name}.parquet"] = buf.getvalue()
+        files[f"{name}.csv"] = df.to_csv(index=False).encode()
     try:
-        required_gap_figure(study.required, f"{scene.name}: the gap each floor pair needs").savefig(
-            out / "required_gaps.png", dpi=120
-        )
-        response_ratio_figure(study.ratios, f"{scene.name}: response with a short gap / separated").savefig(
-            out / "response_ratios.png", dpi=120
-        )
+        figures = {
+            "required_gaps.png": required_gap_figure(study.required, f"{scene.name}: the gap each floor pair needs"),
+            "response_ratios.png": response_ratio_figure(
+                study.ratios, f"{scene.name}: response with a short gap / separated"
+            ),
+        }
     except SystemExit:  # no matplotlib: the tables are the study, the figures are optional
-        pass
+        figures = {}
+    for name, fig in figures.items():
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", dpi=120)
+        files[name] = buf.getvalue()
+    return files
+
+
+def write_study(study, scene, out: Path) -> None:
+    """The study's files into `out`, each complete before it is renamed into place (study_files)."""
+    files = study_files(study, scene)
+    out.mkdir(parents=True, exist_ok=True)
+    for name in FILES:
+        if name not in files:
+            continue
+        path = out / name
+        tmp = hidden_temporary(path)
+        try:
+            tmp.write_bytes(files[name])
+            os.replace(tmp, path)
+        finally:
+            tmp.unlink(missing_ok=True)
 
 
 def print_study(study, out: Path) -> None:

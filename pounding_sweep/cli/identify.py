@@ -3,7 +3,8 @@
 identify/safety.py says when not to trust it).
 
 Exit status 0 when done, 2 with one line `error: <file>: <what> (<value>)` on stderr and no file written
-(the updated sections go to `<out>.tmp`, renamed when complete) on bad input, a single-frequency table
+(the updated sections go to `.<out>.<pid>.tmp`, renamed when complete) on bad input, an --out that holds
+anything but an update identify wrote before (a user's file is never replaced), a single-frequency table
 motion, no mode found, or a model update refused (f1 at a forcing frequency, a stiffness changed by more
 than 30 %; --force-update writes it anyway, with a warning). The modes found are printed before the
 last two errors, so that the numbers can be seen.
@@ -16,9 +17,15 @@ import os
 import sys
 from pathlib import Path
 
-from pounding_sweep.cli.common import EXIT_BAD_INPUT, Bad, split_list
+from pounding_sweep.cli.common import EXIT_BAD_INPUT, Bad, check_replaceable, first_line, hidden_temporary, split_list
 
 VIDEO_SUFFIXES = {".mkv", ".avi", ".mp4", ".mov", ".m4v", ".webm"}
+#: the first line of every file identify writes: what marks an existing --out as one it may replace
+WRITTEN_BY = "# written by python -m pounding_sweep identify"
+
+
+def _written_by_identify(path: Path) -> bool:
+    return first_line(path).startswith(WRITTEN_BY)
 
 
 def _identify_parser() -> argparse.ArgumentParser:
@@ -134,6 +141,8 @@ def identify_main(argv: list[str]) -> int:
             )
         if args.out and not args.scene:
             raise Bad(args.out, "--out writes updated buildings: it needs --scene", "--out without --scene")
+        if args.out:
+            check_replaceable(Path(args.out), _written_by_identify, "identify")
         df, md = read_table(src)
         scene = load_scene(args.scene) if args.scene else None
         ident = identify_table(
@@ -174,9 +183,9 @@ def identify_main(argv: list[str]) -> int:
         text = "".join(u.toml() + "\n" for u in updates)
         if args.out:
             out = Path(args.out)
-            tmp = out.with_name(out.name + ".tmp")
+            tmp = hidden_temporary(out)
             try:
-                tmp.write_text(f"# written by python -m pounding_sweep identify {src}\n" + text, encoding="utf-8")
+                tmp.write_text(f"{WRITTEN_BY} {src}\n" + text, encoding="utf-8")
                 os.replace(tmp, out)
             except OSError as e:
                 tmp.unlink(missing_ok=True)

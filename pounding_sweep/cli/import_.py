@@ -1,6 +1,6 @@
 """`python -m pounding_sweep import NAME=FILE ... --out FOLDER`: raw per-sensor exports (one accelerometer per
 floor and one on the table) -> an experiment table, the table's record and a provenance note
-(model/sensors/assemble.py does the work; docs/real_data.md says how to use them in a scene).
+(model/sensors/assemble.py does the work; docs/how-to/import-real-sensor-data.md says how to use them in a scene).
 
 Writes FOLDER/table.parquet (t_s and one `<NAME>_acc_m_s2` column per sensor; the import's findings in its
 metadata), FOLDER/record.csv (the reference sensor's acceleration: t_s, acc_m_s2) and FOLDER/provenance.md.

@@ -13,7 +13,7 @@ import signal
 import sys
 import threading
 
-from pounding_sweep.cli.common import EXIT_BAD_INPUT
+from pounding_sweep.cli.common import EXIT_BAD_INPUT, interruptible
 from pounding_sweep.errors import InputError
 from pounding_sweep.progress import Progress
 from pounding_sweep.scene import describe, load_scene
@@ -126,43 +126,56 @@ def _print_summary(s) -> None:
                 f"refined from the best cell ({how}{rf.evaluations} runs): {opt}, combined error {rf.error_pct:.3f} % "
                 f"(grid best {rf.start_error_pct:.3f} %)"
             )
-    if s.calibration:
-        _print_calibration(s.calibration)
+    if s.calibration_summary:
+        _print_calibration(s.calibration_summary, s.calibration_reused)
 
 
-def _print_calibration(fits) -> None:
-    """The calibration's answer: per law each fitted value with its 95 % interval and whether the data identify it,
-    the error against the noise floor, and (several laws) the comparison."""
-    from pounding_sweep.sweep.calibrate import fit_table, law_table
+def _print_calibration(md: dict, reused: bool) -> None:
+    """The calibration's answer (calibrate.calibration_metadata: new, or kept from an earlier run): per law each
+    fitted value with its 95 % interval and whether the data identify it, the error against the noise floor, and
+    (several laws) the comparison."""
+    import pandas as pd
 
-    ft = fit_table(fits)
-    print("\ncalibration (contact and structure fitted together; 95 % intervals; stored in the best table's metadata):")
-    for f in fits:
+    ft, lt = pd.DataFrame(md["fits"]), pd.DataFrame(md["laws"])
+    kept = "; kept from an earlier run of this calibration" if reused else ""
+    print(
+        "\ncalibration (contact and structure fitted together; 95 % intervals; stored in the best table's "
+        f"metadata{kept}):"
+    )
+    for f in lt.itertuples():
         print(
-            f"  {f.law}: relative RMS {f.error_pct:.3f} %, residual {f.misfit_ratio:.2f} x the noise floor, "
-            f"{f.evaluations} runs, {f.seconds:.0f} s"
+            f"  {f.contact_law}: relative RMS {f.rel_rms_pct:.3f} %, residual {f.misfit_over_noise:.2f} x the noise "
+            f"floor, {f.evaluations} runs, {f.seconds:.0f} s"
         )
-        rows = ft[ft.contact_law == f.law]
-        for r in rows.itertuples():
+        for r in ft[ft.contact_law == f.contact_law].itertuples():
             ident = (
                 "" if r.identified else f"  NOT IDENTIFIED: any value in [{r.profile_low:.4g}, {r.profile_high:.4g}]"
             )
             model = (
                 f"; with model error {r.ci95_model_low:.5g} .. {r.ci95_model_high:.5g}, quote this"
-                if r.quote == "model_error"
+                if getattr(r, "quote", "noise") == "model_error"
                 else ""
             )
             print(
                 f"    {r.parameter:<20} {r.estimate:.5g}  (95 % {r.ci95_low:.5g} .. {r.ci95_high:.5g}{model}; "
                 f"bounds {r.lower_bound:g} .. {r.upper_bound:g}){ident}"
             )
-    if len(fits) > 1:
-        lt = law_table(fits).sort_values("aic")
+    if len(lt) > 1:
+        lt = lt.sort_values("aic")
         print("  laws compared (sweep/lawcompare.py: AIC/BIC on one effective count, blocked cross-validation):")
         cols = ["contact_law", "parameters", "rel_rms_pct", "misfit_over_noise", "delta_aic", "delta_bic"]
         print(lt[cols + [c for c in ("cv_dm_z",) if c in lt]].to_string(index=False, float_format=lambda x: f"{x:.3g}"))
-        if fits[0].comparison is not None:
-            print(f"  {fits[0].comparison.text}")
+        if md.get("comparison"):
+            print(f"  {md['comparison']['text']}")
+
+
+class SweepProgress(Progress):
+    """The progress meter, and a line for each stage of the calibration after the grid (which runs for a minute
+    or more between them): on stderr, terminal or not (a log keeps them), not with --quiet."""
+
+    def stage(self, message: str) -> None:
+        if self.announce:
+            print(message, file=sys.stderr, flush=True)
 
 
 def _print_warning(w) -> None:
@@ -195,9 +208,18 @@ def _with_execution(scene, args):
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
-    if argv and argv[0] in SUBCOMMANDS:
-        module, func = SUBCOMMANDS[argv[0]].split(":")
-        return getattr(importlib.import_module(module), func)(argv[1:])
+    with interruptible():
+        if argv and argv[0] in SUBCOMMANDS:
+            module, func = SUBCOMMANDS[argv[0]].split(":")
+            try:
+                return getattr(importlib.import_module(module), func)(argv[1:])
+            except KeyboardInterrupt:  # a subcommand that does not say more itself (track does)
+                print("interrupted", file=sys.stderr)
+                return 130
+        return _sweep_main(argv)
+
+
+def _sweep_main(argv: list[str]) -> int:
     args = _parser().parse_args(argv)
     if args.describe:
         try:
@@ -226,7 +248,7 @@ def main(argv: list[str] | None = None) -> int:
                     scene,
                     out_path=args.out,
                     threads=args.threads,
-                    progress=Progress(not args.quiet),
+                    progress=SweepProgress(not args.quiet),
                     overwrite=args.overwrite,
                     confirmed=args.yes,
                 )

@@ -1,7 +1,8 @@
 """`python -m pounding_sweep track VIDEO ...`: a shake-table video's LED markers -> the tracked-displacement table.
 
 Exit status 0 when done, 2 on bad input with one line `error: <file>: <what> (<value>)` on stderr
-(no traceback) and no output file: tables are written as `<out>.tmp` and renamed when complete.
+(no traceback) and no output file: tables are written as `<out>.tmp` and renamed when complete. An existing
+--out is replaced only when it is a table track wrote (a user's file is refused before any frame is read).
 """
 
 from __future__ import annotations
@@ -11,7 +12,21 @@ import sys
 import tomllib
 from pathlib import Path
 
-from pounding_sweep.cli.common import EXIT_BAD_INPUT, Bad, numbers, split_list
+from pounding_sweep.cli.common import EXIT_BAD_INPUT, Bad, check_replaceable, first_line, numbers, split_list
+
+
+def _written_by_track(path: Path) -> bool:
+    """A table track wrote: Parquet carrying its 'tracked_video' metadata, or a CSV whose header is track's (the
+    time first, then the frame number, quality flags and the table's camera position, which only track writes)."""
+    if path.suffix.lower() == ".parquet":
+        try:
+            import pyarrow.parquet as pq
+
+            return b"tracked_video" in (pq.read_metadata(path).metadata or {})
+        except Exception:  # noqa: BLE001 - not Parquet, or damaged: not shown to be ours
+            return False
+    header = first_line(path).split(",")
+    return header[:1] == ["t_s"] and "frame" in header and "table_in_camera_mm" in header
 
 
 def _track_parser() -> argparse.ArgumentParser:
@@ -161,6 +176,7 @@ def track_main(argv: list[str]) -> int:
     try:
         if out.suffix.lower() not in (".csv", ".parquet"):
             raise Bad(out, "the output table must be .csv or .parquet", out.suffix or "no suffix")
+        check_replaceable(out, _written_by_track, "track")
         spec = _spec_from_args(args)
         from pounding_sweep.video.tracker import describe_quality, track_video, write_tracked_table
 

@@ -1,4 +1,4 @@
-"""What each column of a risk study's tables means (stored in each table's metadata; docs/risk.md)."""
+"""What each column of a risk study's tables means (stored in each table's metadata; docs/how-to/probabilistic-pounding.md)."""
 
 from __future__ import annotations
 

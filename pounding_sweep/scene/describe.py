@@ -11,10 +11,12 @@ from pounding_sweep.scene.parse import MAX_NESTING
 from pounding_sweep.scene.risk import RiskConfig
 from pounding_sweep.scene.schema import (
     MAX_AXIS_VALUES,
+    MAX_CALIBRATE_COUNTS,
     MAX_FLOORS,
     MAX_GRID,
     MAX_STEPS,
     MAX_THREADS,
+    NOISE_M_RANGE,
     SECTIONS,
     CalibrateConfig,
     ExperimentConfig,
@@ -79,4 +81,6 @@ Limits  what the engine supports
   files: each a regular file (not a FIFO or a device); a scene at most {MAX_SCENE_BYTES // MiB} MiB, its tables and
     arrays nested at most {MAX_NESTING} deep; a record at most {MAX_RECORD_BYTES // MiB} MiB and an experiment table
     {MAX_TABLE_BYTES // MiB // 1024} GiB, as UTF-8 or ASCII text where they are text (AT2, CSV).
-  threads, Dask LocalCluster workers: at most {MAX_THREADS:,}."""
+  threads, Dask LocalCluster workers: at most {MAX_THREADS:,}.
+  [calibrate]: {", ".join(f"{k} at most {v:,}" for k, v in MAX_CALIBRATE_COUNTS.items())};
+    noise_m in [{NOISE_M_RANGE[0]:g}, {NOISE_M_RANGE[1]:g}] m."""

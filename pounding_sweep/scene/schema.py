@@ -41,6 +41,14 @@ MAX_GRID = 50_000_000
 MAX_FLOORS = 1000
 #: threads of the local executor, and processes of a Dask LocalCluster: more than any machine has cores
 MAX_THREADS = 1024
+#: [calibrate] counts (sweep/calibrate.py): the global stage's Sobol points are run as one batch and each
+#: profile point is a least-squares refit of the other parameters (up to max_evals / 4 runs), so these bound
+#: the work and memory of a calibration that runs after the grid; far above what a fit of a dozen
+#: parameters needs (2^12 Sobol points cover 12 dimensions with 2 points per axis-halving)
+MAX_CALIBRATE_COUNTS = {"global_points": 4096, "starts": 64, "max_evals": 10_000, "profile_points": 200}
+#: [calibrate] noise_m [m]: residuals are divided by it and squared; below a nanometre no tracking measures,
+#: above a metre it is not a shake-table test (and 1e-300 would overflow the squares)
+NOISE_M_RANGE = (1e-9, 1.0)
 
 # ----------------------------------------------------------------------------- sections
 

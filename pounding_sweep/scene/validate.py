@@ -21,11 +21,13 @@ from pounding_sweep.scene.channels import experiment_channel, parse_channel
 from pounding_sweep.scene.schema import (
     ACC_UNITS,
     EXECUTORS,
+    MAX_CALIBRATE_COUNTS,
     MAX_FLOORS,
     MAX_GRID,
     MAX_LOWPASS_ORDER,
     MAX_STEPS,
     MAX_THREADS,
+    NOISE_M_RANGE,
     USES,
     WEIGHTINGS,
     BuildingConfig,
@@ -427,15 +429,69 @@ def _check_calibrate(s: Scene) -> None:
                     f"[calibrate] parameters.{name}: [building{name[-1]}] gives no damping_ratio to fit "
                     "(explicit Rayleigh coefficients, or undamped)"
                 )
-    for key in ("global_points", "starts", "max_evals", "profile_points"):
+    for key, most in MAX_CALIBRATE_COUNTS.items():
         if getattr(cal, key) < (0 if key in ("global_points", "profile_points") else 1):
             raise ConfigError(f"[calibrate] {key} = {getattr(cal, key)}: too small")
+        if getattr(cal, key) > most:
+            raise ConfigError(
+                f"[calibrate] {key} = {getattr(cal, key):,}: more than {most:,}, the most a calibration runs "
+                "(see python -m pounding_sweep --describe)"
+            )
     for name in cal.profile:
         if name not in cal.parameters:
             raise ConfigError(f"[calibrate] profile: {name!r} is not among the fitted parameters")
-    if cal.noise_m is not None:
-        _positive(cal.noise_m, "[calibrate] noise_m")
+    if cal.noise_m is not None and not NOISE_M_RANGE[0] <= cal.noise_m <= NOISE_M_RANGE[1]:
+        raise ConfigError(
+            f"[calibrate] noise_m = {cal.noise_m!r}: the tracking noise in metres lies in "
+            f"[{NOISE_M_RANGE[0]:g}, {NOISE_M_RANGE[1]:g}] (1e-9 m: a nanometre)"
+        )
     _positive(cal.misfit_factor, "[calibrate] misfit_factor")
+    _check_calibrate_effect(s, cal)
+
+
+def _check_calibrate_effect(s: Scene, cal) -> None:
+    """Every fitted parameter changes the runs of every law it is fitted for (a parameter that changes nothing is
+    reported 'identified' with an infinite standard error, or leaves a law nothing to fit); r's bounds keep the
+    damping finite (r = 0 is a perfectly plastic impact for hertzdamp and jankowski)."""
+    params = cal.parameters
+    laws = list(dict.fromkeys(s.axis_values("law") or (s.contact.law,)))
+    law_key = "[sweep] law" if s.axis_values("law") else "[contact] law"
+    if "amplitude_m" in params and s.excitation.type != "harmonic":
+        raise ConfigError(
+            "[calibrate] parameters.amplitude_m: changes nothing here, the excitation is a record "
+            "(fit scale, the factor on its acceleration)"
+        )
+    hertz = [x for x in laws if is_nonlinear(CONTACT_LAWS[x])]
+    linear = [x for x in laws if x not in hertz]
+    if "kh_N_per_m1_5" in params and linear:
+        raise ConfigError(
+            f"[calibrate] parameters.kh_N_per_m1_5: changes nothing for {law_key} = {linear[0]!r} (a linear law "
+            "takes k_s); fit ks_ratio, which sets k_h = k_s / sqrt(reference_penetration_m) for the Hertz-type laws"
+        )
+    has_kh = s.contact.kh_N_per_m1_5 is not None or bool(s.axis_values("kh_N_per_m1_5"))
+    for form in ("ks_ratio", "ks_N_per_m"):
+        if form in params and has_kh and not linear:
+            raise ConfigError(
+                f"[calibrate] parameters.{form}: changes nothing here: every law ({', '.join(laws)}) is Hertz-type "
+                "and [contact] kh_N_per_m1_5 gives k_h; fit kh_N_per_m1_5 instead"
+            )
+    if "r" in params:
+        if laws == ["hertz"]:
+            raise ConfigError(
+                f"[calibrate] parameters.r: changes nothing for {law_key} = 'hertz' (elastic: no damping); "
+                "fit the stiffness, or use hertzdamp or jankowski"
+            )
+        if "hertz" in laws and not set(params) - {"r"}:
+            raise ConfigError(
+                "[calibrate] parameters: only r, which changes nothing for [sweep] law = 'hertz' (elastic): that law "
+                "would have nothing to fit; add its stiffness"
+            )
+        plastic = [x for x in laws if x in ("hertzdamp", "jankowski")]
+        if plastic and params["r"][0] <= 0:
+            raise ConfigError(
+                f"[calibrate] parameters.r = {shown(list(params['r']))}: law {plastic[0]!r} has infinite damping at "
+                "r = 0 (a perfectly plastic impact); start the bounds above 0, e.g. 0.01"
+            )
 
 
 def _check_structure_axes(s: Scene, axes: dict) -> None:

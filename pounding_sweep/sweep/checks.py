@@ -1,15 +1,19 @@
-"""Checks of a whole sweep that find a probable mistake in its scene (each a pounding_sweep.warn warning):
-before the runs, a time step too coarse for every run's contact; after them, a grid in which no run made
-contact although the scene is there to study pounding (a gap in mm in a metre field)."""
+"""Checks of a whole sweep that find a probable mistake in its scene, each where it can first be seen.
+
+Before the runs: a time step too coarse for every run's contact, an r axis the elastic Hertz law ignores, a
+low-pass below the buildings' modes (warnings); a measured value no shake-table test gives, and what would make
+the calibration after the grid fail (errors: time offsets off the table, a noise floor that cannot be
+estimated, a global stage too large). After them: a grid in which no run made contact although the scene is
+there to study pounding, and a scored channel no run explains (a unit mix-up, named where one factor fits).
+Criteria and their reasons: docs/reference/safeguards.md and the constants below."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 
-from pounding_sweep.model.contact import contact_period
-from pounding_sweep.scene.axes import contact_stiffness
 from pounding_sweep.warn import warn
 
 #: sweep axes that are contact parameters: sweeping one says the scene studies pounding
@@ -25,47 +29,83 @@ def round_down_125(x: float) -> float:
     return float(f"{10.0 ** (e - 1) * 5:.0e}")
 
 
+#: the sweep axes that set a run's contact stiffness (and so its contact period)
+STIFFNESS_AXES = ("law", "ks_ratio", "ks_N_per_m", "kh_N_per_m1_5")
+
+
+def contact_stiffness_grid(grid):
+    """The grid's distinct contact stiffnesses as run parameters (Grid.chunk's form): its law and stiffness axes
+    crossed, every other parameter at the scene's value or its axis' first value (they do not set k)."""
+    from pounding_sweep.model.grid import Grid
+
+    axes = tuple((n, v) for n, v in grid.axes if n in STIFFNESS_AXES)
+    fixed = dict(grid.fixed)
+    fixed.update({n: v[0] for n, v in grid.axes if n not in STIFFNESS_AXES})
+    sub = Grid(axes, fixed)
+    return sub.chunk(0, sub.size)
+
+
 def check_time_step(prep) -> None:
     """Warn when the time step leaves every run's contact under-resolved (each run would be flagged
     contact_underresolved): the softest contact of the grid has the longest contact period, so the
-    grid's k_s values decide it before any run. With dt_s = 'auto' the step is chosen per run: no check."""
+    grid's stiffness values decide it before any run (k_s, or for the Hertz-type laws their tangent stiffness
+    at the reference penetration: sweep/prepare.py contact_arrays, whose steps per period this reads). With
+    dt_s = 'auto' the step is chosen per run: no check."""
+    from pounding_sweep.sweep.prepare import contact_arrays
+
     scene = prep.scene
-    if scene.integration.auto:
+    if scene.integration.auto or prep.model.n_pairs == 0:
         return
-    axes = dict(prep.grid.axes)
-    ratios = axes.get("ks_ratio", (prep.grid.fixed.get("ks_ratio"),))
-    newtons = axes.get("ks_N_per_m", (prep.grid.fixed.get("ks_N_per_m"),))
-    k_ref = scene.contact.k_ref_N_per_m
-    ks = np.array([contact_stiffness(r, n, k_ref) for r in ratios for n in newtons], dtype=float)
-    m1, m2 = prep.model.pair_masses()
-    if ks.size == 0 or m1.size == 0:
-        return
+    params = contact_stiffness_grid(prep.grid)
+    k, _, derived, _ = contact_arrays(prep.model, scene, params, prep.dt)
+    steps = derived["steps_per_contact_period"]
     dt = prep.dt
     want = scene.integration.min_steps_per_contact_period
-    period = contact_period(ks[:, None], m1[None, :], m2[None, :]).min(axis=1)  # per k_s: its shortest pair
-    soft, stiff = float(period.max()), float(period.min())
-    if soft / dt >= want:
+    softest = int(np.argmax(steps))
+    if steps[softest] >= want:
         return
+    soft, stiff = float(steps.max()) * dt, float(steps.min()) * dt  # contact periods [s]
     every = round_down_125(stiff / want)
     some = round_down_125(soft / want)
     hint = f"dt_s = {every:g}" if every == some else f"dt_s = {some:g} (the softest contact) or {every:g} (every run)"
+    hertz = "kh_N_per_m1_5" in derived and np.isfinite(derived["kh_N_per_m1_5"][softest])
+    what = (
+        f"the softest k_h = {float(k[softest]):.4g} N/m^1.5 (tangent stiffness 1.5 k_h sqrt(reference_penetration_m))"
+        if hertz
+        else f"the softest k_s = {float(k[softest]):.4g} N/m"
+    )
     warn(
         "contact_underresolved",
-        f"[integration] dt_s = {dt:g} s under-resolves every run's contact: {soft / dt:.3g} steps per contact "
-        f"period 2 pi sqrt(m_eff / k_s) at the softest k_s = {float(ks.min()):.4g} N/m, fewer than "
+        f"[integration] dt_s = {dt:g} s under-resolves every run's contact: {steps[softest]:.3g} steps per contact "
+        f"period 2 pi sqrt(m_eff / k) at {what}, fewer than "
         f"min_steps_per_contact_period = {want:g} (every run is flagged contact_underresolved): "
         f"use {hint}, or dt_s = 'auto'",
     )
 
 
+#: a grid whose every gap is at least this many times the closest approach of its facing floors is separated on
+#: purpose (the motion closes at most half the gap): no run making contact is then what the scene is for
+SEPARATED_ON_PURPOSE = 2.0
+#: an approach below this fraction of the largest floor displacement is rounding of two equal motions (identical
+#: buildings: u1 - u2 is a few ulps of u, about 1e-16 u, grown over the steps), not the floors moving toward each other
+ROUNDING_APPROACH = 1e-9
+#: gap_m from which "no contact" is named as a gap written in mm (a building gap of half a metre at model scale
+#: is not a pounding study; full-scale seismic joints are centimetres)
+METRES_HINT_GAP_M = 0.5
+
+
 class ContactTally:
-    """Whether any run made contact, and how close the facing floors can have come, over result tables."""
+    """Whether any run made contact, how close the facing floors came, and the range of each floor's peak response,
+    over result tables: the approach of a pair is the largest u1 - u2 of a run (gap_m - closest_approach_f*_m: how
+    much nearer than at rest its floors came; 0 or less when they never moved toward each other)."""
 
     def __init__(self):
         self.runs = 0
         self.contact = False
-        self.reach = 0.0  # largest |u1j| + |u2j| of a facing pair in a run: a bound on how far they closed in
+        self.approach = -math.inf  # the largest approach of any pair in any run [m]
+        self.pair = 0  # the pair that made it
         self.min_gap = math.inf
+        self.peaks: dict[str, tuple[float, float]] = {}  # peak_disp / peak_abs_acc column -> (least, largest) over runs
 
     def add(self, table, numpy_column) -> None:
         names = table.column_names
@@ -74,27 +114,240 @@ class ContactTally:
         for j in pairs:
             if np.nansum(numpy_column(table, f"impacts_f{j}")) > 0:
                 self.contact = True
-            a, b = f"peak_disp_b1f{j}_m", f"peak_disp_b2f{j}_m"
-            if a in names and b in names:
-                reach = np.abs(numpy_column(table, a)) + np.abs(numpy_column(table, b))
-                self.reach = max(self.reach, float(np.nanmax(reach, initial=0.0)))
+            closest = f"closest_approach_f{j}_m"
+            if closest in names and "gap_m" in names and table.num_rows:
+                approach = float(
+                    np.nanmax(numpy_column(table, "gap_m") - numpy_column(table, closest), initial=-np.inf)
+                )
+                if approach > self.approach:
+                    self.approach, self.pair = approach, int(j)
         if "gap_m" in names and table.num_rows:
             self.min_gap = min(self.min_gap, float(np.nanmin(numpy_column(table, "gap_m"))))
+        for name in names:
+            if name.startswith(("peak_abs_acc_b", "peak_disp_b")) and not name.startswith("peak_disp_time"):
+                x = numpy_column(table, name)
+                x = x[np.isfinite(x)]
+                if x.size:
+                    lo, hi = self.peaks.get(name, (math.inf, -math.inf))
+                    self.peaks[name] = (min(lo, float(x.min())), max(hi, float(x.max())))
+
+    def separated_on_purpose(self) -> bool:
+        """Every gap at least SEPARATED_ON_PURPOSE times the closest approach (and below the metres hint)."""
+        return 0 < self.min_gap < METRES_HINT_GAP_M and self.min_gap >= SEPARATED_ON_PURPOSE * max(self.approach, 0.0)
 
 
 def check_contact(tally: ContactTally, scene) -> None:
-    """Warn when no run of the grid made contact: the contact parameters then change nothing. A gap
-    of a metre or more is named as the likely cause (millimetres written in gap_m, which is in metres)."""
-    if tally.contact or tally.runs == 0:
+    """Warn when no run of the grid made contact although the scene is there to study pounding: the contact
+    parameters then change nothing. Not when the scene is separated on purpose (every gap at least twice the
+    closest approach: ContactTally.separated_on_purpose). A gap of half a metre or more is named as the likely
+    cause (millimetres written in gap_m, which is in metres)."""
+    if tally.contact or tally.runs == 0 or tally.separated_on_purpose():
         return
     swept = [a.name for a in scene.sweep if a.name in CONTACT_AXES and len(a.values) > 1]
     gap = tally.min_gap
-    parts = [
-        f"no run made contact ({tally.runs:,} run(s), largest pounding force 0 N): the facing floors moved "
-        f"at most {tally.reach * 1e3:.3g} mm toward each other, against a gap of {gap * 1e3:.4g} mm"
-    ]
-    if gap >= 0.5:
+    scale = max((hi for name, (_, hi) in tally.peaks.items() if name.startswith("peak_disp_b")), default=0.0)
+    if tally.approach > ROUNDING_APPROACH * scale:
+        moved = (
+            f"the facing floors came at most {tally.approach * 1e3:.3g} mm nearer than at rest (floor pair "
+            f"{tally.pair}), against a gap of {gap * 1e3:.4g} mm"
+        )
+    else:
+        moved = (
+            "the facing floors never moved toward each other (the buildings move in phase), against a gap of "
+            f"{gap * 1e3:.4g} mm"
+        )
+    parts = [f"no run made contact ({tally.runs:,} run(s), largest pounding force 0 N): {moved}"]
+    if gap >= METRES_HINT_GAP_M:
         parts.append(f"gap_m is in metres: gap_m = {gap:g} is {gap:g} m (for {gap:g} mm write {gap / 1e3:g})")
     if swept:
         parts.append(f"the swept {', '.join(swept)} change nothing here")
     warn("no_contact", "; ".join(parts))
+
+
+#: the most memory the calibration's global stage may keep in histories: its Sobol points run as one batch
+GLOBAL_STAGE_BYTES = 2**30
+
+
+def check_calibration(prep) -> None:
+    """Before the grid, what would make the calibration after it fail or mislead, each one ConfigError naming
+    the key: a time offset (a [sweep] value, or a [calibrate] bound) that moves the scored window off the
+    experiment's table; a channel whose noise floor cannot be estimated (too few samples in the window: NaN; or
+    none at all: 0) when [calibrate] gives no noise_m for it; a global stage whose histories would not fit in
+    GLOBAL_STAGE_BYTES."""
+    from pounding_sweep.errors import ConfigError, ExperimentError
+    from pounding_sweep.model.experiment import NOISE_MIN_DIFFERENCES, noise_floor
+    from pounding_sweep.scene.channels import ACC_PREFIX
+    from pounding_sweep.sweep.scoring import score_spec
+
+    scene, exp = prep.scene, prep.experiment
+    if exp is None:
+        return
+    cal = scene.calibrate
+    offsets = [("[sweep] time_offset_s", v) for v in scene.axis_values("time_offset_s")]
+    if cal is not None and "time_offset_s" in cal.parameters:
+        bounds = cal.parameters["time_offset_s"]
+        offsets += [
+            (f"[calibrate] parameters.time_offset_s = [{bounds[0]:g}, {bounds[1]:g}]", float(b)) for b in bounds
+        ]
+    for key, offset in offsets:
+        moved = dataclasses.replace(scene.experiment, time_offset_s=offset)
+        try:
+            score_spec(exp, moved, prep.model.floors, prep.excitation.max_duration_s, prep.dt)
+        except ExperimentError as e:
+            raise ConfigError(f"{key}: at {offset:g} s, {e}") from None
+    if cal is None:
+        return
+    duration = prep.excitation.max_duration_s
+    lo, hi = scene.experiment.window_s or (0.0, duration)
+    t_sim = exp.time_s - scene.experiment.time_offset_s
+    inside = (t_sim >= lo) & (t_sim <= hi)
+    weights = prep.combination.weights if prep.combination is not None else None
+    rows = 0
+    for i, code in enumerate(prep.score_codes):
+        if weights is not None and weights[i] == 0:
+            continue
+        acc = code.startswith(ACC_PREFIX)
+        rows += 1 if acc else 2
+        if code in getattr(exp, "noise", {}) or (cal.noise_m is not None and not acc):
+            continue  # given: [experiment] noise or noise_window_s, or [calibrate] noise_m for a displacement
+        y = exp.channels[code][inside]
+        sigma, _ = noise_floor(y)
+        if not sigma > 0:
+            why = (
+                f"{y.size} sample(s) in the scored window, fewer than the {NOISE_MIN_DIFFERENCES + 1} its noise floor "
+                "is estimated from"
+                if not np.isfinite(sigma)
+                else "no noise at all (its differences are all 0: quantised or noise-free data)"
+            )
+            fix = "widen [experiment] window_s, or give" if not np.isfinite(sigma) else "give"
+            given = (
+                "[experiment] noise for it (in its own unit) or noise_window_s"
+                if acc
+                else "[calibrate] noise_m (the tracking noise in m) or [experiment] noise"
+            )
+            raise ConfigError(
+                f"[calibrate]: the experiment's channel {code} has {why}; the residuals are weighed by it: {fix} "
+                f"{given}"
+            )
+    per_run = rows * (prep.excitation.max_steps // scene.output.history_decimate + 1) * 8
+    if cal.global_points * per_run > GLOBAL_STAGE_BYTES:
+        most = max(0, GLOBAL_STAGE_BYTES // per_run)
+        raise ConfigError(
+            f"[calibrate] global_points = {cal.global_points:,}: its runs are made as one batch and keep "
+            f"{cal.global_points * per_run / 2**30:.3g} GiB of histories ({per_run / 2**20:.3g} MiB a run), more than "
+            f"{GLOBAL_STAGE_BYTES / 2**30:g} GiB: use at most {most:,} points"
+        )
+
+
+#: the largest |displacement| [m] and |absolute acceleration| [m/s^2] a measured channel may hold: the kernel calls
+#: a run diverged beyond 1 km, and 1e6 m/s^2 is 100,000 g; beyond them a table's units are wrong (its eq. 20 sums
+#: would overflow to NaN scores)
+MEASURED_LIMITS = {"displacement": 1e3, "acceleration": 1e6}
+G_STANDARD = 9.80665  # m/s^2 per g (records.G_STANDARD; the acc_units 'g' factor)
+
+
+def _window(prep) -> np.ndarray:
+    """The experiment's samples inside the scored window at the scene's time offset (a mask on its clock)."""
+    x = prep.scene.experiment
+    lo, hi = x.window_s or (0.0, prep.excitation.max_duration_s)
+    t_sim = prep.experiment.time_s - x.time_offset_s
+    return (t_sim >= lo) & (t_sim <= hi)
+
+
+def check_scene(prep) -> None:
+    """Before the grid: values that run but cannot mean what they say. A measured channel beyond MEASURED_LIMITS is
+    an ExperimentError (its units are wrong); warnings for an r axis the elastic Hertz law ignores (identical runs)
+    and a low-pass filter below the buildings' first modes (it removes the response it scores)."""
+    from pounding_sweep.errors import ExperimentError
+    from pounding_sweep.scene.channels import ACC_PREFIX
+
+    scene = prep.scene
+    r_values = scene.axis_values("r")
+    laws = list(dict.fromkeys(scene.axis_values("law") or (scene.contact.law,)))
+    if len(r_values) > 1 and "hertz" in laws:
+        others = [x for x in laws if x != "hertz"]
+        who = f"law 'hertz' is elastic and ignores r: the {len(r_values)} values of [sweep] r give identical runs" + (
+            f" (for the other laws, {', '.join(others)}, r matters)" if others else ""
+        )
+        warn("r_ignored", f"[sweep] r: {who}" + ("" if others else "; drop the r axis, or use hertzdamp or jankowski"))
+    x, exp = scene.experiment, prep.experiment
+    if exp is None:
+        return
+    for code, values in exp.channels.items():
+        acc = code.startswith(ACC_PREFIX)
+        kind = "acceleration" if acc else "displacement"
+        peak = float(np.nanmax(np.abs(values), initial=0.0))
+        if peak > MEASURED_LIMITS[kind] or not np.isfinite(peak):
+            unit = x.acc_units if acc else x.units
+            factor = (G_STANDARD if unit == "g" else 1.0) if acc else (1e-3 if unit == "mm" else 1.0)
+            si = "m/s^2" if acc else "m"
+            raise ExperimentError(
+                f"{exp.path}: column {exp.columns.get(code, code)!r} ({code}) reaches {peak / factor:.4g} {unit} "
+                f"({peak:.4g} {si}), more than the {MEASURED_LIMITS[kind]:g} {si} any shake-table test measures: are its "
+                f"units right ([experiment] {'acc_units' if acc else 'units'} = {unit!r})?"
+            )
+    if x.lowpass_Hz is not None:
+        firsts = {
+            b.name or f"building {i}": float(b.modes().frequency_Hz[0])
+            for i, b in enumerate((prep.model.b1, prep.model.b2), 1)
+        }
+        name, f1 = max(firsts.items(), key=lambda kv: kv[1])
+        if x.lowpass_Hz < f1:
+            warn(
+                "lowpass_below_modes",
+                f"[experiment] lowpass_Hz = {x.lowpass_Hz:g} Hz is below {name}'s first mode ({f1:.3g} Hz): the filter "
+                "removes the response it scores, and every run then matches the filtered experiment about as well "
+                f"(the error no longer tells the runs apart); set it above the modes the accelerations should show "
+                f"(at least {f1:.3g} Hz)",
+            )
+
+
+#: a best eq. 20 error above this explains less than 1 - 0.9^2 = 19 % of a channel's mean square: with a measured
+#: peak that one unit factor would put among the runs', the units are the likely cause
+POOR_FIT_PCT = 90.0
+
+
+def check_scale(tally: ContactTally, prep, best) -> None:
+    """After the grid: warn for a scored channel that no run explains. Its best eq. 20 error above 100 % (no run
+    comes nearer than no motion at all, which scores exactly 100 %) is always said; above POOR_FIT_PCT it is said
+    when the measured peak, rescaled by one unit factor (g for m/s^2, mm for m, or back), falls among the runs' peaks
+    (within a factor 2), naming that unit: data 9.8 or 1000 times too large score just under 100 % (every run is
+    about zero beside them), too small far above it."""
+    from pounding_sweep.scene.channels import ACC_PREFIX
+
+    exp, x = prep.experiment, prep.scene.experiment
+    if exp is None or best is None or best.empty:
+        return
+    inside = _window(prep)
+    for code in prep.score_codes:
+        rows = best[best.criterion == f"rel_rms_{code}_pct"]
+        error = float(rows.error_pct.iloc[0]) if len(rows) else math.nan
+        if not error > POOR_FIT_PCT:
+            continue
+        acc = code.startswith(ACC_PREFIX)
+        floor = code.removeprefix(ACC_PREFIX)
+        lo, hi = tally.peaks.get(f"peak_abs_acc_{floor}_m_s2" if acc else f"peak_disp_{floor}_m", (math.nan, math.nan))
+        measured = float(np.nanmax(np.abs(exp.channels[code][inside]), initial=0.0))
+        si = "m/s^2" if acc else "m"
+        if acc:
+            key, unit = "acc_units", x.acc_units
+            other = {"m/s2": ("g", G_STANDARD), "g": ("m/s2", 1 / G_STANDARD)}[unit]
+        else:
+            key, unit = "units", x.units
+            other = {"m": ("mm", 1e-3), "mm": ("m", 1e3)}[unit]
+        rescaled = measured * other[1]
+        if np.isfinite(lo) and lo / 2 <= rescaled <= 2 * hi:
+            hint = (
+                f"rescaled as {other[0]} its peak would be {rescaled:.3g} {si}, among the runs': is the table in "
+                f"{other[0]} ([experiment] {key} = {other[0]!r}, not {unit!r})?"
+            )
+        elif error > 100.0:
+            hint = "check the channel mapping, its sign and its units"
+        else:
+            continue
+        warn(
+            "scale",
+            f"[experiment] channels.{exp.columns.get(code, code)} = {code!r}: no run explains the measured "
+            f"{'acceleration' if acc else 'displacement'} (best eq. 20 error {error:.1f} %; a run at rest scores "
+            f"100 %); its peak in the scored window is {measured:.3g} {si}, the runs' {lo:.3g} .. {hi:.3g} {si}: {hint}",
+        )

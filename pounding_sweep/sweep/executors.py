@@ -229,8 +229,13 @@ class DaskExecutor:
 
 
 def _probe(address: str, timeout_s: float) -> None:
-    """Fail fast, in one line, when nothing listens at a tcp:// scheduler address (Dask would retry for
-    its whole timeout and then report a timeout)."""
+    """Fail fast, in one line, when nothing listens at a scheduler address (Dask would retry for its whole
+    timeout and then report a timeout), or, at a tcp:// one, when what listens is not a Dask scheduler. A Dask
+    server writes its handshake as soon as it accepts a connection (distributed.comm.core: both ends write
+    theirs, then read), while Dask's client, having written its own, waits for that reply with no time limit:
+    a server that accepts and says nothing (a web server waiting for its request) would hang the sweep for ever.
+    So the probe waits up to `timeout_s` for the server's first bytes; none (or the connection closed) is a
+    ClusterError naming the address."""
     scheme, sep, rest = address.partition("://")
     if not sep:
         scheme, rest = "tcp", address
@@ -238,9 +243,23 @@ def _probe(address: str, timeout_s: float) -> None:
         return
     host, _, port = rest.rpartition(":")
     try:
-        socket.create_connection((host.strip("[]"), int(port)), timeout=min(timeout_s, 5.0)).close()
+        conn = socket.create_connection((host.strip("[]"), int(port)), timeout=min(timeout_s, 5.0))
     except (OSError, ValueError) as e:
         raise ClusterError(f"cannot reach a Dask scheduler at {address} ({_reason(e)})") from None
+    with conn:
+        if scheme != "tcp":  # TLS and websockets speak first from the client: nothing to wait for here
+            return
+        conn.settimeout(timeout_s)
+        try:
+            first = conn.recv(1)
+        except OSError as e:  # socket.timeout is an OSError
+            first, why = b"", f"no Dask handshake within {timeout_s:g} s ({_reason(e)})"
+        else:
+            why = "it closed the connection without a Dask handshake"
+        if not first:
+            raise ClusterError(
+                f"no Dask scheduler at {address}: something listens there, but {why}; give the scheduler's address"
+            )
 
 
 def _reason(e: BaseException) -> str:

@@ -286,18 +286,21 @@ def _fsync_dir(folder: Path) -> None:
         os.close(fd)
 
 
-def write_table_atomic(path: Path, table: pa.Table, metadata: dict[bytes, bytes]) -> Path:
+def write_table_atomic(path: Path, table: pa.Table, metadata: dict[bytes, bytes], before_rename=None) -> Path:
     """Write a Parquet file atomically and durably: `.<name>.<pid>.tmp` beside it (hidden from readers;
-    the process id keeps two writers apart), flushed to disk, then renamed. A write that fails (a full
-    disk) is an OutputError naming the file; nothing half-written stays."""
+    the process id keeps two writers apart), flushed to disk, then renamed (`before_rename()` called just
+    before: the tests' gate). A write that fails (a full disk) is an OutputError naming the file; nothing
+    half-written stays, and what a killed writer left (temporary_names) is removed by the next sweep."""
     path = Path(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp = temporary_name(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         with open(tmp, "wb") as f:
             pq.write_table(table.replace_schema_metadata(metadata), f, compression="zstd")
             f.flush()
             os.fsync(f.fileno())
+        if before_rename is not None:
+            before_rename()
         os.replace(tmp, path)
         _fsync_dir(path.parent)
     except OSError as e:
@@ -305,6 +308,20 @@ def write_table_atomic(path: Path, table: pa.Table, metadata: dict[bytes, bytes]
     finally:
         _discard(tmp)
     return path
+
+
+def temporary_name(path: Path) -> Path:
+    """Where write_table_atomic writes `path` before renaming it: `.<name>.<pid>.tmp` beside it."""
+    return path.with_name(f".{path.name}.{os.getpid()}.tmp")
+
+
+def stale_temporaries(path: Path) -> list[Path]:
+    """The temporaries of `path` that killed writers left beside it (any process id)."""
+    pattern = re.compile(rf"\.{re.escape(path.name)}\.\d+\.tmp")
+    try:
+        return [p for p in path.parent.iterdir() if pattern.fullmatch(p.name)]
+    except OSError:
+        return []
 
 
 def write_part(folder: Path, index: int, table: pa.Table, metadata: dict[bytes, bytes]) -> Path:

@@ -38,6 +38,7 @@ from pounding_sweep.sweep.results import (
     part_index,
     read_manifest,
     remove_stale_temporaries,
+    stale_temporaries,
     write_manifest,
 )
 
@@ -67,12 +68,16 @@ class OutputFolder:
         for f in folders:
             _refuse_non_folder(f)
         if self.best is not None:
-            _refuse_foreign_file(self.best, "its best runs")
+            _refuse_foreign_file(self.best, "its best runs", self.out)
         try:
             for f in folders:
                 self._make(f)
             for f in folders:
                 self._locks.append(_lock(f))
+            if self.best is not None:  # two result folders may share it (--out r/x and r/x.parquet)
+                self._locks.append(_lock(self.best.parent, f".{self.best.name}.lock", self.best))
+                for t in stale_temporaries(self.best):  # a sweep killed while writing it (ours: we hold its lock)
+                    t.unlink(missing_ok=True)
         except BaseException:
             self.release(ok=False)
             raise
@@ -261,16 +266,22 @@ def _refuse_non_folder(path: Path) -> None:
     raise OutputError(f"{path}: not a folder ({kind_of(mode)}): give another --out")
 
 
-def _refuse_foreign_file(path: Path, what: str) -> None:
-    """A file a sweep writes beside its folder (the best runs) may replace only an earlier one of ours."""
+def _refuse_foreign_file(path: Path, what: str, out: Path) -> None:
+    """A file a sweep writes beside its folder (the best runs) may replace only an earlier one of ours, written for
+    the same result folder: `--out r/x` and `--out r/x.parquet` both name r/x.best.parquet (the table records its
+    folder's name; one written before it did is taken as this folder's)."""
     if not (path.exists() or path.is_symlink()):
         return
-    ours = False
+    ours, info = False, {}
     if path.is_file():
         try:
+            import json
+
             import pyarrow.parquet as pq
 
-            ours = META_KEY in (pq.read_metadata(path).metadata or {})
+            kv = pq.read_metadata(path).metadata or {}
+            ours = META_KEY in kv
+            info = json.loads(kv[META_KEY]) if ours else {}
         except Exception:  # noqa: BLE001 - not Parquet, or damaged: not shown to be ours
             ours = False
     if not ours:
@@ -278,12 +289,20 @@ def _refuse_foreign_file(path: Path, what: str) -> None:
             f"{path}: exists and is not a file this package wrote; the sweep writes {what} there: move it "
             "away, or give another --out"
         )
+    owner = info.get("results") if isinstance(info, dict) else None
+    if owner is not None and owner != out.name:
+        raise OutputError(
+            f"{path}: holds the best runs of the results in {out.with_name(owner)}, not of {out}, and the sweep "
+            f"writes {what} there: give another --out (one whose name does not share {path.name})"
+        )
 
 
-def _lock(folder: Path) -> tuple[int, Path]:
-    """Create and lock `folder/._sweep.lock` (exclusive, not waiting); refuse when another sweep holds it.
-    Creating it is also the first write into the folder: where nothing can be written, this says so."""
-    path = folder / LOCK
+def _lock(folder: Path, name: str = LOCK, what: Path | None = None) -> tuple[int, Path]:
+    """Create and lock `folder/<name>` (`._sweep.lock`; exclusive, not waiting); refuse when another sweep holds
+    it (`what`: the file it guards, named in the refusal; default the folder). Creating it is also the first
+    write into the folder: where nothing can be written, this says so."""
+    path = folder / name
+    what = what or folder
     while True:
         try:
             fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
@@ -297,8 +316,8 @@ def _lock(folder: Path) -> tuple[int, Path]:
             holder = _holder(fd)
             os.close(fd)
             raise OutputError(
-                f"{folder}: another sweep is writing to this folder{holder}; wait for it to finish, or give "
-                "another --out"
+                f"{what}: another sweep is writing to this {'folder' if what == folder else 'file'}{holder}; wait "
+                "for it to finish, or give another --out"
             ) from None
         except OSError:  # a file system without locks (some network mounts): go on unlocked
             return fd, path

@@ -34,7 +34,15 @@ from pounding_sweep.scene import Scene
 from pounding_sweep.scene.axes import STRUCTURE_AXES
 from pounding_sweep.scene.channels import ACC_PREFIX
 from pounding_sweep.scene.hashing import hash_of
-from pounding_sweep.sweep.checks import ContactTally, check_contact, check_time_step
+from pounding_sweep.sweep.checks import (
+    ContactTally,
+    check_calibration,
+    check_contact,
+    check_scale,
+    check_scene,
+    check_time_step,
+)
+from pounding_sweep.sweep.gate import pause
 from pounding_sweep.sweep.prepare import Prepared, drift_ratio_columns, prepare  # noqa: F401
 from pounding_sweep.sweep.ranking import Ranking, Refinement, refine, score_columns, score_table_columns
 from pounding_sweep.sweep.results import (
@@ -85,7 +93,9 @@ class SweepSummary:
     new_kernel_s: float = 0.0
     refinement_reused: bool = False
     warnings: list[str] = field(default_factory=list)
-    calibration: list | None = None  # sweep.calibrate.Fit per law, with [calibrate]
+    calibration: list | None = None  # sweep.calibrate.Fit per law, with [calibrate] (when calibrated by this call)
+    calibration_summary: dict | None = None  # calibrate.calibration_metadata: new, or kept from an earlier run
+    calibration_reused: bool = False
 
 
 def run_scene(
@@ -145,6 +155,8 @@ def _run_claimed(scene, folder, threads, progress, executor, kernel, size, notes
     out_path, hpath, ex = folder.out, folder.hpath, scene.execution
     prep = prepare(scene, kernel)
     check_time_step(prep)
+    check_scene(prep)
+    check_calibration(prep)
     grid, model, exc = prep.grid, prep.model, prep.excitation
     chunk_runs = ex.chunk_runs
     if prep.hist.active:
@@ -165,6 +177,9 @@ def _run_claimed(scene, folder, threads, progress, executor, kernel, size, notes
     todo = [c for c in chunks if c[0] not in done]
 
     facts = _model_facts(prep)
+    # where the scene's folder lies from the results: a project moved with its results is still plotted from its
+    # own files (plots.scene_of)
+    facts["scene_dir_from_results"] = os.path.relpath(Path(scene.source).resolve().parent, out_path.resolve())
     meta = file_metadata(scene, {**facts, "warnings": notes.messages()})
     names = L.metric_columns(model.floors, model.n_pairs)
     ranking = (
@@ -215,6 +230,7 @@ def _run_claimed(scene, folder, threads, progress, executor, kernel, size, notes
                     )
                 write_part(out_path, res.index, table, meta)
                 folder.wrote_part()
+                pause(f"part-{folder.parts_written}")
                 inflight.part_done(table)
                 if progress is not None:
                     progress(tally.runs, grid.size)
@@ -259,28 +275,19 @@ def _run_claimed(scene, folder, threads, progress, executor, kernel, size, notes
                 summary.refinement = refine_best(prep, best)
             if summary.refinement is not None:
                 best = pd.concat([best, pd.DataFrame([refinement_row(summary.refinement)])], ignore_index=True)
-        extra_meta = {}
         if not best.empty:
             _grid_edge_warnings(best, grid)
+        check_scale(tally.contact, prep, best)
+        summary.best_path = folder.best
+        meta = {"kind": "best", "results": out_path.name, "warnings": notes.messages()}
         if scene.calibrate is not None and not best.empty:
-            from pounding_sweep.sweep.calibrate import calibrate, calibration_metadata, calibration_rows
-
-            grid_best = best[best.criterion == "rel_rms_combined_pct"]
-            cell = {n: float(grid_best[n].iloc[0]) for n in scene.calibrate.parameters if n in grid_best}
-            n_threads = threads if threads is not None else ex.threads
-            summary.calibration = calibrate(scene, threads=n_threads or os.cpu_count() or 1, best_cell=cell)
-            best = pd.concat([best, pd.DataFrame(calibration_rows(summary.calibration))], ignore_index=True)
-            extra_meta["calibration"] = calibration_metadata(summary.calibration)
+            best, meta = _calibrated(
+                scene, best, meta, summary, progress, threads if threads is not None else ex.threads
+            )
         best["run_id"] = best["run_id"].astype("Int64")
         summary.best = best
-        summary.best_path = folder.best
-        import pyarrow as pa
-
-        write_table_atomic(
-            summary.best_path,
-            pa.Table.from_pandas(best, preserve_index=False),
-            file_metadata(scene, {"kind": "best", "warnings": notes.messages(), **extra_meta}),
-        )
+        _write_best(summary.best_path, best, scene, {**meta, "warnings": notes.messages()})
+        store_warnings(out_path, notes.messages())  # those found from the ranking and the calibration too
     return summary
 
 
@@ -302,6 +309,102 @@ def _grid_edge_warnings(best, grid: Grid) -> None:
                     f"the best cell lies on the grid's edge: {name} = {v:g} is the {side} swept value; the optimum "
                     f"may lie beyond it (extend [sweep] {name})",
                 )
+
+
+def _write_best(path: Path, best, scene: Scene, meta: dict) -> None:
+    """The best table, written whole and renamed into place (the test gate 'best' waits before the rename)."""
+    import pyarrow as pa
+
+    best = best.copy()
+    best["run_id"] = best["run_id"].astype("Int64")
+    write_table_atomic(
+        path,
+        pa.Table.from_pandas(best, preserve_index=False),
+        file_metadata(scene, meta),
+        before_rename=lambda: pause("best"),
+    )
+
+
+def calibration_key(scene: Scene) -> str:
+    """What a stored calibration must match to be reused: the scene's config hash (the grid and the experiment:
+    [calibrate] is left out of it, so that the grid's parts resume when only [calibrate] changes), [calibrate]
+    itself and the package version."""
+    return hash_of(
+        {"config_hash": scene.config_hash(), "calibrate": dataclasses.asdict(scene.calibrate), "version": __version__}
+    )
+
+
+def _calibrated(scene: Scene, best, meta: dict, summary: SweepSummary, progress, threads: int):
+    """The best table and its metadata with the calibration: the one stored by an earlier run of this very
+    calibration (calibration_key), else a new one. Before a new one starts, the best table is written with the
+    grid's answer alone, so that a calibration interrupted (or a changed [calibrate] whose rerun is) never leaves
+    an older calibration in a table that claims this scene."""
+    import pandas as pd
+
+    from pounding_sweep.sweep.calibrate import calibrate, calibration_metadata, calibration_rows
+
+    key = calibration_key(scene)
+    stored = _stored_calibration(summary.best_path, key)
+    if stored is not None:
+        rows, md, said = stored
+        for w in said:  # its warnings, said (and stored) again as on the run that made it
+            warn("calibration", w)
+        summary.calibration_summary, summary.calibration_reused = md, True
+        return pd.concat([best, rows], ignore_index=True), {**meta, "calibration": md, "calibration_key": key}
+    _write_best(summary.best_path, best, scene, meta)
+    pause("calibrate")
+    say = getattr(progress, "stage", None)
+    grid_best = best[best.criterion == "rel_rms_combined_pct"]
+    cell = {n: float(grid_best[n].iloc[0]) for n in scene.calibrate.parameters if n in grid_best}
+    if say is not None:
+        say(calibration_plan(scene))
+    t0 = time.perf_counter()
+    summary.calibration = calibrate(scene, threads=threads or os.cpu_count() or 1, best_cell=cell, progress=say)
+    if say is not None:
+        say(f"  calibrated in {time.perf_counter() - t0:.0f} s")
+    md = calibration_metadata(summary.calibration)
+    summary.calibration_summary = md
+    best = pd.concat([best, pd.DataFrame(calibration_rows(summary.calibration))], ignore_index=True)
+    return best, {**meta, "calibration": md, "calibration_key": key}
+
+
+def calibration_plan(scene: Scene) -> str:
+    """One line saying what the calibration is about to do (it runs for a minute or more, silent otherwise)."""
+    cal = scene.calibrate
+    laws = scene.axis_values("law") or (scene.contact.law,)
+    profiled = list(cal.profile) or [n for n in ("ks_ratio", "ks_N_per_m", "kh_N_per_m1_5", "r") if n in cal.parameters]
+    from pounding_sweep.sweep.globalsearch import design_size
+
+    n_design = design_size(cal.global_points, len(cal.parameters))
+    what = [
+        f"{cal.global_points} global points (a design of {n_design} on the record's leading part)"
+        if n_design
+        else "no global stage"
+    ]
+    what.append(f"least squares from up to {cal.starts} start(s) of at most {cal.max_evals} runs")
+    if cal.profile_points and profiled:
+        what.append(f"profiles of {', '.join(profiled)} ({cal.profile_points} points each)")
+    return (
+        f"calibrating {len(cal.parameters)} parameter(s) against the experiment for law {', '.join(laws)}: "
+        f"{'; '.join(what)} (kept in the best table: a rerun of this scene reuses it)"
+    )
+
+
+def _stored_calibration(best_path: Path, key: str):
+    """(the 'calibrated' rows, the calibration metadata, its warnings) of the best table an earlier run of this
+    very calibration wrote (calibration_key), or None."""
+    if not best_path.is_file():
+        return None
+    try:
+        md = read_metadata(best_path)
+        if md.get("calibration_key") != key or "calibration" not in md:
+            return None
+        df = pq.read_table(best_path).to_pandas()
+    except (OSError, KeyError, ValueError):
+        return None
+    rows = df[df.criterion == "calibrated"]
+    said = [w for w in md.get("warnings", []) if w.startswith("calibration")]  # calibrate.py's all begin so
+    return (rows, md["calibration"], said) if len(rows) else None
 
 
 def _read_part(path: Path):

@@ -2081,6 +2081,287 @@ CASES += [
     ),
 ]
 
+# ----------------------------------------------------------------------------- issue 25
+# [calibrate] checked before the grid, the other commands' --out, plausibility, shared best tables
+
+
+def _calibrated(params: str, extra: str = "", scene: str | None = None) -> str:
+    """The table scene with a [calibrate] section fitting `params` (TOML inline table body)."""
+    return (scene or table_scene()) + f"\n[calibrate]\nparameters = {{ {params} }}\n{extra}"
+
+
+SCORED_RESUMABLE = table_scene() + "\n[execution]\nchunk_runs = 2\n"
+
+
+@functools.lru_cache(maxsize=2)
+def sweep_files(scene_text: str) -> dict[str, bytes]:
+    """Every file a scored sweep of `scene_text` (its table: table_csv()) writes: the dataset folder's, as
+    'out.parquet/<name>', and the best table beside it, 'out.best.parquet'."""
+    import tempfile
+
+    from pounding_sweep.scene import load_scene
+    from pounding_sweep.sweep.run import run_scene
+
+    with tempfile.TemporaryDirectory() as d:
+        (Path(d) / "scene.toml").write_text(scene_text)
+        (Path(d) / "exp.csv").write_text(table_csv())
+        run_scene(load_scene(Path(d) / "scene.toml"), out_path=Path(d) / "out.parquet", threads=1)
+        out = {f"out.parquet/{p.name}": p.read_bytes() for p in (Path(d) / "out.parquet").iterdir()}
+        out["out.best.parquet"] = (Path(d) / "out.best.parquet").read_bytes()
+        return out
+
+
+#: what that sweep writes (4 runs in 2 parts)
+SCORED_FILES = (
+    "out.parquet/_sweep.json",
+    "out.parquet/part-00000.parquet",
+    "out.parquet/part-00001.parquet",
+    "out.best.parquet",
+)
+
+
+def scored_results(**changes) -> dict:
+    """The case's files for a scored sweep's results: exp.csv, out.parquet/, out.best.parquet (some replaced)."""
+    files = {name: (lambda name=name: sweep_files(SCORED_RESUMABLE)[name]) for name in SCORED_FILES}
+    files["exp.csv"] = table_csv()
+    files.update(changes)
+    return files
+
+
+CASES += [
+    # ------------------------------------------------------------------ [calibrate]: refused as the scene loads
+    _c(
+        "calibrate_amplitude_on_a_record",
+        "calibrate",
+        "[calibrate] fits amplitude_m on a record scene (it changes nothing)",
+        [S, "[calibrate] parameters.amplitude_m"],
+        "changes nothing here, the excitation is a record",
+        _calibrated("amplitude_m = [0.001, 0.003]", scene=record_scene() + TABLE_SECTION.format(table="exp.csv")),
+        files={"rec.AT2": GOOD_AT2, "exp.csv": table_csv()},
+        sub=True,
+    ),
+    _c(
+        "calibrate_kh_with_the_classic_law",
+        "calibrate",
+        "[calibrate] fits kh_N_per_m1_5 with law = classic (a linear law takes k_s)",
+        [S, "[calibrate] parameters.kh_N_per_m1_5"],
+        "changes nothing for [contact] law = 'classic'",
+        _calibrated("kh_N_per_m1_5 = [1e5, 1e7]"),
+        files={"exp.csv": table_csv()},
+    ),
+    _c(
+        "calibrate_ks_with_kh_given",
+        "calibrate",
+        "[calibrate] fits ks_ratio while law hertzdamp takes [contact] kh_N_per_m1_5",
+        [S, "[calibrate] parameters.ks_ratio"],
+        "every law (hertzdamp) is Hertz-type and [contact] kh_N_per_m1_5 gives k_h",
+        _calibrated(
+            "ks_ratio = [0.1, 10.0]",
+            scene=edit(
+                edit(edit(table_scene(), "ks_ratio = 1.0\n", "kh_N_per_m1_5 = 2e5\n"), '"classic"', '"hertzdamp"'),
+                "ks_ratio = [0.1, 1.0]\n",
+                "",
+            ),
+        ),
+        files={"exp.csv": table_csv()},
+    ),
+    _c(
+        "calibrate_r_only_with_hertz",
+        "calibrate",
+        "[calibrate] fits only r with law = hertz (elastic: r changes nothing)",
+        [S, "[calibrate] parameters.r"],
+        "changes nothing for [contact] law = 'hertz'",
+        _calibrated("r = [0.1, 1.0]", scene=edit(table_scene(), '"classic"', '"hertz"')),
+        files={"exp.csv": table_csv()},
+    ),
+    _c(
+        "calibrate_r_from_0_with_hertzdamp",
+        "calibrate",
+        "[calibrate] r = [0, 1] with law = hertzdamp (infinite damping at r = 0)",
+        [S, "[calibrate] parameters.r"],
+        "[0.0, 1.0]: law 'hertzdamp' has infinite damping at r = 0",
+        _calibrated("r = [0.0, 1.0]", scene=edit(table_scene(), '"classic"', '"hertzdamp"')),
+        files={"exp.csv": table_csv()},
+    ),
+    _c(
+        "calibrate_global_points_1e9",
+        "calibrate",
+        "[calibrate] global_points = 1000000000",
+        [S, "[calibrate] global_points"],
+        "1,000,000,000: more than 4,096",
+        _calibrated("ks_ratio = [0.1, 10.0]", "global_points = 1000000000\n"),
+        files={"exp.csv": table_csv()},
+    ),
+    _c(
+        "calibrate_profile_points_1e6",
+        "calibrate",
+        "[calibrate] profile_points = 1000000",
+        [S, "[calibrate] profile_points"],
+        "1,000,000: more than 200",
+        _calibrated("ks_ratio = [0.1, 10.0]", "profile_points = 1000000\n"),
+        files={"exp.csv": table_csv()},
+    ),
+    _c(
+        "calibrate_noise_1e-300",
+        "calibrate",
+        "[calibrate] noise_m = 1e-300",
+        [S, "[calibrate] noise_m"],
+        "1e-300: the tracking noise in metres lies in [1e-09, 1]",
+        _calibrated("ks_ratio = [0.1, 10.0]", "noise_m = 1e-300\n"),
+        files={"exp.csv": table_csv()},
+    ),
+    # ------------------------------------------------------------------ [calibrate]: refused before the grid
+    _c(
+        "calibrate_offset_off_the_table",
+        "calibrate",
+        "[calibrate] time_offset_s = [-50, 50] on a 0.2 s table",
+        [S, "[calibrate] parameters.time_offset_s", "exp.csv"],
+        "at -50 s",
+        _calibrated("ks_ratio = [0.1, 10.0], time_offset_s = [-50.0, 50.0]"),
+        files={"exp.csv": table_csv()},
+    ),
+    _c(
+        "calibrate_six_samples_no_noise_floor",
+        "calibrate",
+        "[calibrate] without noise_m, 6 samples in window_s = [0, 0.05]",
+        [S, "[calibrate]", "b1f3"],
+        "6 sample(s) in the scored window, fewer than the 11",
+        _calibrated("ks_ratio = [0.1, 10.0]", scene=table_scene() + "window_s = [0.0, 0.05]\n"),
+        files={"exp.csv": table_csv()},
+    ),
+    _c(
+        "calibrate_global_stage_too_large",
+        "calibrate",
+        "[calibrate] global_points = 4096 over 5 s runs (6.1 GiB of histories in one batch)",
+        [S, "[calibrate] global_points"],
+        "4,096: its runs are made as one batch and keep 6.1 GiB",
+        _calibrated(
+            "ks_ratio = [0.1, 10.0]",
+            "global_points = 4096\n",
+            edit(table_scene(), "duration_s = 0.2", "duration_s = 5.0"),
+        ),
+        files={"exp.csv": table_csv()},
+    ),
+    _c(
+        "table_displacement_1e300_mm",
+        "table",
+        "a displacement of 1e300 mm in the experiment table",
+        ["exp.csv", "'b1f3'"],
+        "reaches 1e+300 mm",
+        table_scene(),
+        files={"exp.csv": table_csv(b1={5: "1e300"})},
+    ),
+    # ------------------------------------------------------------------ the other commands' outputs and options
+    _c(
+        "identify_out_is_the_scene",
+        "commands",
+        "identify exp.csv --scene scene.toml --out scene.toml (the scene itself)",
+        ["scene.toml"],
+        "exists and is not a file identify wrote",
+        files={"exp.csv": table_csv()},
+        argv=("identify", "{dir}/exp.csv", "--scene", "{scene}", "--out", "{scene}"),
+        sub=True,
+    ),
+    _c(
+        "track_out_is_a_users_file",
+        "commands",
+        "track ... --out notes.csv (a user's table)",
+        ["notes.csv"],
+        "exists and is not a file track wrote",
+        files={"notes.csv": "t_s,mine\n0,1\n"},
+        argv=track("run.mkv")[:-3] + ("--out", "{dir}/notes.csv", "--quiet"),
+    ),
+    _c(
+        "gaps_out_is_a_users_file",
+        "commands",
+        "gaps scene.toml --out notes.txt (a user's file)",
+        ["notes.txt"],
+        "exists and is not a folder",
+        files={"notes.txt": NOTES},
+        argv=("gaps", "{scene}", "--out", "{dir}/notes.txt", "--quiet"),
+    ),
+    _c(
+        "gaps_out_holds_a_users_csv",
+        "commands",
+        "gaps scene.toml --out study, a folder holding the user's required_gaps.csv",
+        ["study/required_gaps.csv"],
+        "exists and is not a file a gap study wrote",
+        files={"study/required_gaps.csv": NOTES},
+        argv=("gaps", "{scene}", "--out", "{dir}/study", "--quiet"),
+    ),
+    _c(
+        "gaps_length_scale_inf",
+        "commands",
+        "gaps --length-scale inf",
+        ["--length-scale"],
+        "must be a finite number > 0 (inf)",
+        argv=("gaps", "{scene}", "--out", "{dir}/study", "--length-scale", "inf"),
+    ),
+    _c(
+        "gaps_threads_negative",
+        "commands",
+        "gaps --threads -1",
+        ["--threads"],
+        "-1: must be >= 0",
+        argv=("gaps", "{scene}", "--out", "{dir}/study", "--threads", "-1"),
+    ),
+    _c(
+        "gaps_threads_100000",
+        "commands",
+        "gaps --threads 100000",
+        ["--threads"],
+        "100000: more than 1,024",
+        argv=("gaps", "{scene}", "--out", "{dir}/study", "--threads", "100000"),
+    ),
+    _c(
+        "gaps_relative_gap_inf",
+        "commands",
+        "gaps --relative-gaps 0,inf",
+        ["--relative-gaps"],
+        "expected finite numbers >= 0",
+        argv=("gaps", "{scene}", "--out", "{dir}/study", "--relative-gaps", "0,inf"),
+    ),
+    _c(
+        "plot_a_fifo",
+        "commands",
+        "plot pipe (a named pipe: a reader would wait for ever)",
+        ["pipe"],
+        "a FIFO (named pipe), not a result file or folder",
+        files={"pipe": Fifo()},
+        argv=("plot", "{dir}/pipe"),
+    ),
+    _c(
+        "plot_out_inside_the_results",
+        "commands",
+        "plot out.parquet --out out.parquet/figures (PNGs among the parts)",
+        ["out.parquet/figures"],
+        "inside the result folder",
+        SCORED_RESUMABLE,
+        files=scored_results(),
+        argv=("plot", "{out}", "--out", "{out}/figures"),
+    ),
+    _c(
+        "plot_best_table_damaged",
+        "commands",
+        "plot out.parquet whose out.best.parquet is cut in half",
+        ["out.best.parquet"],
+        "cannot be read as a best-runs table (damaged)",
+        SCORED_RESUMABLE,
+        files=scored_results(**{"out.best.parquet": lambda: sweep_files(SCORED_RESUMABLE)["out.best.parquet"][:300]}),
+        argv=("plot", "{out}"),
+    ),
+    _c(
+        "best_table_of_another_result_folder",
+        "output",
+        "--out out (no suffix) beside out.parquet, whose best table out.best.parquet both would write",
+        ["out.best.parquet"],
+        "holds the best runs of the results in",
+        SCORED_RESUMABLE,
+        files=scored_results(),
+        argv=("{scene}", "--out", "{dir}/out"),
+    ),
+]
+
 # ----------------------------------------------------------------------------- risk studies (issue 29)
 
 STOCHASTIC = (

@@ -16,13 +16,15 @@ import io
 import os
 import subprocess
 import sys
-import time
+import threading
 
 import numba
 import pandas as pd
 import pytest
 from conftest import REPO, SWEEPS
+from gates import SAFETY_S
 
+from pounding_sweep import progress
 from pounding_sweep.cli.run import SUBCOMMANDS, _run_text
 from pounding_sweep.engine import driver, jit
 from pounding_sweep.progress import Progress
@@ -77,14 +79,52 @@ def test_the_compile_line_and_the_clock(monkeypatch):
         "later runs load it from the cache)\n"
     )
     err.truncate(0), err.seek(0)
+    clock = _SteppedClock(seconds=2)
+    monkeypatch.setattr(progress, "time", clock)
+    monkeypatch.setattr(progress, "threading", clock)
     tty = Progress()
     tty.enabled = True  # as on a terminal
     end = tty.compiling("scalar", "the scalar kernel", 14.2, True)
-    time.sleep(2.3)
+    assert clock.ticked.wait(SAFETY_S), "the compile clock did not tick twice"
     end(2.3)
     out = err.getvalue()
     assert out.startswith("compiling the scalar kernel for this machine (once; about 14 s here last time;")
-    assert "\r  compiling: 1 s " in out and "\r  compiling: 2 s " in out and out.endswith("\r  compiled in 2.3 s \n")
+    assert out.endswith("\r  compiling: 1 s \r  compiling: 2 s \r  compiled in 2.3 s \n")
+
+
+class _SteppedClock:
+    """progress.py's `time` and `threading` for the compile clock, stepped instead of waited for: each of the
+    clock thread's one-second waits passes a second at once, `seconds` times; the next wait lasts until the
+    clock is stopped, and sets `ticked` (those seconds have all been written). Threads and locks are the real
+    ones."""
+
+    Thread = threading.Thread
+    Lock = threading.Lock
+
+    def __init__(self, seconds: int):
+        self.now, self.seconds = 1000.0, seconds
+        self.waits = 0
+        self.ticked = threading.Event()
+
+    def perf_counter(self) -> float:
+        return self.now
+
+    def Event(self):  # noqa: N802 - stands for threading.Event
+        clock, stopped = self, threading.Event()
+
+        class Stepped:
+            def wait(self, timeout: float) -> bool:
+                clock.waits += 1
+                if clock.waits <= clock.seconds:
+                    clock.now += timeout
+                    return False
+                clock.ticked.set()
+                return stopped.wait(SAFETY_S)
+
+            def set(self) -> None:
+                stopped.set()
+
+        return Stepped()
 
 
 def test_the_first_run_announces_its_compile_and_a_run_from_the_cache_says_nothing(tmp_path):

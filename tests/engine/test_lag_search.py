@@ -1,5 +1,5 @@
 """Issue 17, item 11: the correlation lag search through the FFT returns what the direct search over
-every lag returns, bit for bit (value and lag), and costs a small part of it on long records.
+every lag returns, bit for bit (value and lag), and recomputes only a few lags directly on long records.
 
 `best_lag(..., fft_min_lags=0)` forces the FFT path on cases of every size; `best_lag_direct` is the
 old loop (lagged_correlation at each lag, first maximum in ascending order, NaN never wins). The cases
@@ -8,8 +8,6 @@ offset (the means' rounding), a single spike, constant data (NaN at every lag), 
 whole window."""
 
 from __future__ import annotations
-
-import time
 
 import numpy as np
 import pytest
@@ -75,20 +73,19 @@ def test_the_bound_holds_and_leaves_few_lags_to_check():
 
 def test_short_searches_stay_direct_and_long_ones_are_cheap():
     """Below FFT_MIN_LAGS lags the direct loop runs (the shipped scenes: 21 lags); a search over 4001 lags
-    of a 200,000-sample record takes a small part of the direct search's time."""
+    of a 200,000-sample record recomputes at most 3 lags directly (each costing n operations), against the
+    direct search's 4001: the rest is the FFT's O(n log n). Counted, not timed (the time is
+    benchmarks/bench_lag_search.py's)."""
     rng = np.random.default_rng(5)
     n, max_lag = 200_000, 2000
     assert 2 * 10 + 1 < FFT_MIN_LAGS <= 2 * max_lag + 1
     t = np.arange(n) * 1e-4
     xe = np.sin(2 * np.pi * 6.0 * t) + rng.normal(0.0, 0.05, n)
     xd = np.sin(2 * np.pi * 6.0 * (t - 0.01))
-    best_lag(xd[:300], xe[:300], 100)  # compiled (or loaded) before timing
-    best_lag_direct(xd[:300], xe[:300], 100)
-    t0 = time.perf_counter()
-    fast = best_lag(xd, xe, max_lag)
-    t_fast = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    direct = best_lag_direct(xd, xe, max_lag)
-    t_direct = time.perf_counter() - t0
+    est, bound, trusted = lag_estimates(xd, xe, max_lag)
+    assert trusted.all()
+    lower = np.max(est - bound)
+    rechecked = int(np.sum(est + bound >= lower))  # best_lag's rule: the lags that could still be the best
+    assert 1 <= rechecked <= 3, rechecked
+    fast, direct = best_lag(xd, xe, max_lag), best_lag_direct(xd, xe, max_lag)
     assert _same(fast, direct) and fast[1] == 100
-    assert t_fast < 0.25 * t_direct, (t_fast, t_direct)

@@ -34,7 +34,7 @@ P_FAIL = 1e-6
 #: the error this project states for Vanmarcke's approximation of the first-passage probability at high
 #: thresholds (r = b / sigma >= 3), relative to it: the formula is calibrated on single oscillators (his
 #: delta^1.2); for the two-mode relative displacement of these frames (delta 0.25-0.29) it measured 22-26 % above
-#: 80,000 runs at r = 3 and 9-15 % at r = 3.5 (docs/risk.md): conservative, converging as the threshold rises
+#: 80,000 runs at r = 3 and 9-15 % at r = 3.5 (docs/how-to/probabilistic-pounding.md): conservative, converging as the threshold rises
 VANMARCKE_ERROR = 0.3
 
 

@@ -2,7 +2,7 @@
 
 * local threads and a Dask LocalCluster (2 worker processes) give bit-identical tables;
 * a Dask worker killed mid-sweep: the scheduler reruns its tasks, each part is written once;
-* the CLI killed with SIGKILL mid-sweep, then rerun: finished parts are kept (not recomputed),
+* the CLI killed with SIGKILL after its fourth part (tests/gates.py), then rerun: finished parts are kept (not recomputed),
   the rest is run, no row is missing or duplicated, and the result equals an uninterrupted run;
 * a rerun with a changed scene into the same folder is refused with a clear message.
 """
@@ -12,14 +12,12 @@ from __future__ import annotations
 import dataclasses
 import os
 import signal
-import subprocess
-import sys
-import time
 
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import REPO, SWEEPS
+from conftest import SWEEPS
+from gates import GatedSweep, run
 
 from pounding_sweep.errors import OutputError
 from pounding_sweep.scene import Axis, load_scene
@@ -84,11 +82,11 @@ def test_a_worker_killed_mid_sweep_loses_and_duplicates_nothing(tmp_path, dask_e
 
 
 def _cli(scene_file, out, *extra):
-    return [sys.executable, "-m", "pounding_sweep", str(scene_file), "--out", str(out), "--threads", "1", *extra]
+    return [scene_file, "--out", out, "--threads", "1", *extra]
 
 
-def _write_scene(tmp_path, r_values="[0.2, 0.6, 1.0]", duration="3.0", name="killable.toml"):
-    """A scene file slow enough to kill mid-way (30 runs of 3 s at dt = 2e-5 s, one run per part)."""
+def _write_scene(tmp_path, r_values="[0.2, 0.6, 1.0]", duration="0.5", name="killable.toml"):
+    """A scene of 30 runs, one run per part (k_s/k x r, 0.5 s at dt = 2e-5 s)."""
     text = (SWEEPS / "paper_6hz.toml").read_text()
     text = text.replace("duration_s = 5.0", f"duration_s = {duration}").replace("dt_s = 1e-4", "dt_s = 2e-5")
     text = text.replace(
@@ -102,24 +100,22 @@ def _write_scene(tmp_path, r_values="[0.2, 0.6, 1.0]", duration="3.0", name="kil
 
 
 def test_cli_killed_with_sigkill_resumes_without_recomputing(tmp_path):
+    """SIGKILL (no handler runs) once the fourth part is written (the sweep stopped there: tests/gates.py)."""
     scene_file = _write_scene(tmp_path)
     out = tmp_path / "out.parquet"
-    proc = subprocess.Popen(_cli(scene_file, out, "--quiet"), cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    deadline = time.time() + 120
-    while time.time() < deadline and proc.poll() is None:
-        if out.exists() and len(part_files(out)) >= 4:
-            break
-        time.sleep(0.02)
-    assert proc.poll() is None, "the sweep finished before it could be killed; make it longer"
-    proc.send_signal(signal.SIGKILL)
-    proc.wait()
+    proc = GatedSweep(tmp_path / "gate", ["part-4"], *_cli(scene_file, out, "--quiet"))
+    try:
+        proc.wait_at("part-4")
+        proc.signal(signal.SIGKILL)
+    finally:
+        proc.kill()
     kept = {p.name: p.stat().st_mtime_ns for p in part_files(out)}
-    assert 4 <= len(kept) < 30
+    assert len(kept) == 4
     assert read_manifest(out)["parts"] == 30
     for p in part_files(out):  # every visible part is whole (a part killed mid-write stays hidden)
         assert len(pd.read_parquet(p)) == 1
 
-    rerun = subprocess.run(_cli(scene_file, out), cwd=REPO, capture_output=True, text=True)
+    rerun = run(*_cli(scene_file, out))
     assert rerun.returncode == 0, rerun.stderr
     assert f"{len(kept)} kept from an earlier run" in rerun.stdout
     assert {p.name: p.stat().st_mtime_ns for p in part_files(out) if p.name in kept} == kept  # not recomputed
@@ -133,16 +129,16 @@ def test_cli_killed_with_sigkill_resumes_without_recomputing(tmp_path):
 def test_resume_with_a_changed_scene_is_refused(tmp_path):
     first = _write_scene(tmp_path, duration="0.2")
     out = tmp_path / "out.parquet"
-    assert subprocess.run(_cli(first, out, "--quiet"), cwd=REPO).returncode == 0
+    assert run(*_cli(first, out, "--quiet")).returncode == 0
     before = sorted((p.name, p.stat().st_mtime_ns) for p in out.iterdir())
     changed = _write_scene(tmp_path, r_values="[0.2, 0.6, 0.9]", duration="0.2", name="changed.toml")
-    p = subprocess.run(_cli(changed, out), cwd=REPO, capture_output=True, text=True)
+    p = run(*_cli(changed, out))
     assert p.returncode == 2 and "Traceback" not in p.stderr
     assert "holds results of a different sweep" in p.stderr and "--overwrite" in p.stderr
     assert "[sweep] r = [0.2, 0.6, 1.0] there, [0.2, 0.6, 0.9] now" in p.stderr  # the key that differs, by name
     assert sorted((q.name, q.stat().st_mtime_ns) for q in out.iterdir()) == before  # untouched
     # asked for, it replaces them
-    p = subprocess.run(_cli(changed, out, "--overwrite", "--quiet"), cwd=REPO, capture_output=True, text=True)
+    p = run(*_cli(changed, out, "--overwrite", "--quiet"))
     assert p.returncode == 0, p.stderr
     assert sorted(pd.read_parquet(out).r.unique()) == [0.2, 0.6, 0.9]
     assert read_manifest(out)["config_hash"] == load_scene(changed).config_hash()

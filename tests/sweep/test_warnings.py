@@ -11,6 +11,7 @@ stored in the result metadata. A scene without such a mistake prints no warning.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import io
 import warnings
 
@@ -20,7 +21,7 @@ import pytest
 from conftest import SWEEPS
 
 from pounding_sweep.cli.run import main
-from pounding_sweep.scene import load_scene
+from pounding_sweep.scene import Axis, load_scene
 from pounding_sweep.sweep.results import read_metadata
 from pounding_sweep.sweep.run import run_scene
 from pounding_sweep.warn import InputWarning, collecting, warn
@@ -68,10 +69,13 @@ def test_gap_in_millimetres_warns_that_no_run_made_contact(tmp_path):
     assert "the swept gap_m, ks_ratio change nothing here" in line
     assert "largest pounding force   0.000 N" in stdout and line.removeprefix("warning: ") in stdout
     assert read_metadata(tmp_path / "out.parquet")["warnings"] == [line.removeprefix("warning: ")]
-    # the facing floors' approach the message bounds: the largest |u1| + |u2| of any run
+    # the facing floors' real closest approach: the largest u1 - u2 of any run and pair (gap - closest approach), not
+    # the sum of the floors' peaks (which need not come at the same instant, nor toward each other)
     df = pd.read_parquet(tmp_path / "out.parquet")
-    reach = (df.peak_disp_b1f3_m.abs() + df.peak_disp_b2f3_m.abs()).max()
-    assert f"at most {reach * 1e3:.3g} mm toward each other" in line
+    approach = {j: (df.gap_m - df[f"closest_approach_f{j}_m"]).max() for j in (1, 2, 3)}
+    j = max(approach, key=approach.get)
+    assert f"came at most {approach[j] * 1e3:.3g} mm nearer than at rest (floor pair {j})" in line
+    assert approach[j] < (df.peak_disp_b1f3_m.abs() + df.peak_disp_b2f3_m.abs()).max()
     # a resumed run says it again (from the stored rows), and leaves the stored warnings as they are
     code, stdout, stderr2 = cli(p)
     assert code == 0 and warning_lines(stderr2) == [line] and "nothing to run" in stdout
@@ -101,6 +105,26 @@ def test_a_coarse_time_step_warns_and_suggests_one_that_resolves_every_run(tmp_p
         assert set(pd.read_parquet(tmp_path / f"dt{dt}.parquet").status) == flagged
 
 
+@pytest.mark.parametrize("sweep", ["r = [0.4]", "kh_N_per_m1_5 = [2e5, 4e5]\nr = [0.4]"], ids=["kh fixed", "kh swept"])
+def test_a_hertz_scene_with_kh_alone_runs_and_its_time_step_is_checked(tmp_path, sweep):
+    """k_h given as kh_N_per_m1_5 without ks_ratio (the documented way to set a Hertz stiffness) used to end in a
+    TypeError in the time-step check; it runs, and a coarse dt warns by the law's tangent stiffness 1.5 k_h
+    sqrt(reference_penetration_m) (sweep/prepare.py contact_arrays)."""
+    text = short(SIX_HZ, sweep).replace("ks_ratio = 1.0\n", "").replace('law = "classic"', 'law = "hertzdamp"')
+    if "kh_N_per_m1_5 = [" not in text:
+        text = text.replace('law = "hertzdamp"', 'law = "hertzdamp"\nkh_N_per_m1_5 = 2e5')
+    code, _, stderr = cli(scene_file(tmp_path, text), "--quiet")
+    assert code == 0 and warning_lines(stderr) == [], stderr
+    coarse = scene_file(tmp_path, text.replace("dt_s = 1e-4", "dt_s = 2e-3"), "coarse.toml")
+    code, _, stderr = cli(coarse, "--out", tmp_path / "coarse.parquet", "--quiet")
+    assert code == 0
+    (line,) = warning_lines(stderr)
+    assert line.startswith("warning: [integration] dt_s = 0.002 s under-resolves every run's contact: ")
+    assert ": 19.1 steps per contact period 2 pi sqrt(m_eff / k) at the softest k_h = 2e+05 N/m^1.5" in line
+    df = pd.read_parquet(tmp_path / "coarse.parquet")
+    assert df.status.str.contains("contact_underresolved").all() and df.kh_N_per_m1_5.notna().all()
+
+
 def test_a_record_in_milliseconds_warns_before_it_runs(tmp_path):
     t_ms = np.arange(100) * 5.0  # 200 samples/s written in ms: read as a 5 s step, 495 s long
     acc = 0.5 * np.sin(2 * np.pi * 2.0 * t_ms / 1e3)
@@ -121,14 +145,43 @@ def test_a_record_in_milliseconds_warns_before_it_runs(tmp_path):
     assert "495,000 steps" in stdout
 
 
-def test_the_separated_scene_warns_without_the_metres_hint(tmp_path):
+def test_a_scene_separated_on_purpose_does_not_warn(tmp_path):
+    """paper_duzce_separated: a 50 mm gap, which the floors approach by at most 21 mm. Every gap of the grid is at
+    least twice the closest approach of any run (checks.SEPARATED_ON_PURPOSE): the separation is the study, and no
+    run making contact is what it is for."""
     s = load_scene(SWEEPS / "paper_duzce_separated.toml")
     with collecting() as outer:
         summary = run_scene(s, out_path=tmp_path / "sep.parquet")
+    assert summary.warnings == [] and outer.messages() == []
+    df = pd.read_parquet(tmp_path / "sep.parquet")
+    approach = max((df.gap_m - df[f"closest_approach_f{j}_m"]).max() for j in (1, 2, 3))
+    assert 0 < 2 * approach <= df.gap_m.min()  # the criterion, as it held here
+    assert df.impacts_f3.sum() == 0
+    # the same scene at a gap the floors come within half of: no contact still, and now it is said
+    near = dataclasses.replace(s, contact=dataclasses.replace(s.contact, gap_m=1.5 * approach))
+    with collecting() as outer:
+        summary = run_scene(near, out_path=tmp_path / "near.parquet")
     (msg,) = summary.warnings
-    assert outer.messages() == summary.warnings  # an enclosing collector sees them as they happen
-    assert msg.startswith("no run made contact (20 run(s)") and "against a gap of 50 mm" in msg
+    assert msg.startswith("no run made contact (20 run(s)") and f"came at most {approach * 1e3:.3g} mm nearer" in msg
     assert "in metres" not in msg and "the swept ks_ratio, r change nothing here" in msg
+
+
+def test_buildings_that_never_approach_are_said_so(tmp_path):
+    """Two identical buildings at gap 0 move in phase: they never come nearer than at rest. The message says so,
+    instead of the sum of their peaks (which it used to give as an approach they never made)."""
+    s = load_scene(SWEEPS / "paper_6hz.toml")
+    s = dataclasses.replace(
+        s,
+        building2=s.building1,
+        excitation=dataclasses.replace(s.excitation, duration_s=0.5),
+        sweep=(Axis("ks_ratio", (1.0, 10.0)),),
+    )
+    summary = run_scene(s, out_path=tmp_path / "twins.parquet")
+    (msg,) = summary.warnings
+    assert "the facing floors never moved toward each other (the buildings move in phase), against a gap of 0 mm" in msg
+    df = pd.read_parquet(tmp_path / "twins.parquet")
+    approach = (df.gap_m - df.closest_approach_f3_m).max()  # rounding of two equal motions: checks.ROUNDING_APPROACH
+    assert approach < 1e-9 * df.peak_disp_b1f3_m.max() and (df.peak_disp_b1f3_m > 1e-3).all()
 
 
 def test_outside_a_collector_a_warning_is_a_python_warning():

@@ -1,7 +1,7 @@
 """From per-sensor exports to the engine's inputs: one table (a time column in s and one absolute-acceleration
 column per sensor, in m/s^2, on one clock) and the table sensor's record, with a note of every step.
 
-Steps, in order (docs/real_data.md says why each):
+Steps, in order (docs/how-to/import-real-sensor-data.md says why each):
 1. read each file (formats.py: the device clock in s, unwrapped; SI units);
 2. the shaking axis of each sensor: gravity's axis is the one whose mean is nearest +/- g; the shaking axis
    the horizontal one with the largest variance (or the one asked for);

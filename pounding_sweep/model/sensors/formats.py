@@ -72,7 +72,7 @@ def read_sensor(path, format: str = "auto") -> SensorFile:
         if not found:
             raise SensorError(
                 f"{p}: not a sensor export this reader knows (formats: {', '.join(FORMATS)}; first line "
-                f"{head.splitlines()[0][:60] if head.strip() else '(empty)'!r}); docs/real_data.md says how to add one"
+                f"{head.splitlines()[0][:60] if head.strip() else '(empty)'!r}); docs/how-to/import-real-sensor-data.md says how to add one"
             )
         fmt = found[0]
     elif format in FORMATS:

@@ -1,0 +1,113 @@
+"""Issue 25: values that run but cannot mean what they say are said (sweep/checks.py), each where it is found.
+
+* Accelerations in g read as m/s^2 (or displacements in mm read as m): no run explains the channel (best eq. 20
+  error above 90 %: a run at rest scores 100 %), and rescaled by the unit's factor the measured peak falls among
+  the runs' peaks: the warning names the unit.
+* A low-pass filter below the buildings' first modes filters out the response it scores.
+* The elastic Hertz law ignores r: an r axis runs identical runs.
+* A measured value beyond what any shake-table test measures (1e300 mm) is one error line (the corpus: case
+  table_displacement_1e300_mm), not NaN scores with status ok.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pandas as pd
+import pytest
+from conftest import SWEEPS
+
+from pounding_sweep.model.records import G_STANDARD
+from pounding_sweep.scene import Axis, load_scene
+from pounding_sweep.sweep.run import run_scene
+from pounding_sweep.synthetic import make_experiment
+from pounding_sweep.warn import collecting
+
+GRID = (Axis("ks_ratio", (1.0, 5.0)), Axis("r", (0.4,)))
+
+
+@pytest.fixture(scope="module")
+def table():
+    """1 s of the 6 Hz test (hidden k_s/k = 5, r = 0.4) at 500 samples/s: displacements [mm] and absolute
+    accelerations [m/s^2] of every floor, with tracking and accelerometer noise."""
+    scene = load_scene(SWEEPS / "paper_6hz.toml")
+    scene = dataclasses.replace(scene, excitation=dataclasses.replace(scene.excitation, duration_s=1.0))
+    df, _ = make_experiment(scene, {"ks_ratio": 5.0, "r": 0.4}, fps=500.0, dt_s=1e-4, acc_noise_m_s2=0.06, seed=3)
+    return df
+
+
+def scored(tmp_path, df: pd.DataFrame, channels: dict, **experiment):
+    (tmp_path / "exp.csv").write_text(df.to_csv(index=False))
+    s = load_scene(SWEEPS / "scored_6hz.toml")
+    exp = dataclasses.replace(
+        s.experiment, table=str(tmp_path / "exp.csv"), refine=False, channels=channels, **experiment
+    )
+    return dataclasses.replace(
+        s, experiment=exp, sweep=GRID, excitation=dataclasses.replace(s.excitation, duration_s=1.0)
+    )
+
+
+def warnings_of(scene, out) -> dict[str, str]:
+    """kind -> its messages, one per line."""
+    with collecting() as c:
+        run_scene(scene, out_path=out, threads=1)
+    said: dict[str, str] = {}
+    for w in c.items:
+        said[w.kind] = "\n".join(filter(None, (said.get(w.kind), w.message)))
+    return said
+
+
+def test_accelerations_in_g_read_as_metres_per_second_squared_are_named(tmp_path, table):
+    channels = {"b1f3_acc": "abs_acc_b1f3", "b2f3_acc": "abs_acc_b2f3"}
+    said = warnings_of(scored(tmp_path, table, channels, use="acceleration"), tmp_path / "right.parquet")
+    assert "scale" not in said  # the right units: nothing to say
+    in_g = table.assign(b1f3_acc=table.b1f3_acc / G_STANDARD, b2f3_acc=table.b2f3_acc / G_STANDARD)
+    said = warnings_of(scored(tmp_path, in_g, channels, use="acceleration"), tmp_path / "g.parquet")
+    lines = said["scale"].splitlines()
+    assert [line.split(":")[0] for line in lines] == [
+        "[experiment] channels.b1f3_acc = 'abs_acc_b1f3'",
+        "[experiment] channels.b2f3_acc = 'abs_acc_b2f3'",
+    ]
+    for line in lines:
+        assert "no run explains the measured acceleration (best eq. 20 error " in line
+        assert line.endswith("is the table in g ([experiment] acc_units = 'g', not 'm/s2')?")
+    best = pd.read_parquet(tmp_path / "g.best.parquet").set_index("criterion")
+    assert best.loc["rel_rms_abs_acc_b1f3_pct", "error_pct"] > 100.0  # the criterion, as it held here
+    # told, the same table scores as the right one did
+    said = warnings_of(scored(tmp_path, in_g, channels, use="acceleration", acc_units="g"), tmp_path / "told.parquet")
+    assert "scale" not in said
+
+
+def test_displacements_in_millimetres_read_as_metres_are_named(tmp_path, table):
+    channels = {"model1_floor3_mm": "b1f3", "model2_floor3_mm": "b2f3"}
+    said = warnings_of(scored(tmp_path, table, channels, units="m"), tmp_path / "m.parquet")
+    assert "is the table in mm ([experiment] units = 'mm', not 'm')?" in said["scale"]
+
+
+def test_a_lowpass_below_the_first_modes_is_said(tmp_path, table):
+    channels = {"b1f3_acc": "abs_acc_b1f3", "b2f3_acc": "abs_acc_b2f3"}
+    said = warnings_of(scored(tmp_path, table, channels, lowpass_Hz=1e-9), tmp_path / "low.parquet")
+    assert said["lowpass_below_modes"].startswith(
+        "[experiment] lowpass_Hz = 1e-09 Hz is below Model-2's first mode (7.17 Hz): the filter removes the response"
+    )
+    said = warnings_of(scored(tmp_path, table, channels, lowpass_Hz=50.0), tmp_path / "ok.parquet")
+    assert "lowpass_below_modes" not in said
+
+
+@pytest.mark.parametrize("laws", [("hertz",), ("hertz", "hertzdamp")])
+def test_an_r_axis_the_elastic_hertz_law_ignores_is_said(tmp_path, laws):
+    s = load_scene(SWEEPS / "paper_6hz.toml")
+    s = dataclasses.replace(
+        s,
+        excitation=dataclasses.replace(s.excitation, duration_s=0.3),
+        contact=dataclasses.replace(s.contact, law=laws[0]),
+        sweep=((Axis("law", laws),) if len(laws) > 1 else ()) + (Axis("ks_ratio", (1.0,)), Axis("r", (0.2, 0.6))),
+    )
+    said = warnings_of(s, tmp_path / "h.parquet")
+    assert "law 'hertz' is elastic and ignores r: the 2 values of [sweep] r give identical runs" in said["r_ignored"]
+    assert ("(for the other laws, hertzdamp, r matters)" in said["r_ignored"]) == (len(laws) > 1)
+    df = pd.read_parquet(tmp_path / "h.parquet")
+    hertz = df[df.contact_law == "hertz"].drop(columns=["run_id", "r", "run_time_s"])
+    numbers = hertz.select_dtypes("number").to_numpy()
+    np.testing.assert_array_equal(numbers[0], numbers[1])  # what the warning says: identical runs

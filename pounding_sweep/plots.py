@@ -864,9 +864,48 @@ def calibration_profile_figure(best_path: str | Path):
     if len(laws) > 1:
         order = laws.sort_values("aic")
         text = ", ".join(f"{r.contact_law} dAIC {r.delta_aic:.1f}" for r in order.itertuples())
-        fig.suptitle(f"calibration profiles; laws: {text} (within 2: not distinguished)", fontsize=9)
+        cmp = cal.get("comparison") or {}
+        verdict = f"chosen: {cmp['chosen']}" if cmp.get("chosen") else "the data cannot decide"
+        fig.suptitle(f"calibration profiles; laws: {text} (one N_eff, tie 2); {verdict}", fontsize=9)
     else:
         fig.suptitle("calibration profiles (shaded: the values the data cannot exclude, 95 %)", fontsize=9)
+    return fig
+
+
+def posterior_corner_figure(post, fit=None):
+    """Corner plot of posterior samples (sweep/posterior.py): each parameter's histogram with its 95 % credible
+    interval (dashed) and, given the calibration `fit`, its profile interval where profiled, else its Gauss-Newton
+    one (shaded); below the diagonal the pairs' samples."""
+    names, x = post.names, post.samples
+    p = len(names)
+    fig = _figure(figsize=(2.2 * p + 1, 2.2 * p + 0.6))
+    axes = fig.subplots(p, p, squeeze=False)
+    for i in range(p):
+        for j in range(p):
+            ax = axes[i][j]
+            if j > i:
+                ax.set_axis_off()
+                continue
+            if i == j:
+                ax.hist(x[:, i], bins=30, color="0.4")
+                for v in post.intervals[names[i]]:
+                    ax.axvline(v, color="k", ls="--", lw=0.8)
+                if fit is not None:
+                    ok, a, b = fit.identified.get(names[i], (None, *fit.ci95[names[i]]))
+                    ax.axvspan(a, b, color="tab:orange", alpha=0.25, lw=0)
+                ax.set_yticks([])
+            else:
+                ax.plot(x[:, j], x[:, i], ".", ms=1.5, alpha=0.3, color="0.2")
+            if i == p - 1:
+                ax.set_xlabel(names[j], fontsize=8)
+            if j == 0 and i > 0:
+                ax.set_ylabel(names[i], fontsize=8)
+            ax.tick_params(labelsize=6)
+    fig.suptitle(
+        f"posterior ({post.samples.shape[0]} samples, ~{post.ess:.0f} effective; dashed: 95 % credible; "
+        "shaded: profile or Gauss-Newton 95 %)",
+        fontsize=8,
+    )
     return fig
 
 

@@ -21,16 +21,21 @@ from pounding_sweep.scene import Scene
 from pounding_sweep.sweep.simulate import simulate, with_overrides
 
 
-def perturbed(scene: Scene, stiffness_factor: tuple[float, float], damping_factor: tuple[float, float]) -> Scene:
-    """The scene with each building's story stiffnesses and damping ratio scaled (model error)."""
+def perturbed(scene: Scene, stiffness_factor: tuple, damping_factor: tuple[float, float]) -> Scene:
+    """The scene with each building's story stiffnesses and damping ratio scaled (model error). A building's
+    stiffness factor is one number (every story) or one per story (floor 1 first): a frame whose stories differ
+    where the model's are uniform."""
     out = {}
     for name, kf, zf in zip(("building1", "building2"), stiffness_factor, damping_factor):
         b = getattr(scene, name)
         if b.story_stiffness_N_per_m is None or b.damping_ratio is None:
             raise ValueError(f"[{name}]: perturbation needs story_stiffness_N_per_m and damping_ratio")
+        n = len(b.masses_kg)
+        ks = b.story_stiffness_N_per_m * (n if len(b.story_stiffness_N_per_m) == 1 else 1)
+        kf = tuple(float(x) for x in np.broadcast_to(np.asarray(kf, float), (n,)))
         out[name] = dataclasses.replace(
             b,
-            story_stiffness_N_per_m=tuple(k * kf for k in b.story_stiffness_N_per_m),
+            story_stiffness_N_per_m=tuple(k * f for k, f in zip(ks, kf)),
             damping_ratio=b.damping_ratio * zf,
         )
     return dataclasses.replace(scene, **out)
@@ -90,7 +95,7 @@ def make_experiment(
         "scene": scene.name,
         "hidden_parameters": hidden,
         "structure_perturbation": {
-            "story_stiffness_factor": list(stiffness_factor),
+            "story_stiffness_factor": [np.asarray(f, float).tolist() for f in stiffness_factor],
             "damping_ratio_factor": list(damping_factor),
         },
         "noise_mm_rms": noise_mm,
@@ -106,6 +111,121 @@ def make_experiment(
         + ("; absolute acceleration (b<b>f<f>_acc) in m/s^2" if acc_noise_m_s2 is not None else "")
         + "; t_s in seconds",
         "generator": "pounding_sweep.synthetic.make_experiment (sweeps/experiments/make_synthetic.py)",
+        "pounding_sweep_version": __version__,
+    }
+    return pd.DataFrame(table), provenance
+
+
+def mems_samples(
+    t_fine: np.ndarray, a_fine: np.ndarray, fps: float, internal_hz: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """An accelerometer with a built-in low-pass, as MEMS parts have: it samples at its internal rate
+    `internal_hz`, averages the n = internal_hz / fps most recent internal samples (a moving average: its
+    decimation filter) and outputs every n-th average, at `fps`. `t_fine`, `a_fine`: the acceleration on a
+    grid of spacing 1 / internal_hz from 0 (before t = 0 the structure is at rest: 0). Returns (t_out, a_out):
+    output m at t = m / fps averages the internal samples at t - j / internal_hz, j = 0..n-1."""
+    n = int(round(internal_hz / fps))
+    if n < 1 or abs(n * fps - internal_hz) > 1e-9 * internal_hz:
+        raise ValueError(f"mems_samples: internal rate {internal_hz} Hz is not a multiple of {fps} samples/s")
+    step = np.diff(t_fine)
+    if t_fine[0] != 0.0 or np.any(np.abs(step - 1.0 / internal_hz) > 1e-9 / internal_hz):
+        raise ValueError("mems_samples: the fine grid must start at 0 with spacing 1 / internal_hz")
+    padded = np.concatenate([np.zeros(n - 1), a_fine])
+    csum = np.concatenate([[0.0], np.cumsum(padded)])
+    means = (csum[n:] - csum[:-n]) / n  # means[k]: internal samples k - n + 1 .. k
+    idx = np.arange(0, a_fine.size, n)
+    return t_fine[idx], means[idx]
+
+
+def make_ivp_experiment(
+    scene: Scene,
+    hidden: dict,
+    *,
+    stiffness_factor=(1.0, 1.0),
+    damping_factor=(1.0, 1.0),
+    drift_scale_m: float | None = None,
+    noise_mm: float = 0.05,
+    fps: float = 100.0,
+    sensor_hz: float = 1000.0,
+    acc_noise_m_s2: float | None = None,
+    seed: int = 0,
+    time_offset_s: float = 0.0,
+    noise_rho: float = 0.0,
+):
+    """A synthetic experiment from the continuous-time references (solve_ivp with contact events), which share
+    no discretisation with the kernels: the contact law of `hidden["law"]` (else the scene's), its Hertz-type
+    laws by reference/ivp.py's law_ivp_reference (harmonic excitation), the Kelvin-Voigt laws by
+    reference/softening.py (harmonic or record; with `drift_scale_m`, story springs that soften with the drift:
+    amplitude-dependent stiffness, a model error the linear frame cannot fit). The structure perturbed as
+    make_experiment's (`stiffness_factor`: per building one factor or one per story).
+
+    Every floor's displacement relative to the table, sampled at `fps` (point samples, as a tracker gives
+    them) plus AR(1) noise of `noise_mm` RMS, columns model<b>_floor<f>_mm; with `acc_noise_m_s2`, every floor's
+    absolute acceleration as a MEMS accelerometer gives it (mems_samples: the truth sampled at `sensor_hz`,
+    averaged over sensor_hz / fps samples, output at `fps`) plus Gaussian noise of that RMS, columns
+    b<b>f<f>_acc [m/s^2]. The table's clock runs `time_offset_s` ahead of the simulation's. Returns (table,
+    provenance)."""
+    from pounding_sweep.reference.ivp import law_ivp_reference
+    from pounding_sweep.reference.nonlinear import LAWS as HERTZ_LAWS
+    from pounding_sweep.reference.softening import softening_reference
+
+    hidden = dict(hidden)
+    law = hidden.pop("law", scene.contact.law)
+    truth = perturbed(scene, stiffness_factor, damping_factor)
+    dt_fine = 1.0 / sensor_hz
+    if law in HERTZ_LAWS:
+        if drift_scale_m is not None:
+            raise ValueError("make_ivp_experiment: softening stories with the Kelvin-Voigt laws only")
+        out = law_ivp_reference(truth, dt_out=dt_fine, law=law, **hidden)
+        P = out["problem"].base
+        a_abs = -(out["v"] @ P.C.T + out["u"] @ P.K.T + out["F"] @ P.G.T) / np.diag(P.M)
+    else:
+        out = softening_reference(truth, drift_scale_m, dt_out=dt_fine, law=law, **hidden)
+        a_abs = out["a_abs"]
+    t_fine, u = out["t"], out["u"]
+    n = int(round(sensor_hz / fps))
+    t = t_fine[::n]
+    rng = np.random.default_rng(seed)
+    floors = (len(scene.building1.masses_kg), len(scene.building2.masses_kg))
+    dofs = [(b, f, i) for i, (b, f) in enumerate((b, f) for b, nf in zip((1, 2), floors) for f in range(1, nf + 1))]
+    table = {"t_s": t + time_offset_s}
+    for b, f, i in dofs:
+        table[f"model{b}_floor{f}_mm"] = u[::n, i] * 1e3 + ar1_noise(rng, t.size, noise_mm, noise_rho)
+    if acc_noise_m_s2 is not None:
+        for b, f, i in dofs:
+            _, acc = mems_samples(t_fine, a_abs[:, i], fps, sensor_hz)
+            table[f"b{b}f{f}_acc"] = acc + rng.normal(0.0, acc_noise_m_s2, t.size)
+    provenance = {
+        "synthetic": True,
+        "what": "SYNTHETIC tracked displacement (and accelerometer) made by pounding_sweep's solve_ivp references, "
+        "not a measurement",
+        "scene": scene.name,
+        "law": law,
+        "hidden_parameters": hidden,
+        "structure_perturbation": {
+            "story_stiffness_factor": [np.asarray(f, float).tolist() for f in stiffness_factor],
+            "damping_ratio_factor": list(damping_factor),
+            "softening_drift_scale_m": drift_scale_m,
+        },
+        "noise_mm_rms": noise_mm,
+        "noise_lag1_correlation": noise_rho,
+        "time_offset_s": time_offset_s,
+        **(
+            {
+                "acc_noise_m_s2_rms": acc_noise_m_s2,
+                "accelerometer": f"moving average of {n} samples at {sensor_hz:g} Hz, output at {fps:g} samples/s",
+            }
+            if acc_noise_m_s2 is not None
+            else {}
+        ),
+        "fps": fps,
+        "reference": "law_ivp_reference" if law in HERTZ_LAWS else "softening_reference",
+        "impacts_per_pair": np.asarray(out["impacts"]).tolist(),
+        "seed": seed,
+        "units": "displacement relative to the table in mm"
+        + ("; absolute acceleration (b<b>f<f>_acc) in m/s^2" if acc_noise_m_s2 is not None else "")
+        + "; t_s in seconds",
+        "generator": "pounding_sweep.synthetic.make_ivp_experiment",
         "pounding_sweep_version": __version__,
     }
     return pd.DataFrame(table), provenance

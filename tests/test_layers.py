@@ -26,8 +26,8 @@ LAYERS = {
     "video": 4,
     "identify": 4,  # tracking videos; modal identification and model update (siblings)
     "sweep": 5,  # prepare, run, resume, results, executors, scoring, ranking, autodt, simulate
-    "reference": 6,
-    "synthetic": 6,  # the slow oracles; demo data (synthetic experiments)
+    "reference": 6,  # the slow oracles
+    "synthetic": 7,  # demo data (synthetic experiments), made by the engine or by the references
     "accuracy": 7,
     "gaps": 7,  # error against run time, stability of runs; seismic-gap studies
     "risk": 7.5,  # probabilistic pounding: above the gap studies (their rules), below plots

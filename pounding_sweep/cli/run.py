@@ -151,18 +151,22 @@ def _print_calibration(md: dict, reused: bool) -> None:
             ident = (
                 "" if r.identified else f"  NOT IDENTIFIED: any value in [{r.profile_low:.4g}, {r.profile_high:.4g}]"
             )
+            model = (
+                f"; with model error {r.ci95_model_low:.5g} .. {r.ci95_model_high:.5g}, quote this"
+                if getattr(r, "quote", "noise") == "model_error"
+                else ""
+            )
             print(
-                f"    {r.parameter:<20} {r.estimate:.5g}  (95 % {r.ci95_low:.5g} .. {r.ci95_high:.5g}; "
+                f"    {r.parameter:<20} {r.estimate:.5g}  (95 % {r.ci95_low:.5g} .. {r.ci95_high:.5g}{model}; "
                 f"bounds {r.lower_bound:g} .. {r.upper_bound:g}){ident}"
             )
     if len(lt) > 1:
         lt = lt.sort_values("aic")
-        print("  laws compared (AIC with the residuals' effective count; within 2: the data cannot decide):")
-        print(
-            lt[["contact_law", "parameters", "rel_rms_pct", "misfit_over_noise", "delta_aic", "delta_bic"]].to_string(
-                index=False, float_format=lambda x: f"{x:.3g}"
-            )
-        )
+        print("  laws compared (sweep/lawcompare.py: AIC/BIC on one effective count, blocked cross-validation):")
+        cols = ["contact_law", "parameters", "rel_rms_pct", "misfit_over_noise", "delta_aic", "delta_bic"]
+        print(lt[cols + [c for c in ("cv_dm_z",) if c in lt]].to_string(index=False, float_format=lambda x: f"{x:.3g}"))
+        if md.get("comparison"):
+            print(f"  {md['comparison']['text']}")
 
 
 class SweepProgress(Progress):

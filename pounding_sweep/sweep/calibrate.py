@@ -17,10 +17,13 @@ Method.
   unit, or noise_window_s: the standard deviation in a quiet window), else the [calibrate] noise_m (displacement
   channels; m), else estimated from the data by the difference method (model/experiment.py noise_floor: an upper
   bound), times the filter's noise gain for a filtered channel.
-* Global stage: `global_points` Sobol points (scipy.stats.qmc, scrambled, fixed seed) over the bounds (log scale
-  for stiffnesses), run as one batch by the grid engine, plus the sweep's best cell when there is one.
-* Local stage: scipy.optimize.least_squares (trust-region reflective, bounds, 2-point Jacobian) from the `starts`
-  best global points; the best optimum is kept.
+* Global stage (sweep/globalsearch.py): incremental single shooting: a Sobol design of max(global_points, 16 p)
+  points (scipy.stats.qmc, scrambled, fixed seed; log scale for stiffnesses) and the sweep's best cell on a
+  leading horizon of the record, least squares from the best of them, carried over horizons doubling to the
+  whole record; one restart from fresh points when the misfit stays above misfit_factor. Each batch of runs
+  (the design, a Jacobian) goes to the grid engine at once, runs of distinct structures dealt to the threads.
+* Local stage: scipy.optimize.least_squares (trust-region reflective, bounds), its Jacobian by forward
+  differences of JAC_STEP of each coordinate's range, the p runs as one batch (Problem.jac).
 * Uncertainty: Gauss-Newton covariance s^2 (J^T J)^-1 (s^2 = RSS / (N - p), J the Jacobian at the optimum, in
   the fit's coordinates: log for stiffnesses) inflated for the residuals' time correlation by N / N_eff, with
   N_eff = N (1 - rho) / (1 + rho) and rho the residuals' lag-1 autocorrelation (an AR(1) model of the
@@ -34,13 +37,15 @@ Method.
   are those the data cannot exclude (the profile-likelihood interval, Venzon & Moolgavkar 1988). A profile
   interval that reaches both bounds, or spans more than half of the (log) range, says the parameter is not
   identified by this data, with that range.
+* Model error (sweep/uncertainty.py): when the misfit exceeds misfit_factor, beside each noise-based interval
+  one that includes the model's error (a window split of the record: what fits of other parts of it give),
+  and that is the one to quote (Fit.quote).
 * Warnings (in the CLI summary, the result metadata and the tables): a fitted value on a bound; the best fit's
   residual RMS above misfit_factor times the noise floor (the model cannot explain the data); a parameter not
   identified.
-* Laws: with a [sweep] law axis each law is calibrated on its own (Hertz, elastic, without r) and compared by
-  AIC = N_eff ln(RSS / N) + 2 p and BIC = N_eff ln(RSS / N) + p ln N_eff (N_eff: the correlated residuals'
-  effective count); laws within 2 of the least AIC are not distinguished by the data (Burnham & Anderson 2002,
-  Model Selection and Multimodel Inference, sec. 2.6).
+* Laws (sweep/lawcompare.py): with a [sweep] law axis each law is calibrated on its own (Hertz, elastic, without
+  r) and compared by AIC and BIC on one effective count for every law and by blocked cross-validation; "the
+  data cannot decide" where they disagree or tie.
 """
 
 from __future__ import annotations
@@ -48,6 +53,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -57,16 +63,25 @@ from pounding_sweep import codes as C
 from pounding_sweep.model.experiment import noise_floor
 from pounding_sweep.scene import Scene
 from pounding_sweep.scene.channels import channel_unit, shown_value
-from pounding_sweep.sweep.prepare import Prepared, history_spec, prepare
+from pounding_sweep.sweep.fitstats import LOG_SCALE, gauss_newton, interval, local_fit, misfit_of
+from pounding_sweep.sweep.globalsearch import find_basin
+from pounding_sweep.sweep.lawcompare import compare_laws as compare_on_one_basis
+from pounding_sweep.sweep.lawcompare import information_criteria
+from pounding_sweep.sweep.prepare import Prepared, history_spec, prepare, structure_groups
+from pounding_sweep.sweep.uncertainty import model_error_intervals
 from pounding_sweep.warn import warn
 
-#: parameters fitted on a log scale (positive, spanning decades)
-LOG_SCALE = ("ks_ratio", "ks_N_per_m", "kh_N_per_m1_5")
 #: the contact parameters profiled by default
 CONTACT = ("ks_ratio", "ks_N_per_m", "kh_N_per_m1_5", "r")
 CHI2_1_95 = 3.841458820694124  # chi^2 quantile, 1 degree of freedom, 0.95
-AIC_TIE = 2.0  # Burnham & Anderson 2002, sec. 2.6: a difference of 2 or less is no evidence either way
 BOUND_FRACTION = 1e-3  # a fitted value this close to a bound (fraction of the fit-coordinate range) is on it
+#: forward-difference step of the Jacobian, as a share of each fit coordinate's range (Problem.jac). Its error is
+#: about h |r''| / 2 + 2 eps / h (eps: the residuals' own noise: rounding, event location). Measured against
+#: central differences on the stiff 6 Hz test (k_s/k 10, r 0.8; tests/sweep/test_globalsearch.py's case), the
+#: worst column's relative error: 51 % at 1e-3 of the range, 25 % at 1e-4, 0.75 % at 1e-5, 0.55 % at 1e-6, 1.7 %
+#: at 1e-7, 13 % at 1e-8. (The previous least squares took 1e-4 of |z|: errors of 10-30 %, and it stopped 1.5 %
+#: above the optimum's residual on that test.)
+JAC_STEP = 1e-5
 
 
 @dataclass
@@ -110,26 +125,51 @@ class Fit:
     profiles: dict[str, list[dict]] = field(default_factory=dict)
     identified: dict[str, tuple[bool, float, float]] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
-
-    @property
-    def aic(self) -> float:
-        return self.n_eff * math.log(self.rss / self.n) + 2 * len(self.names)
-
-    @property
-    def bic(self) -> float:
-        return self.n_eff * math.log(self.rss / self.n) + len(self.names) * math.log(self.n_eff)
+    z_opt: np.ndarray | None = None  # the optimum in the fit's coordinates (log for stiffnesses)
+    residuals: np.ndarray | None = None  # noise-normalised residuals at the optimum, channel after channel
+    sizes: list[int] = field(default_factory=list)  # samples per channel
+    ci95_model: dict[str, tuple[float, float]] = field(default_factory=dict)  # with model error (uncertainty.py)
+    windows: list[dict] = field(default_factory=list)  # the window fits behind ci95_model
+    quote: str = "noise"  # which interval to quote: 'noise' (ci95) or 'model_error' (ci95_model)
+    search: list[dict] = field(default_factory=list)  # the global stage's horizons (globalsearch.py)
+    problem: Problem | None = field(default=None, repr=False)  # the residual function (not stored)
+    comparison: object = field(default=None, repr=False)  # lawcompare.LawComparison, several laws calibrated
 
 
 class Problem:
     """The residual function of a scene's experiment over named parameters (module docstring)."""
 
-    def __init__(self, scene: Scene, names: list[str], bounds: dict, noise_m: float | None, threads: int = 1):
+    def __init__(
+        self,
+        scene: Scene,
+        names: list[str],
+        bounds: dict,
+        noise_m: float | None,
+        threads: int = 1,
+        window: tuple[float, float] | None = None,
+        sigma: np.ndarray | None = None,
+    ):
+        """`window` (simulation time [s]): fit only the samples inside it, and simulate only as far as they
+        need (its end, plus the largest clock shift the fitted time_offset_s may make); `sigma`: the channels'
+        noise floors (a window of a record keeps the whole record's)."""
         self.names = list(names)
         self.bounds = {n: (float(bounds[n][0]), float(bounds[n][1])) for n in self.names}
         self.threads = threads
         self.evaluations = 0
+        self.scene, self.noise_m = scene, noise_m
         floors = (len(scene.building1.masses_kg), len(scene.building2.masses_kg))
         fixed = dataclasses.replace(scene, sweep=())
+        if window is not None:
+            shift = 0.0
+            if "time_offset_s" in self.bounds:
+                shift = max(abs(b - scene.experiment.time_offset_s) for b in self.bounds["time_offset_s"])
+            end = window[1] + shift + 2.0 * scene.integration.dt_s
+            if scene.excitation.duration_s is None or end < scene.excitation.duration_s:
+                fixed = dataclasses.replace(fixed, excitation=dataclasses.replace(fixed.excitation, duration_s=end))
+            if scene.experiment.window_s is not None:  # the scored window inside the shortened simulation
+                w0, w1 = scene.experiment.window_s
+                w = (max(w0, window[0]), max(min(w1, window[1]), max(w0, window[0])))
+                fixed = dataclasses.replace(fixed, experiment=dataclasses.replace(fixed.experiment, window_s=w))
         probe = prepare(fixed)
         exp = probe.experiment
         weights = probe.combination.weights if probe.combination is not None else None
@@ -147,6 +187,9 @@ class Problem:
         cfg = scene.experiment
         duration = self.prep.excitation.max_duration_s
         lo, hi = (0.0, duration) if cfg.window_s is None else cfg.window_s
+        if window is not None:
+            lo, hi = max(lo, window[0]), min(hi, window[1])
+        self.window = (float(lo), float(hi))
         self.offset0 = cfg.time_offset_s
         sos = probe.score.sos if any(acc) else np.zeros((0, 6))
         gain = 1.0
@@ -165,6 +208,10 @@ class Problem:
                 values.append(sosfilt(sos, y))
             else:
                 values.append(y)
+            if sigma is not None:  # a window of a record: the whole record's noise floors, as they are
+                sig.append(float(sigma[len(sig)]))
+                self.noise_source[c] = "the whole record's"
+                continue
             if c in exp.noise:  # [experiment] noise or noise_window_s: the channel's own unit, any kind
                 s0 = exp.noise[c]
                 self.noise_source[c] = exp.noise_source[c]
@@ -184,6 +231,18 @@ class Problem:
             sig.append(s0 * (gain if a else 1.0))
         self.target = Target(codes, acc, times, values, np.asarray(sig), sos)
         self.dt = self.prep.dt
+        self._last: tuple[bytes, np.ndarray] | None = None  # the last residual vector fun() gave (its z)
+
+    def restricted(self, window: tuple[float, float]) -> Problem:
+        """This problem on the samples inside `window` (simulation time [s]) only, with this one's noise floors."""
+        return Problem(self.scene, self.names, self.bounds, self.noise_m, self.threads, window, self.target.sigma)
+
+    def times(self) -> np.ndarray:
+        """Each residual's experiment time [s], in the residual vector's order (channel after channel)."""
+        return np.concatenate(self.target.time_exp)
+
+    def sizes(self) -> list[int]:
+        return [v.size for v in self.target.values]
 
     # ------------------------------------------------------------------ coordinates
     def to_z(self, theta: np.ndarray) -> np.ndarray:
@@ -219,7 +278,7 @@ class Problem:
         so that least squares stays finite and moves away."""
         thetas = np.atleast_2d(thetas)
         params = self.params(thetas, extra)
-        _, _, hist, _, _ = self.prep.run(params, self.threads)
+        hist = self._histories(params)
         self.evaluations += thetas.shape[0]
         T = self.target
         out = np.empty((thetas.shape[0], T.n))
@@ -239,6 +298,53 @@ class Problem:
             row = np.concatenate(parts)
             out[i] = np.where(np.isfinite(row), row, 1e6)
         return out
+
+    def _histories(self, params: dict) -> np.ndarray:
+        """The kept histories of the runs in `params`. Runs of distinct structures are groups the engine runs one
+        after another (each on its own matrices: sweep/prepare.py), one thread each; here the groups are dealt
+        out to the threads, each thread running its share as the engine would (the same kernel, the same
+        numbers), so a batch of distinct structures (a design, a Jacobian) uses every thread."""
+        groups = structure_groups(self.prep.scene, params)
+        if len(self.prep.variants) > 4096:  # one cached model per distinct structure: bounded
+            self.prep.variants.clear()
+        if self.threads <= 1 or groups is None or len(groups) < 2:
+            return self.prep.run(params, self.threads)[2]
+        shares = [np.concatenate([g[1] for g in groups[k :: self.threads]]) for k in range(self.threads)]
+        shares = [s for s in shares if s.size]
+
+        def run(idx):
+            return self.prep.run({k: v[idx] for k, v in params.items()}, 1)[2]
+
+        with ThreadPoolExecutor(max_workers=len(shares)) as pool:
+            parts = list(pool.map(run, shares))
+        out = np.empty((params["run_id"].size,) + parts[0].shape[1:])
+        for idx, h in zip(shares, parts):
+            out[idx] = h
+        return out
+
+    # ------------------------------------------------------------------ least squares in the fit's coordinates
+    def fun(self, z: np.ndarray) -> np.ndarray:
+        """The residual vector at fit coordinates z (kept for jac at the same z)."""
+        r = self.residuals(self.to_theta(z)[None, :])[0]
+        self._last = (np.asarray(z, float).tobytes(), r)
+        return r
+
+    def jac(self, z: np.ndarray, free: np.ndarray | None = None) -> np.ndarray:
+        """Forward-difference Jacobian of fun at z over the `free` coordinates (all by default), its p runs as one
+        batch. Step: JAC_STEP times the coordinate's range, backward where forward would leave the bounds (as
+        scipy's '2-point' with that absolute step)."""
+        z = np.asarray(z, float)
+        free = np.arange(z.size) if free is None else np.asarray(free)
+        f0 = self._last[1] if self._last is not None and self._last[0] == z.tobytes() else self.fun(z)
+        lo, hi = self.z_bounds
+        zf = z[free]
+        h = JAC_STEP * (hi - lo)[free]
+        h = np.where(zf + h > hi[free], -h, h)  # backward at the upper bound
+        Z = np.repeat(z[None, :], free.size, axis=0)
+        Z[np.arange(free.size), free] += h
+        h = Z[np.arange(free.size), free] - z[free]  # the step as represented
+        R = self.residuals(np.array([self.to_theta(zz) for zz in Z]))
+        return ((R - f0[None, :]) / h[:, None]).T
 
 
 def _hermite(u: np.ndarray, v: np.ndarray, dt: float, t: np.ndarray) -> np.ndarray:
@@ -265,84 +371,29 @@ def calibrate(scene: Scene, threads: int = 1, best_cell: dict | None = None, pro
         s = dataclasses.replace(scene, contact=dataclasses.replace(scene.contact, law=law))
         fits.append(_calibrate_one(s, names, threads, best_cell if len(laws) == 1 else None, progress))
     if len(fits) > 1:
-        compare_laws(fits)
+        compare_laws(fits, progress)
     return fits
 
 
 def _calibrate_one(scene: Scene, names: list[str], threads: int, best_cell: dict | None, progress) -> Fit:
-    from scipy.optimize import least_squares
-    from scipy.stats import qmc
-    from scipy.stats import t as student_t
-
     cal = scene.calibrate
     t0 = time.perf_counter()
     prob = Problem(scene, names, cal.parameters, cal.noise_m, threads)
     lo, hi = prob.z_bounds
     p = len(names)
-
-    def rss_rows(thetas):
-        r = prob.residuals(thetas)
-        return np.sum(r * r, axis=1)
-
-    # global stage
-    starts: list[np.ndarray] = []
-    if cal.global_points > 0:
-        m = max(1, int(round(math.log2(cal.global_points))))
-        z = qmc.scale(qmc.Sobol(p, scramble=True, seed=12345).random_base2(m), lo, hi)
-        thetas = np.array([prob.to_theta(zz) for zz in z])
-        rss = rss_rows(thetas)
-        order = np.argsort(rss)
-        starts += [z[i] for i in order[: cal.starts]]
-    if best_cell is not None and all(n in best_cell and np.isfinite(best_cell[n]) for n in names):
-        starts.insert(0, np.clip(prob.to_z(np.array([best_cell[n] for n in names])), lo, hi))
-    if not starts:
-        starts.append(prob.to_z(np.array([float(prob.base[n][0]) for n in names])).clip(lo, hi))
-    if progress is not None:
-        progress(f"calibration ({scene.contact.law}): global stage done, {prob.evaluations} runs")
-
-    def fun(z):
-        return prob.residuals(prob.to_theta(z)[None, :])[0]
-
-    best = None
-    width = hi - lo
-    for z0 in starts[: max(cal.starts, 1)]:
-        res = least_squares(fun, z0, bounds=(lo, hi), x_scale=width, diff_step=1e-4, max_nfev=cal.max_evals)
-        if best is None or res.cost < best.cost:
-            best = res
-    z_opt = best.x
+    search = find_basin(prob, cal, best_cell, progress)
+    z_opt = search.z
     theta = prob.to_theta(z_opt)
-    r = best.fun
+    r = search.result.fun
     N = r.size
     rss = float(r @ r)
-    # the residuals' lag-1 autocorrelation, pooled over channels (each channel's series on its own)
-    sizes = [v.size for v in prob.target.values]
-    rho = _lag1(r, sizes)
-    n_eff = N * (1 - rho) / (1 + rho) if rho > 0 else float(N)
-    s2 = rss / max(N - p, 1)
-    J = best.jac
-    # a direction the residuals do not change along (a parameter with no effect: no contact, say) has no
-    # finite variance: singular values below 1e-8 of the largest are treated as zero, and the parameters
-    # they involve get an infinite standard error (their interval: the bounds)
-    U_, sv, Vt = np.linalg.svd(J, full_matrices=False)
-    keep = sv > 1e-8 * sv.max() if sv.size and sv.max() > 0 else np.zeros(sv.size, bool)
-    inv_s2 = np.where(keep, 1.0 / np.where(keep, sv, 1.0) ** 2, 0.0)
-    cov_z = (Vt.T * inv_s2) @ Vt * s2 * (N / n_eff)
-    se_z = np.sqrt(np.clip(np.diag(cov_z), 0, None))
-    null = np.any(np.abs(Vt[~keep]) > 1e-6, axis=0) if (~keep).any() else np.zeros(p, bool)
-    se_z[null] = np.inf
-    with np.errstate(invalid="ignore", divide="ignore"):
-        corr = cov_z / np.outer(se_z, se_z)
-    tq = float(student_t.ppf(0.975, max(n_eff - p, 1)))
+    sizes = prob.sizes()
+    gn = gauss_newton(search.result.jac, r, sizes, p)
     estimate, std_error, ci = {}, {}, {}
     for j, n in enumerate(names):
         estimate[n] = float(theta[j])
-        zlo, zhi = max(z_opt[j] - tq * se_z[j], lo[j]), min(z_opt[j] + tq * se_z[j], hi[j])  # within the bounds
-        if n in LOG_SCALE:
-            std_error[n] = float(theta[j] * se_z[j])  # delta method
-            ci[n] = (float(math.exp(zlo)), float(math.exp(zhi)))
-        else:
-            std_error[n] = float(se_z[j])
-            ci[n] = (float(zlo), float(zhi))
+        std_error[n] = float(theta[j] * gn.se_z[j]) if n in LOG_SCALE else float(gn.se_z[j])  # delta method
+        ci[n] = interval(prob, j, z_opt[j] - gn.tq * gn.se_z[j], z_opt[j] + gn.tq * gn.se_z[j])
 
     # per channel
     ends = np.cumsum([0] + sizes)
@@ -353,7 +404,7 @@ def _calibrate_one(scene: Scene, names: list[str], threads: int, best_cell: dict
         rms_m[code] = float(np.sqrt(np.mean(rc * rc)))
         noise[code] = float(prob.target.sigma[c])
         err_pct.append(100.0 * rms_m[code] / float(np.sqrt(np.mean(yc * yc))))
-    misfit = float(np.sqrt(np.mean([(rms_m[c] / noise[c]) ** 2 for c in prob.target.codes])))
+    misfit = misfit_of(r, sizes)
 
     fit = Fit(
         scene.contact.law,
@@ -362,23 +413,32 @@ def _calibrate_one(scene: Scene, names: list[str], threads: int, best_cell: dict
         estimate,
         std_error,
         ci,
-        corr,
+        gn.corr,
         rss,
         N,
-        n_eff,
-        rho,
+        gn.n_eff,
+        gn.rho,
         rms_m,
         noise,
         misfit,
         float(np.mean(err_pct)),
         0,
         0.0,
+        z_opt=z_opt,
+        residuals=r,
+        sizes=sizes,
+        search=search.stages,
+        problem=prob,
     )
+    if misfit > cal.misfit_factor:  # the model cannot explain the data: intervals that include its error
+        model_error_intervals(fit, prob, cal.max_evals)
+        if progress is not None:
+            progress(f"calibration ({scene.contact.law}): model-error intervals from {len(fit.windows)} windows")
     # profiles
     profiled = (list(cal.profile) or [n for n in CONTACT if n in names]) if cal.profile_points > 0 else []
     for n in profiled:
         j = names.index(n)
-        fit.profiles[n] = _profile(prob, fun, n, z_opt, lo, hi, cal, s2 * N / n_eff, rss, se_z[j])
+        fit.profiles[n] = _profile(prob, n, z_opt, lo, hi, cal, gn.s2 * N / gn.n_eff, rss, gn.se_z[j])
     _identify(fit)
     _warnings(fit, z_opt, lo, hi, cal)
     fit.evaluations = prob.evaluations
@@ -386,24 +446,9 @@ def _calibrate_one(scene: Scene, names: list[str], threads: int, best_cell: dict
     return fit
 
 
-def _lag1(r: np.ndarray, sizes: list[int]) -> float:
-    """Pooled lag-1 autocorrelation of the residual series of each channel (`sizes`: their lengths, in order)."""
-    num = den = 0.0
-    k = 0
-    for n in sizes:
-        x = r[k : k + n] - r[k : k + n].mean()
-        k += n
-        if n > 2:
-            num += float(x[1:] @ x[:-1])
-            den += float(x @ x)
-    return num / den if den > 0 else 0.0
-
-
-def _profile(prob: Problem, fun, name, z_opt, lo, hi, cal, s2_eff, rss_opt, se) -> list[dict]:
+def _profile(prob: Problem, name, z_opt, lo, hi, cal, s2_eff, rss_opt, se) -> list[dict]:
     """The profile of `name`: fixed on a ladder over its bounds, and at the optimum +/- 1, 2 and 4 standard
     errors (where the 95 % profile interval lies when the parameter is identified), the rest refitted."""
-    from scipy.optimize import least_squares
-
     j = prob.names.index(name)
     free = [i for i in range(len(prob.names)) if i != j]
     near = z_opt[j] + np.array([-4, -2, -1, 0, 1, 2, 4]) * (se if np.isfinite(se) else 0.0)
@@ -414,25 +459,11 @@ def _profile(prob: Problem, fun, name, z_opt, lo, hi, cal, s2_eff, rss_opt, se) 
         z = z_opt.copy()
         z[j] = zj
         if free:
-
-            def sub(zf, zj=zj):
-                zz = z_opt.copy()
-                zz[j] = zj
-                zz[free] = zf
-                return fun(zz)
-
-            res = least_squares(
-                sub,
-                z_opt[free],
-                bounds=(lo[free], hi[free]),
-                x_scale=(hi - lo)[free],
-                diff_step=1e-4,
-                max_nfev=max(20, cal.max_evals // 4),
-            )
-            z[free] = res.x
+            res = local_fit(prob, z, max(20, cal.max_evals // 4), free=free)
+            z = res.z
             rss = 2.0 * res.cost
         else:
-            rr = fun(z)
+            rr = prob.fun(z)
             rss = float(rr @ rr)
         theta = prob.to_theta(z)
         rows.append(
@@ -495,6 +526,12 @@ def _warnings(fit: Fit, z_opt, lo, hi, cal) -> None:
             f"({', '.join(f'{c} {shown_value(c, fit.rms_m[c])} vs {shown_value(c, fit.noise_m[c])}' for c in fit.rms_m)}): "
             "the model cannot explain the data; the fitted values are not to be trusted as measurements"
         )
+    if fit.quote == "model_error":
+        fit.warnings.append(
+            f"calibration ({law}): intervals with the model's error (fits of {len(fit.windows)} windows of the record; "
+            "quote these, not the noise-based ones): "
+            + ", ".join(f"{n} {fit.estimate[n]:.4g} in [{a:.4g}, {b:.4g}]" for n, (a, b) in fit.ci95_model.items())
+        )
     for n, (ok, a, b) in fit.identified.items():
         if not ok:
             fit.warnings.append(
@@ -505,26 +542,30 @@ def _warnings(fit: Fit, z_opt, lo, hi, cal) -> None:
         warn("calibration", w)
 
 
-def compare_laws(fits: list[Fit]) -> None:
-    """AIC differences between the laws; a warning when the best is not distinguished from another."""
-    best = min(fits, key=lambda f: f.aic)
-    tied = [f.law for f in fits if f is not best and f.aic - best.aic <= AIC_TIE]
-    if tied:
-        warn(
-            "calibration",
-            f"calibration: the data cannot decide between the contact laws {', '.join([best.law, *tied])} "
-            f"(AIC within {AIC_TIE:g} of the least, {best.law}'s)",
-        )
+def compare_laws(fits: list[Fit], progress=None):
+    """Compare the calibrated laws on one basis (sweep/lawcompare.py), keep the answer on every fit
+    (Fit.comparison), and warn when the data cannot decide."""
+    cal = fits[0].problem.scene.calibrate
+    cmp = compare_on_one_basis(fits, cal.max_evals)
+    for f in fits:
+        f.comparison = cmp
+    if progress is not None:
+        progress(f"calibration: laws compared ({cmp.evaluations} runs of cross-validation)")
+    if cmp.chosen is None:
+        warn("calibration", f"calibration: {cmp.text}")
+    return cmp
 
 
 def fit_table(fits: list[Fit]):
-    """One row per law and parameter: estimate, standard error, 95 % interval, bounds, identification."""
+    """One row per law and parameter: estimate, standard error, 95 % interval (noise-based; with the model error
+    where the misfit called for it, and which to quote), bounds, identification."""
     import pandas as pd
 
     rows = []
     for f in fits:
         for n in f.names:
             ok, a, b = f.identified.get(n, (True, math.nan, math.nan))
+            ma, mb = f.ci95_model.get(n, (math.nan, math.nan))
             rows.append(
                 {
                     "contact_law": f.law,
@@ -533,6 +574,9 @@ def fit_table(fits: list[Fit]):
                     "std_error": f.std_error[n],
                     "ci95_low": f.ci95[n][0],
                     "ci95_high": f.ci95[n][1],
+                    "ci95_model_low": ma,
+                    "ci95_model_high": mb,
+                    "quote": f.quote,
                     "lower_bound": f.bounds[n][0],
                     "upper_bound": f.bounds[n][1],
                     "identified": ok,
@@ -544,30 +588,41 @@ def fit_table(fits: list[Fit]):
 
 
 def law_table(fits: list[Fit]):
-    """One row per law: the error at its optimum, the noise floor ratio, AIC and BIC (and their differences)."""
+    """One row per law: the error at its optimum, the noise floor ratio, AIC and BIC on the common effective count
+    and their differences, the held-out (cross-validated) residual and its Diebold-Mariano z against the best
+    (sweep/lawcompare.py), whether the law is among those the data cannot tell apart."""
     import pandas as pd
 
-    best_aic = min(f.aic for f in fits)
-    best_bic = min(f.bic for f in fits)
-    return pd.DataFrame(
-        [
-            {
-                "contact_law": f.law,
-                "parameters": len(f.names),
-                "rel_rms_pct": f.error_pct,
-                "misfit_over_noise": f.misfit_ratio,
-                "aic": f.aic,
-                "bic": f.bic,
-                "delta_aic": f.aic - best_aic,
-                "delta_bic": f.bic - best_bic,
-                "n_samples": f.n,
-                "n_effective": f.n_eff,
-                "evaluations": f.evaluations,
-                "seconds": f.seconds,
+    cmp = fits[0].comparison
+    nc, aic, bic = information_criteria(fits)
+    rows = []
+    for f in fits:
+        row = {
+            "contact_law": f.law,
+            "parameters": len(f.names),
+            "rel_rms_pct": f.error_pct,
+            "misfit_over_noise": f.misfit_ratio,
+            "n_samples": f.n,
+            "n_effective": f.n_eff,
+            "evaluations": f.evaluations,
+            "seconds": f.seconds,
+        }
+        row |= {
+            "aic": aic[f.law],
+            "bic": bic[f.law],
+            "delta_aic": aic[f.law] - min(aic.values()),
+            "delta_bic": bic[f.law] - min(bic.values()),
+            "n_effective_common": nc,
+        }
+        if cmp is not None:
+            row |= {
+                "cv_rss": cmp.cv_rss[f.law],
+                "cv_dm_z": cmp.cv_z[f.law],
+                "chosen": cmp.chosen == f.law,
+                "candidate": f.law in cmp.candidates,
             }
-            for f in fits
-        ]
-    )
+        rows.append(row)
+    return pd.DataFrame(rows)
 
 
 def calibration_rows(fits: list[Fit]) -> list[dict]:
@@ -596,9 +651,26 @@ def calibration_metadata(fits: list[Fit]) -> dict:
                 "n_effective": f.n_eff,
                 "lag1_autocorrelation": f.rho,
                 "warnings": f.warnings,
+                "quote": f.quote,
+                "model_error_windows": f.windows,
+                "global_stage": f.search,
             }
             for f in fits
         },
+        **({"comparison": _comparison_record(fits[0].comparison)} if fits[0].comparison is not None else {}),
+    }
+
+
+def _comparison_record(cmp) -> dict:
+    """The law comparison as plain data (the best table's metadata)."""
+    return {
+        "text": cmp.text,
+        "chosen": cmp.chosen,
+        "candidates": cmp.candidates,
+        "best": cmp.best,
+        "tied": cmp.tied,
+        "n_effective_common": cmp.n_eff_common,
+        "folds_s": cmp.folds,
     }
 
 
@@ -611,7 +683,10 @@ def read_calibration(best_path) -> dict:
     md = read_metadata(best_path).get("calibration")
     if md is None:
         raise KeyError(f"{best_path}: holds no calibration (the scene had no [calibrate])")
-    return {k: pd.DataFrame(md[k]) for k in ("fits", "laws", "profiles")} | {"per_law": md["per_law"]}
+    return {k: pd.DataFrame(md[k]) for k in ("fits", "laws", "profiles")} | {
+        "per_law": md["per_law"],
+        "comparison": md.get("comparison"),
+    }
 
 
 def profile_table(fits: list[Fit]):

@@ -373,7 +373,14 @@ def calibration_plan(scene: Scene) -> str:
     cal = scene.calibrate
     laws = scene.axis_values("law") or (scene.contact.law,)
     profiled = list(cal.profile) or [n for n in ("ks_ratio", "ks_N_per_m", "kh_N_per_m1_5", "r") if n in cal.parameters]
-    what = [f"{cal.global_points} global points" if cal.global_points else "no global stage"]
+    from pounding_sweep.sweep.globalsearch import design_size
+
+    n_design = design_size(cal.global_points, len(cal.parameters))
+    what = [
+        f"{cal.global_points} global points (a design of {n_design} on the record's leading part)"
+        if n_design
+        else "no global stage"
+    ]
     what.append(f"least squares from up to {cal.starts} start(s) of at most {cal.max_evals} runs")
     if cal.profile_points and profiled:
         what.append(f"profiles of {', '.join(profiled)} ({cal.profile_points} points each)")

@@ -27,6 +27,7 @@ import pandas as pd
 
 from pounding_sweep.errors import ResultError
 from pounding_sweep.scene import scene_from_dict, validate
+from pounding_sweep.scene.parameters import PARAMETERS, is_log
 from pounding_sweep.sweep.results import META_KEY, part_files, read_metadata, read_schema, sidecar_path
 
 DPI = 120
@@ -175,17 +176,9 @@ def read_best(results: str | Path, md: dict | None = None) -> pd.DataFrame | Non
     return best
 
 
-#: how each sweep axis is labelled, and the factor its values are shown with
-AXES = {
-    "ks_ratio": ("contact stiffness ratio $k_s/k$ [-]", "k_s/k", 1.0),
-    "ks_N_per_m": ("contact stiffness $k_s$ [N/m]", "k_s [N/m]", 1.0),
-    "r": ("coefficient of restitution r [-]", "r", 1.0),
-    "gap_m": ("gap d [mm]", "gap [mm]", 1e3),
-    "amplitude_m": ("table amplitude [mm]", "amplitude [mm]", 1e3),
-    "frequency_Hz": ("table frequency [Hz]", "f [Hz]", 1.0),
-    "scale": ("record scale [-]", "scale", 1.0),
-    "record": ("record", "record", None),
-}
+#: how each sweep axis is labelled (axis label, short label), and the factor its values are shown with: the
+#: parameters that have labels (scene/parameters.py)
+AXES = {p.name: (p.label, p.short, p.factor) for p in PARAMETERS if p.label is not None}
 
 
 def swept_axes(df: pd.DataFrame, md: dict) -> list[str]:
@@ -856,7 +849,7 @@ def calibration_profile_figure(best_path: str | Path):
                 ax.axvspan(f.profile_low.iloc[0], f.profile_high.iloc[0], color=line.get_color(), alpha=0.12)
         ax.axhline(CHI2_1_95, color="k", lw=0.8, ls="--", label="95 % (3.84)")
         ax.set_yscale("log")
-        if name in ("ks_ratio", "ks_N_per_m", "kh_N_per_m1_5"):
+        if is_log(name):
             ax.set_xscale("log")
         ax.set_xlabel(name)
         ax.set_ylabel("delta chi^2 (others refitted)")

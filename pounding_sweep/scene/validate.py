@@ -16,8 +16,10 @@ from pounding_sweep.codes import (
     is_nonlinear,
 )
 from pounding_sweep.errors import ConfigError, shown
-from pounding_sweep.scene.axes import STRUCTURE_AXES, check_ks
+from pounding_sweep.scene.axes import check_ks
 from pounding_sweep.scene.channels import experiment_channel, parse_channel
+from pounding_sweep.scene.parameters import FITTABLE as ROLE_FITTABLE
+from pounding_sweep.scene.parameters import STIFFNESS_FORMS, bounds_out_of_range, names, out_of_range
 from pounding_sweep.scene.schema import (
     ACC_UNITS,
     EXECUTORS,
@@ -107,22 +109,17 @@ def validate(s: Scene) -> None:
     _check_structure_axes(s, axes)
     _check_calibrate(s)
     c = s.contact
-    _check_r(c.r, "[contact] r")
-    for v in axes.get("r", ()):
-        _check_r(v, "[sweep] r")
+    _in_range("r", c.r, "[contact] r")
+    _check_axis(axes, "r")
     _check_laws(c, axes)
     check_ks(c, axes)
-    _positive(c.ks_ratio, "[contact] ks_ratio")
-    _positive(c.ks_N_per_m, "[contact] ks_N_per_m")
+    _in_range("ks_ratio", c.ks_ratio, "[contact] ks_ratio")
+    _in_range("ks_N_per_m", c.ks_N_per_m, "[contact] ks_N_per_m")
     _positive(c.k_ref_N_per_m, "[contact] k_ref_N_per_m")
     for k in ("ks_ratio", "ks_N_per_m", "amplitude_m", "frequency_Hz", "scale"):
-        for v in axes.get(k, ()):
-            _positive(v, f"[sweep] {k}")
-    if c.gap_m < 0:
-        raise ConfigError(f"[contact] gap_m = {c.gap_m!r}: must be >= 0")
-    for v in axes.get("gap_m", ()):
-        if v < 0:
-            raise ConfigError(f"[sweep] gap_m = {v!r}: must be >= 0")
+        _check_axis(axes, k)
+    _in_range("gap_m", c.gap_m, "[contact] gap_m")
+    _check_axis(axes, "gap_m")
     e = s.excitation
     if e.type not in ("harmonic", "record", "stochastic"):
         raise ConfigError(f"[excitation] type = {e.type!r}: expected 'harmonic', 'record' or 'stochastic'")
@@ -349,9 +346,8 @@ def _check_laws(c, axes: dict) -> None:
         )
     _positive(c.reference_penetration_m, "[contact] reference_penetration_m")
     _positive(c.min_impact_speed_m_s, "[contact] min_impact_speed_m_s")
-    _positive(c.kh_N_per_m1_5, "[contact] kh_N_per_m1_5")
-    for v in axes.get("kh_N_per_m1_5", ()):
-        _positive(v, "[sweep] kh_N_per_m1_5")
+    _in_range("kh_N_per_m1_5", c.kh_N_per_m1_5, "[contact] kh_N_per_m1_5")
+    _check_axis(axes, "kh_N_per_m1_5")
     laws = set(axes.get("law", (c.law,)))
     hertz = {x for x in laws if is_nonlinear(CONTACT_LAWS[x])}
     has_kh = c.kh_N_per_m1_5 is not None or "kh_N_per_m1_5" in axes
@@ -375,16 +371,7 @@ def _check_laws(c, axes: dict) -> None:
 
 
 #: what [calibrate] may fit: the numeric sweep parameters (names and laws are chosen, not fitted)
-FITTABLE = (
-    "ks_ratio",
-    "ks_N_per_m",
-    "kh_N_per_m1_5",
-    "r",
-    "gap_m",
-    "amplitude_m",
-    "scale",
-    *STRUCTURE_AXES,
-)
+FITTABLE = names(ROLE_FITTABLE)
 
 
 def _check_calibrate(s: Scene) -> None:
@@ -408,17 +395,10 @@ def _check_calibrate(s: Scene) -> None:
             raise ConfigError(f"{key}: not a parameter the calibration can fit (one of {', '.join(FITTABLE)})")
         if len(bounds) != 2 or not bounds[0] < bounds[1]:
             raise ConfigError(f"{key} = {shown(bounds)}: expected bounds [low, high] with low < high")
-        lo, hi = float(bounds[0]), float(bounds[1])
-        if name == "r" and not (0.0 <= lo and hi <= 1.0):
-            raise ConfigError(f"{key} = [{lo}, {hi}]: a coefficient of restitution lies in [0, 1]")
-        if name.startswith("damping_ratio_b") and not (0.0 <= lo and hi < 1.0):
-            raise ConfigError(f"{key} = [{lo}, {hi}]: a damping ratio lies in [0, 1)")
-        if name in ("gap_m", "time_offset_s"):
-            if name == "gap_m" and lo < 0:
-                raise ConfigError(f"{key} = [{lo}, {hi}]: a gap is >= 0")
-        elif not name.startswith("damping_ratio_b") and name != "r" and lo <= 0:
-            raise ConfigError(f"{key} = [{lo}, {hi}]: must be > 0")
-    forms = [n for n in ("ks_ratio", "ks_N_per_m", "kh_N_per_m1_5") if n in cal.parameters]
+        outside = bounds_out_of_range(name, float(bounds[0]), float(bounds[1]), key)
+        if outside:
+            raise ConfigError(outside)
+    forms = [n for n in STIFFNESS_FORMS if n in cal.parameters]
     if len(forms) > 1:
         raise ConfigError(f"[calibrate] parameters: fit one form of the contact stiffness, not {' and '.join(forms)}")
     for name in cal.parameters:
@@ -500,10 +480,9 @@ def _check_structure_axes(s: Scene, axes: dict) -> None:
     for bname, b in (("building1", s.building1), ("building2", s.building2)):
         _positive(b.stiffness_scale, f"[{bname}] stiffness_scale")
         _positive(b.mass_scale, f"[{bname}] mass_scale")
-    for name, values in axes.items():
+    for name in axes:
         if name.startswith(("stiffness_scale_b", "mass_scale_b")):
-            for v in values:
-                _positive(v, f"[sweep] {name}")
+            _check_axis(axes, name)
         elif name.startswith("damping_ratio_b"):
             b = getattr(s, f"building{name[-1]}")
             if b.rayleigh_a0_per_s is not None or b.rayleigh_a1_s is not None:
@@ -511,16 +490,22 @@ def _check_structure_axes(s: Scene, axes: dict) -> None:
                     f"[sweep] {name}: [building{name[-1]}] is damped by explicit Rayleigh coefficients; "
                     "sweep its damping_ratio only where the scene gives one"
                 )
-            for v in values:
-                if not 0 <= v < 1:
-                    raise ConfigError(f"[sweep] {name} = {v!r}: must lie in [0, 1)")
+            _check_axis(axes, name)
         elif name == "time_offset_s" and s.experiment is None:
             raise ConfigError("[sweep] time_offset_s: shifts an experiment's clock, and the scene has no [experiment]")
 
 
-def _check_r(r, key):
-    if not 0.0 <= r <= 1.0:
-        raise ConfigError(f"{key} = {r!r}: the coefficient of restitution must lie in [0, 1]")
+def _in_range(name: str, value, key: str) -> None:
+    """A value of parameter `name` (scene/parameters.py) inside its range; None (not given) passes."""
+    outside = out_of_range(name, value, key)
+    if outside:
+        raise ConfigError(outside)
+
+
+def _check_axis(axes: dict, name: str) -> None:
+    """Every value of the [sweep] axis `name` (where swept) inside the parameter's range."""
+    for v in axes.get(name, ()):
+        _in_range(name, v, f"[sweep] {name}")
 
 
 def check_workers(value: int, key: str) -> None:

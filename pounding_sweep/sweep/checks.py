@@ -14,10 +14,11 @@ import math
 
 import numpy as np
 
+from pounding_sweep.scene.parameters import CONTACT, STIFFNESS, names
 from pounding_sweep.warn import warn
 
 #: sweep axes that are contact parameters: sweeping one says the scene studies pounding
-CONTACT_AXES = ("gap_m", "ks_ratio", "ks_N_per_m", "r")
+CONTACT_AXES = names(CONTACT)
 
 
 def round_down_125(x: float) -> float:
@@ -30,7 +31,7 @@ def round_down_125(x: float) -> float:
 
 
 #: the sweep axes that set a run's contact stiffness (and so its contact period)
-STIFFNESS_AXES = ("law", "ks_ratio", "ks_N_per_m", "kh_N_per_m1_5")
+STIFFNESS_AXES = names(STIFFNESS)
 
 
 def contact_stiffness_grid(grid):

@@ -34,6 +34,7 @@ from pounding_sweep.scene import Scene
 from pounding_sweep.scene.axes import STRUCTURE_AXES
 from pounding_sweep.scene.channels import ACC_PREFIX
 from pounding_sweep.scene.hashing import hash_of
+from pounding_sweep.scene.parameters import default_profiled
 from pounding_sweep.sweep.checks import (
     ContactTally,
     check_calibration,
@@ -372,7 +373,7 @@ def calibration_plan(scene: Scene) -> str:
     """One line saying what the calibration is about to do (it runs for a minute or more, silent otherwise)."""
     cal = scene.calibrate
     laws = scene.axis_values("law") or (scene.contact.law,)
-    profiled = list(cal.profile) or [n for n in ("ks_ratio", "ks_N_per_m", "kh_N_per_m1_5", "r") if n in cal.parameters]
+    profiled = list(cal.profile) or default_profiled(cal.parameters)
     from pounding_sweep.sweep.globalsearch import design_size
 
     n_design = design_size(cal.global_points, len(cal.parameters))

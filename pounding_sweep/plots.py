@@ -6,8 +6,8 @@
 - `history_figures`: the best run re-simulated from the scene stored in the file's metadata:
   its displacement over the experiment's, whole and zoomed (Figs. 13, 21), its pounding force
   (Fig. 19) and numerical-against-experimental plots (the paper's sub-space plots, SSP);
-- `accuracy_ladder`, `error_vs_runtime_figure`: error against run time over a ladder of time
-  steps per integration scheme.
+- `error_vs_runtime_figure`: error against run time over a ladder of time steps per integration
+  scheme (the ladder itself: accuracy.py `accuracy_ladder`).
 
 Figures are `matplotlib.figure.Figure`s made without pyplot: `plot_results` saves them as PNG
 (no GUI backend, no global figure state), a notebook displays them inline.
@@ -15,7 +15,6 @@ Figures are `matplotlib.figure.Figure`s made without pyplot: `plot_results` save
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 import stat
@@ -25,8 +24,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from pounding_sweep.accuracy import accuracy_ladder  # the dt-ladder study; figures() draws a small one
 from pounding_sweep.errors import ResultError
-from pounding_sweep.scene import scene_from_dict, validate
+from pounding_sweep.scene import scene_from_dict
 from pounding_sweep.scene.parameters import PARAMETERS, is_log
 from pounding_sweep.sweep.results import META_KEY, part_files, read_metadata, read_schema, sidecar_path
 
@@ -640,84 +640,6 @@ def history_figures(scene, pick: dict, label: str, md: dict | None = None, skipp
 
 
 # ----------------------------------------------------------------------------- error against run time
-
-
-def accuracy_ladder(
-    scene,
-    dts=None,
-    schemes=None,
-    ref_dt: float | None = None,
-    ref_scheme: str | None = None,
-    duration_s: float | None = 2.0,
-    channel: str | None = None,
-    repeats: int = 3,
-    **params,
-) -> pd.DataFrame:
-    """Error against run time over a ladder of time steps, per integration scheme.
-
-    Each (scheme, dt) run of `scene` (its base point with `params`, e.g. ks_ratio=5, r=0.4; no
-    sweep, no experiment; the first `duration_s` seconds) is compared with a reference run of
-    `ref_scheme` (default: 'event' where the kernel has it, else 'implicit') at `ref_dt` (default:
-    the smallest dt / 4) by the relative RMS error (eq. 20) of `channel` (default: building 1's
-    top-floor displacement), sampled every max(dts) seconds, which every dt must divide. Run
-    time: the kernel's `run_time_s`, the least of `repeats` runs. Defaults: dts 8, 4, 2, 1 and
-    0.5 times the scene's dt; every scheme the kernel has. Columns: scheme, dt_s, steps,
-    run_time_s, rel_rms_pct, status, then ref_scheme, ref_dt_s, channel, duration_s.
-    """
-    from pounding_sweep.codes import SCHEMES
-    from pounding_sweep.engine.score import relative_rms_error_pct
-    from pounding_sweep.sweep.simulate import simulate
-
-    dt0 = scene.integration.dt_s
-    dts = sorted((dt0 * k for k in (8, 4, 2, 1, 0.5)) if dts is None else dts, reverse=True)
-    ref_dt = ref_dt or dts[-1] / 4
-    if ref_dt >= dts[-1]:
-        raise ValueError(f"accuracy_ladder: ref_dt = {ref_dt:g} s must be below the smallest dt {dts[-1]:g} s")
-    exc = scene.excitation
-    if duration_s is not None:
-        exc = dataclasses.replace(exc, duration_s=float(duration_s))
-    base = dataclasses.replace(scene, experiment=None, calibrate=None, sweep=(), excitation=exc)
-    validate(base)
-    floors = (len(scene.building1.masses_kg), len(scene.building2.masses_kg))
-    channel = channel or f"disp_b1f{floors[0]}"
-    sample = dts[0]
-
-    def run(dt: float, scheme: str):
-        n = sample / dt
-        if abs(n - round(n)) > 1e-6 * n:
-            raise ValueError(
-                f"accuracy_ladder: dt = {dt:g} s does not divide the sampling step {sample:g} s "
-                "(the largest dt): use dts that are whole fractions of it"
-            )
-        hist, m = simulate(base, channels=[channel], decimate=int(round(n)), dt_s=dt, scheme=scheme, **params)
-        return hist.iloc[:, 1].to_numpy(), m
-
-    schemes = list(SCHEMES) if schemes is None else list(schemes)
-    ref_scheme = ref_scheme or ("event" if "event" in SCHEMES else "implicit")
-    ref, _ = run(ref_dt, ref_scheme)
-    rows = []
-    for scheme in schemes:
-        for dt in dts:
-            times = []
-            for _ in range(max(1, repeats)):
-                x, m = run(dt, scheme)
-                times.append(m["run_time_s"])
-            n = min(x.size, ref.size)
-            err = float(relative_rms_error_pct(x[:n], ref[:n])) if np.all(np.isfinite(x[:n])) else np.nan
-            rows.append(
-                {
-                    "scheme": scheme,
-                    "dt_s": dt,
-                    "steps": int(m["steps"]),
-                    "run_time_s": min(times),
-                    "rel_rms_pct": err,
-                    "status": m["status"],
-                }
-            )
-    out = pd.DataFrame(rows)
-    out["ref_scheme"], out["ref_dt_s"], out["channel"] = ref_scheme, ref_dt, channel
-    out["duration_s"] = duration_s if duration_s is not None else np.nan
-    return out
 
 
 def read_accuracy_table(path: str | Path) -> pd.DataFrame:

@@ -281,7 +281,7 @@ def _validate_experiment(s: Scene) -> None:
 def _validate_acceleration(x, kinds: dict) -> None:
     """[experiment]'s acceleration keys (acc_units, lowpass_Hz, lowpass_order) and the combination (use,
     weights), given each channel's kind. The filter's cut-off against the table's Nyquist frequency is checked
-    where the table is read (model/experiment.py lowpass_sections)."""
+    where the table is read (sweep/scoring.py lowpass_sections)."""
     acc = [c for c, k in kinds.items() if k == codes.H_ABS_ACC]
     if x.acc_units not in ACC_UNITS:
         raise ConfigError(f"[experiment] acc_units = {shown(x.acc_units)}: expected one of {list(ACC_UNITS)}")

@@ -193,7 +193,7 @@ def check_calibration(prep) -> None:
     for key, offset in offsets:
         moved = dataclasses.replace(scene.experiment, time_offset_s=offset)
         try:
-            score_spec(exp, moved, prep.model.floors, prep.excitation.max_duration_s, prep.dt)
+            score_spec(exp, moved, prep.excitation.max_duration_s, prep.dt)
         except ExperimentError as e:
             raise ConfigError(f"{key}: at {offset:g} s, {e}") from None
     if cal is None:

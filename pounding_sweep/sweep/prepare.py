@@ -29,7 +29,6 @@ from pounding_sweep.model.laws import hertz_stiffness, law_arrays
 from pounding_sweep.scene import SWEEPABLE, Scene, contact_stiffness
 from pounding_sweep.scene.axes import STRUCTURE_AXES
 from pounding_sweep.scene.channels import parse_channel
-from pounding_sweep.warn import warn
 
 LAW_NAMES = {code: name for name, code in CONTACT_LAWS.items()}
 
@@ -101,9 +100,9 @@ class Prepared:
             if scene.experiment is not None and scene.experiment.time_offset_s != self.scene.experiment.time_offset_s:
                 from pounding_sweep.sweep.scoring import score_spec
 
-                score = score_spec(
-                    self.experiment, scene.experiment, model.floors, self.excitation.max_duration_s, self.dt
-                )[0]  # the same channels and weights: only the samples' clock moved
+                score = score_spec(self.experiment, scene.experiment, self.excitation.max_duration_s, self.dt)[
+                    0
+                ]  # the same channels and weights: only the samples' clock moved
             self.variants[values] = dataclasses.replace(
                 self, scene=scene, model=model, sysarr=model.system_arrays(self.dt), score=score, variants={}
             )
@@ -151,13 +150,10 @@ def prepare(scene: Scene, kernel: str = "auto") -> Prepared:
     hspec, hcols = history_spec(scene, model.floors)
     score, codes, comb = ScoreSpec.none(), [], None
     if scene.experiment is not None:
-        from pounding_sweep.sweep.scoring import load_experiment, score_spec, sensor_warnings
+        from pounding_sweep.sweep.scoring import ready_experiment
 
-        exp = load_experiment(scene.experiment, model.floors)
-        for kind, message in sensor_warnings(exp, scene.experiment, model, exc):
-            warn(kind, message)
-        score, comb = score_spec(exp, scene.experiment, model.floors, exc.max_duration_s, dt)
-        codes = list(exp.channels)
+        ready = ready_experiment(scene.experiment, model, exc, dt)
+        exp, score, comb, codes = ready.experiment, ready.score, ready.combination, ready.codes
     else:
         exp = None
     auto = None

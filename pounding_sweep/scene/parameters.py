@@ -261,6 +261,41 @@ PARAMETERS: tuple[Parameter, ...] = (
 BY_NAME: dict[str, Parameter] = {p.name: p for p in PARAMETERS}
 
 
+def _story_family(b: int) -> Parameter:
+    """Building b's per-story stiffness factors: one fittable value per story, named <name>_s<story>."""
+    return Parameter(
+        f"story_stiffness_scale_b{b}",
+        f"building{b}",
+        "story_stiffness_scales",
+        "-",
+        f"factor on one story's stiffness of building {b}, on top of stiffness_scale (fitted) [-]",
+        frozenset((STRUCTURE, FITTABLE)),
+        POSITIVE,
+    )
+
+
+#: parameters with one value per story (a [buildingN] list key): fitted one member at a time, each named
+#: <family>_s<story> (story_stiffness_scale_b1_s2: building 1's second story); not [sweep] axes
+FAMILIES: tuple[Parameter, ...] = (_story_family(1), _story_family(2))
+
+
+def member(name: str) -> tuple[Parameter, int] | None:
+    """(family, story) of a per-story name ('story_stiffness_scale_b1_s2' -> (its family, 2)), else None."""
+    for fam in FAMILIES:
+        head, sep, index = name.rpartition("_s")
+        if sep and head == fam.name and index.isdigit() and int(index) >= 1:
+            return fam, int(index)
+    return None
+
+
+def parameter(name: str) -> Parameter | None:
+    """The registry entry of a name: a parameter's own, or the family of a per-story name; None if unknown."""
+    if name in BY_NAME:
+        return BY_NAME[name]
+    found = member(name)
+    return found[0] if found else None
+
+
 def names(role: str) -> tuple[str, ...]:
     """The names of the parameters with `role`, in registry order."""
     if role not in ROLES:
@@ -270,14 +305,14 @@ def names(role: str) -> tuple[str, ...]:
 
 def is_log(name: str) -> bool:
     """A fit, a profile and a figure work on log(value) of this parameter."""
-    p = BY_NAME.get(name)
+    p = parameter(name)
     return p is not None and p.log
 
 
 def out_of_range(name: str, value, where: str) -> str | None:
     """The message for `value` of parameter `name` outside its range ('[sweep] r = 2.0: the coefficient ...'),
     None when it is inside (or the parameter has no range)."""
-    rng = BY_NAME[name].range
+    rng = parameter(name).range
     if rng is None or value is None or rng.holds(value):
         return None
     return f"{where} = {value!r}: {rng.must}"
@@ -285,7 +320,7 @@ def out_of_range(name: str, value, where: str) -> str | None:
 
 def bounds_out_of_range(name: str, lo: float, hi: float, where: str) -> str | None:
     """The message for [calibrate] bounds [lo, hi] of `name` reaching outside its range, None when inside."""
-    rng = BY_NAME[name].range
+    rng = parameter(name).range
     if rng is None or (rng.holds(lo) and rng.holds(hi)):
         return None
     return f"{where} = [{lo}, {hi}]: {rng.bounds}"

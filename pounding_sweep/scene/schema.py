@@ -95,6 +95,12 @@ class BuildingConfig:
         1.0,
     )
     mass_scale: float = _f("multiplies every floor mass (a [sweep] axis or fitted as mass_scale_b1/_b2)", 1.0)
+    story_stiffness_scales: tuple[float, ...] | None = _f(
+        "a factor on each story's stiffness, story 1 first, on top of stiffness_scale (a frame whose stories differ "
+        "from the model's: each fitted as story_stiffness_scale_b1_s1, _s2, ...)",
+        None,
+        when="optional; one value per story",
+    )
 
 
 @dataclass(frozen=True)

@@ -18,8 +18,15 @@ from pounding_sweep.codes import (
 from pounding_sweep.errors import ConfigError, shown
 from pounding_sweep.scene.axes import check_ks
 from pounding_sweep.scene.channels import experiment_channel, parse_channel
+from pounding_sweep.scene.parameters import (
+    FAMILIES,
+    STIFFNESS_FORMS,
+    bounds_out_of_range,
+    member,
+    names,
+    out_of_range,
+)
 from pounding_sweep.scene.parameters import FITTABLE as ROLE_FITTABLE
-from pounding_sweep.scene.parameters import STIFFNESS_FORMS, bounds_out_of_range, names, out_of_range
 from pounding_sweep.scene.schema import (
     ACC_UNITS,
     EXECUTORS,
@@ -89,6 +96,7 @@ def validate(s: Scene) -> None:
         if b.n_columns is not None:
             _positive(b.n_columns, f"[{bname}] n_columns")
         _check_story_stiffness(b, bname, n)
+        _check_story_scales(b, bname, n)
         explicit = b.rayleigh_a0_per_s is not None or b.rayleigh_a1_s is not None
         if explicit and b.damping_ratio is not None:
             raise ConfigError(f"[{bname}]: give damping_ratio or rayleigh_a0_per_s/rayleigh_a1_s, not both")
@@ -391,8 +399,12 @@ def _check_calibrate(s: Scene) -> None:
         raise ConfigError("[calibrate] parameters = {}: name at least one parameter to fit, with its bounds")
     for name, bounds in cal.parameters.items():
         key = f"[calibrate] parameters.{name}"
-        if name not in FITTABLE:
-            raise ConfigError(f"{key}: not a parameter the calibration can fit (one of {', '.join(FITTABLE)})")
+        if name not in FITTABLE and member(name) is None:
+            per_story = ", ".join(f"{f.name}_s<story>" for f in FAMILIES)
+            raise ConfigError(
+                f"{key}: not a parameter the calibration can fit (one of {', '.join(FITTABLE)}; per story: {per_story})"
+            )
+        _check_member(s, name, key)
         if len(bounds) != 2 or not bounds[0] < bounds[1]:
             raise ConfigError(f"{key} = {shown(bounds)}: expected bounds [low, high] with low < high")
         outside = bounds_out_of_range(name, float(bounds[0]), float(bounds[1]), key)
@@ -427,6 +439,30 @@ def _check_calibrate(s: Scene) -> None:
         )
     _positive(cal.misfit_factor, "[calibrate] misfit_factor")
     _check_calibrate_effect(s, cal)
+
+
+def _check_member(s: Scene, name: str, key: str) -> None:
+    """A per-story name (story_stiffness_scale_b1_s2) names a story the building has."""
+    found = member(name)
+    if found is None:
+        return
+    fam, story = found
+    n = len(getattr(s, fam.section).masses_kg)
+    if story > n:
+        raise ConfigError(f"{key}: [{fam.section}] has {n} stor{'y' if n == 1 else 'ies'}, no story {story}")
+
+
+def _check_story_scales(b: BuildingConfig, bname: str, n: int) -> None:
+    """story_stiffness_scales: one factor > 0 per story."""
+    scales = b.story_stiffness_scales
+    if scales is None:
+        return
+    if len(scales) != n:
+        raise ConfigError(
+            f"[{bname}] story_stiffness_scales = {shown(list(scales))}: one factor per story, {n} here (story 1 first)"
+        )
+    for v in scales:
+        _positive(v, f"[{bname}] story_stiffness_scales")
 
 
 def _check_calibrate_effect(s: Scene, cal) -> None:

@@ -32,6 +32,7 @@ def building_from_config(cfg: BuildingConfig, default_name: str) -> ShearFrame:
         damping_modes=tuple(cfg.damping_modes[:2]) if n > 1 else (1, 1),
         rayleigh_a0_per_s=cfg.rayleigh_a0_per_s,
         rayleigh_a1_s=cfg.rayleigh_a1_s,
+        modal_damping_ratios=cfg.modal_damping_ratios,
     )
 
 

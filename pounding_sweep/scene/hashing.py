@@ -30,8 +30,8 @@ ADDED_EXPERIMENT_KEYS = {
 #: motions), left out at the values they had before they existed, like ADDED_EXPERIMENT_KEYS
 ADDED_EXCITATION_KEYS = {"intensity": "none", "scaling": "factor", "intensity_period_s": None}
 ADDED_SECTIONS = ("stochastic",)
-#: [buildingN] keys added later (per-story stiffness factors), left out at the values they had before they existed
-ADDED_BUILDING_KEYS = {"story_stiffness_scales": None}
+#: [buildingN] keys added later (per-story stiffness factors, per-mode damping), left out at the values they had before they existed
+ADDED_BUILDING_KEYS = {"story_stiffness_scales": None, "modal_damping_ratios": None}
 
 
 def canonical(scene) -> dict:

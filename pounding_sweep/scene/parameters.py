@@ -73,6 +73,8 @@ class Parameter:
     label: str | None = None
     short: str | None = None
     factor: float | None = 1.0
+    per: str = ""  # a family (FAMILIES): 's' one value per story, 'm' one per mode
+    neutral: float | None = None  # a family member's value where the scene gives no list (None: it must give one)
 
     def has(self, role: str) -> bool:
         return role in self.roles
@@ -261,28 +263,45 @@ PARAMETERS: tuple[Parameter, ...] = (
 BY_NAME: dict[str, Parameter] = {p.name: p for p in PARAMETERS}
 
 
-def _story_family(b: int) -> Parameter:
-    """Building b's per-story stiffness factors: one fittable value per story, named <name>_s<story>."""
-    return Parameter(
-        f"story_stiffness_scale_b{b}",
-        f"building{b}",
-        "story_stiffness_scales",
-        "-",
-        f"factor on one story's stiffness of building {b}, on top of stiffness_scale (fitted) [-]",
-        frozenset((STRUCTURE, FITTABLE)),
-        POSITIVE,
-    )
+def _families(b: int) -> list[Parameter]:
+    """Building b's per-story stiffness factors (model/coupled.py) and per-mode damping ratios
+    (model/structure.py modal_damping_matrix): one fittable value per story or mode."""
+    return [
+        Parameter(
+            f"story_stiffness_scale_b{b}",
+            f"building{b}",
+            "story_stiffness_scales",
+            "-",
+            f"factor on one story's stiffness of building {b}, on top of stiffness_scale (fitted) [-]",
+            frozenset((STRUCTURE, FITTABLE)),
+            POSITIVE,
+            per="s",
+            neutral=1.0,
+        ),
+        Parameter(
+            f"modal_damping_ratio_b{b}",
+            f"building{b}",
+            "modal_damping_ratios",
+            "-",
+            f"damping ratio of one mode of building {b} (fitted) [-]",
+            frozenset((STRUCTURE, FITTABLE)),
+            DAMPING_RATIO,
+            per="m",
+        ),
+    ]
 
 
-#: parameters with one value per story (a [buildingN] list key): fitted one member at a time, each named
-#: <family>_s<story> (story_stiffness_scale_b1_s2: building 1's second story); not [sweep] axes
-FAMILIES: tuple[Parameter, ...] = (_story_family(1), _story_family(2))
+#: parameters with one value per story or per mode (a [buildingN] list key): fitted one member at a time, each
+#: named <family>_<per><index> (story_stiffness_scale_b1_s2: building 1's second story; modal_damping_ratio_b2_m1:
+#: building 2's first mode); not [sweep] axes
+FAMILIES: tuple[Parameter, ...] = (*_families(1), *_families(2))
 
 
 def member(name: str) -> tuple[Parameter, int] | None:
-    """(family, story) of a per-story name ('story_stiffness_scale_b1_s2' -> (its family, 2)), else None."""
+    """(family, index) of a per-story or per-mode name ('story_stiffness_scale_b1_s2' -> (its family, 2)), else
+    None."""
     for fam in FAMILIES:
-        head, sep, index = name.rpartition("_s")
+        head, sep, index = name.rpartition(f"_{fam.per}")
         if sep and head == fam.name and index.isdigit() and int(index) >= 1:
             return fam, int(index)
     return None

@@ -446,23 +446,42 @@ def _check_member(s: Scene, name: str, key: str) -> None:
     found = member(name)
     if found is None:
         return
-    fam, story = found
-    n = len(getattr(s, fam.section).masses_kg)
-    if story > n:
-        raise ConfigError(f"{key}: [{fam.section}] has {n} stor{'y' if n == 1 else 'ies'}, no story {story}")
+    fam, index = found
+    part = getattr(s, fam.section)
+    n = len(part.masses_kg)
+    what = "story" if fam.per == "s" else "mode"
+    if index > n:
+        raise ConfigError(f"{key}: [{fam.section}] has {n} {what}{'' if n == 1 else 's'}, no {what} {index}")
+    if fam.neutral is None and getattr(part, fam.key) is None:
+        raise ConfigError(f"{key}: [{fam.section}] gives no {fam.key} to fit (give one value per {what})")
 
 
 def _check_story_scales(b: BuildingConfig, bname: str, n: int) -> None:
-    """story_stiffness_scales: one factor > 0 per story."""
+    """story_stiffness_scales: one factor > 0 per story; modal_damping_ratios: one ratio in [0, 1) per mode, and
+    the only form of damping given."""
     scales = b.story_stiffness_scales
-    if scales is None:
+    if scales is not None:
+        if len(scales) != n:
+            raise ConfigError(
+                f"[{bname}] story_stiffness_scales = {shown(list(scales))}: one factor per story, {n} here "
+                "(story 1 first)"
+            )
+        for v in scales:
+            _positive(v, f"[{bname}] story_stiffness_scales")
+    zeta = b.modal_damping_ratios
+    if zeta is None:
         return
-    if len(scales) != n:
+    if b.damping_ratio is not None or b.rayleigh_a0_per_s is not None or b.rayleigh_a1_s is not None:
         raise ConfigError(
-            f"[{bname}] story_stiffness_scales = {shown(list(scales))}: one factor per story, {n} here (story 1 first)"
+            f"[{bname}]: give modal_damping_ratios, damping_ratio or rayleigh_a0_per_s/rayleigh_a1_s, one form of "
+            "damping"
         )
-    for v in scales:
-        _positive(v, f"[{bname}] story_stiffness_scales")
+    if len(zeta) != n:
+        raise ConfigError(
+            f"[{bname}] modal_damping_ratios = {shown(list(zeta))}: one ratio per mode, {n} here (mode 1 first)"
+        )
+    for v in zeta:
+        _in_range(f"modal_damping_ratio_b{bname[-1]}_m1", v, f"[{bname}] modal_damping_ratios")
 
 
 def _check_calibrate_effect(s: Scene, cal) -> None:

@@ -189,12 +189,14 @@ def structure_names(params: dict) -> tuple[str, ...]:
 
 def structure_value(scene: Scene, name: str) -> float:
     """The scene's own value of a structure parameter (NaN where unset: no damping_ratio, no experiment; a
-    story without its own factor: 1)."""
+    family member where the scene gives no list: the family's neutral value, a story factor's 1)."""
     found = member(name)
     if found is not None:
-        fam, story = found
-        scales = getattr(getattr(scene, fam.section), fam.key)
-        return 1.0 if scales is None else float(scales[story - 1])
+        fam, index = found
+        values = getattr(getattr(scene, fam.section), fam.key)
+        if values is None:
+            return np.nan if fam.neutral is None else fam.neutral
+        return float(values[index - 1])
     section, key = SWEEPABLE[name]
     part = getattr(scene, section)
     v = None if part is None else getattr(part, key)
@@ -227,8 +229,8 @@ def structure_groups(scene: Scene, params: dict[str, np.ndarray]):
 
 
 def with_structure(scene: Scene, values: dict) -> Scene:
-    """The scene with structure parameters set (NaN: left as the scene has it); a per-story one sets its story's
-    entry of the building's list."""
+    """The scene with structure parameters set (NaN: left as the scene has it); a per-story or per-mode one sets
+    its entry of the building's list."""
     sections: dict = {}
     for name, v in values.items():
         if v is None or (isinstance(v, float) and np.isnan(v)):
@@ -238,12 +240,12 @@ def with_structure(scene: Scene, values: dict) -> Scene:
             section, key = SWEEPABLE[name]
             sections.setdefault(section, {})[key] = float(v)
             continue
-        fam, story = found
+        fam, index = found  # validate: a family without a neutral value is fitted only where the scene lists it
         part = getattr(scene, fam.section)
         kv = sections.setdefault(fam.section, {})
-        scales = list(kv.get(fam.key) or getattr(part, fam.key) or (1.0,) * len(part.masses_kg))
-        scales[story - 1] = float(v)
-        kv[fam.key] = tuple(scales)
+        values = list(kv.get(fam.key) or getattr(part, fam.key) or (fam.neutral,) * len(part.masses_kg))
+        values[index - 1] = float(v)
+        kv[fam.key] = tuple(values)
     new = {s: dataclasses.replace(getattr(scene, s), **kv) for s, kv in sections.items()}
     return dataclasses.replace(scene, **new)
 

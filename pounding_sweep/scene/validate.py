@@ -449,9 +449,9 @@ def _check_member(s: Scene, name: str, key: str) -> None:
     fam, index = found
     part = getattr(s, fam.section)
     n = len(part.masses_kg)
-    what = "story" if fam.per == "s" else "mode"
+    what, many = ("story", "stories") if fam.per == "s" else ("mode", "modes")
     if index > n:
-        raise ConfigError(f"{key}: [{fam.section}] has {n} {what}{'' if n == 1 else 's'}, no {what} {index}")
+        raise ConfigError(f"{key}: [{fam.section}] has {n} {what if n == 1 else many}, no {what} {index}")
     if fam.neutral is None and getattr(part, fam.key) is None:
         raise ConfigError(f"{key}: [{fam.section}] gives no {fam.key} to fit (give one value per {what})")
 

@@ -9,10 +9,10 @@ import math
 import pytest
 from conftest import SWEEPS
 
-from pounding_sweep.scene import ConfigError, load_scene
+from pounding_sweep.scene import ConfigError, load_scene, validate
 from pounding_sweep.scene import parameters as P
 from pounding_sweep.scene.axes import STRUCTURE_AXES, SWEEPABLE
-from pounding_sweep.scene.schema import Scene
+from pounding_sweep.scene.schema import CalibrateConfig, ExperimentConfig, Scene
 from pounding_sweep.scene.validate import FITTABLE
 
 
@@ -103,3 +103,46 @@ def test_calibrate_bounds_outside_the_range():
     assert msg == "[calibrate] parameters.ks_ratio = [0.0, 10.0]: must be > 0"
     assert P.bounds_out_of_range("time_offset_s", -5.0, 5.0, "x") is None  # any clock shift
     assert P.bounds_out_of_range("gap_m", 0.0, 0.01, "x") is None
+
+
+B1 = {"damping_ratio": None}  # building 1 without its Rayleigh ratio: room for modal_damping_ratios
+
+
+@pytest.mark.parametrize(
+    ("change", "says"),
+    [
+        ({"story_stiffness_scales": (1.0, 1.0)}, " story_stiffness_scales = [1.0, 1.0]: one factor per story, 3 here"),
+        ({"story_stiffness_scales": (1.0, 0.0, 1.0)}, " story_stiffness_scales = 0.0: must be > 0"),
+        ({"modal_damping_ratios": (0.01,) * 3}, ": give modal_damping_ratios, damping_ratio or rayleigh_a0_per_s"),
+        ({**B1, "modal_damping_ratios": (0.01, 0.01)}, " modal_damping_ratios = [0.01, 0.01]: one ratio per mode, 3"),
+        ({**B1, "modal_damping_ratios": (0.01, 1.0, 0.01)}, " modal_damping_ratios = 1.0: must lie in [0, 1)"),
+    ],
+)
+def test_a_per_story_or_per_mode_list_is_checked(change, says):
+    s = load_scene(SWEEPS / "paper_6hz.toml")
+    bad = dataclasses.replace(s, building1=dataclasses.replace(s.building1, **change))
+    with pytest.raises(ConfigError) as e:
+        validate(bad)
+    assert str(e.value).startswith(f"[building1]{says}"), str(e.value)
+
+
+@pytest.mark.parametrize(
+    ("change", "name", "says"),
+    [
+        ({}, "story_stiffness_scale_b1_s4", "[building1] has 3 stories, no story 4"),
+        ({}, "modal_damping_ratio_b1_m2", "[building1] gives no modal_damping_ratios to fit (give one value per mode)"),
+        (
+            {**B1, "modal_damping_ratios": (0.01,) * 3},
+            "modal_damping_ratio_b1_m4",
+            "[building1] has 3 modes, no mode 4",
+        ),
+    ],
+)
+def test_a_family_member_names_what_the_building_has(tmp_path, change, name, says):
+    s = load_scene(SWEEPS / "paper_6hz.toml")
+    exp = ExperimentConfig(table=str(tmp_path / "none.csv"), channels={"x": "b1f3"})
+    cal = CalibrateConfig(parameters={name: (0.01, 0.1)})
+    b1 = dataclasses.replace(s.building1, **change)
+    with pytest.raises(ConfigError) as e:
+        validate(dataclasses.replace(s, building1=b1, experiment=exp, calibrate=cal))
+    assert str(e.value) == f"[calibrate] parameters.{name}: {says}"

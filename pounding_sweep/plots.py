@@ -382,7 +382,7 @@ def experiment_peaks(scene, md: dict) -> dict[str, tuple[float, float]]:
     """Largest |experimental displacement| [m] and its simulation time [s] per channel, in the scored window."""
     from pounding_sweep.sweep.scoring import load_experiment
 
-    floors = (len(scene.building1.masses_kg), len(scene.building2.masses_kg))
+    floors = scene.floors
     exp = load_experiment(scene.experiment, floors)
     t = exp.time_s - scene.experiment.time_offset_s
     lo, hi = md["experiment"]["window_s"]
@@ -541,7 +541,7 @@ def history_figures(scene, pick: dict, label: str, md: dict | None = None, skipp
     from pounding_sweep.sweep.scoring import load_experiment
     from pounding_sweep.sweep.simulate import simulate
 
-    floors = (len(scene.building1.masses_kg), len(scene.building2.masses_kg))
+    floors = scene.floors
     names = [scene.building1.name or "building 1", scene.building2.name or "building 2"]
     md = md or {"buildings": [{"name": n} for n in names]}
     top = min(floors)
@@ -685,7 +685,7 @@ def accuracy_ladder(
         exc = dataclasses.replace(exc, duration_s=float(duration_s))
     base = dataclasses.replace(scene, experiment=None, calibrate=None, sweep=(), excitation=exc)
     validate(base)
-    floors = (len(scene.building1.masses_kg), len(scene.building2.masses_kg))
+    floors = scene.floors
     channel = channel or f"disp_b1f{floors[0]}"
     sample = dts[0]
 

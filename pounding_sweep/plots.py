@@ -26,9 +26,9 @@ import numpy as np
 import pandas as pd
 
 from pounding_sweep.errors import ResultError
-from pounding_sweep.scene.channels import ACC_PREFIX
 from pounding_sweep.scene import scene_from_dict, validate
 from pounding_sweep.scene.axes import STRUCTURE_AXES
+from pounding_sweep.scene.channels import ACC_PREFIX
 from pounding_sweep.sweep.results import META_KEY, part_files, read_metadata, read_schema, sidecar_path
 
 DPI = 120
@@ -695,16 +695,14 @@ def history_figures(scene, pick: dict, label: str, md: dict | None = None, skipp
     return out
 
 
-def measured_figure(scene, pick: dict, label: str, md: dict, noise: dict | None = None):
-    """The run `pick` (the calibrated one where there is a calibration) against every measured channel, each in its
-    own quantity (displacement in mm, absolute acceleration in m/s^2), over the scored window: measured and model
-    (left whole, right a 1 s zoom around the largest measured value), and under each its residual, measured minus
-    model, with the channel's noise band +/- 2 sigma (`noise`: code -> sigma in SI, the calibration's noise floor).
-    The model is sampled at the table's instants (linear interpolation between steps) and, where the scene low-passes
-    the acceleration channels, filtered with the scoring's sections from rest at the window's start, as scored."""
+def measured_residuals(scene, pick: dict, md: dict) -> dict:
+    """Every measured channel of the scene against the run `pick` over the scored window, in SI: code -> (t [s],
+    measured, model, residual = measured - model). The model is sampled at the table's instants by linear
+    interpolation between steps (as the calibration samples it: sweep/calibrate.py) and, where the scene
+    low-passes the acceleration channels, both are filtered with the scoring's sections from rest at the window's
+    start, as scored."""
     from scipy.signal import sosfilt
 
-    from pounding_sweep.engine.score import relative_rms_error_pct
     from pounding_sweep.sweep.scoring import load_experiment
     from pounding_sweep.sweep.simulate import simulate
 
@@ -712,27 +710,45 @@ def measured_figure(scene, pick: dict, label: str, md: dict, noise: dict | None 
     codes = list(exp.channels)
     hist, _ = simulate(scene, channels=[history_column(c).rsplit("_m", 1)[0] for c in codes], **pick)
     t = hist.t_s.to_numpy()
-    offset = pick.get("time_offset_s", scene.experiment.time_offset_s)
-    te = exp.time_s - offset
+    te = exp.time_s - pick.get("time_offset_s", scene.experiment.time_offset_s)
     lo, hi = md.get("experiment", {}).get("window_s", (0.0, t[-1]))
     keep = (te >= max(lo, 0.0) - 1e-9) & (te <= min(hi, t[-1]) + 1e-9)
     tk = te[keep]
     lowpass = md.get("experiment", {}).get("lowpass")
     sos = np.asarray(lowpass["sos"], float) if lowpass else np.zeros((0, 6))
-    zoom = around(float(tk[np.argmax(np.abs(exp.channels[codes[0]][keep]))]), float(tk[-1]), 1.0)
-    noise = noise or {}
-    fig = _figure(figsize=(12, 2.4 * 2 * len(codes) + 1.2))
-    axes = fig.subplots(2 * len(codes), 2, squeeze=False, gridspec_kw={"width_ratios": [3, 1]})
-    for i, code in enumerate(codes):
-        quantity, unit, factor = channel_quantity(code)
+    out = {}
+    for code in codes:
         xe = exp.channels[code][keep]
         xm = np.interp(tk, t, hist[history_column(code)].to_numpy())
         if code.startswith(ACC_PREFIX) and sos.shape[0]:
             xe, xm = sosfilt(sos, xe), sosfilt(sos, xm)
-        res = xe - xm
+        out[code] = (tk, xe, xm, xe - xm)
+    return out
+
+
+def measured_figure(scene, pick: dict, label: str, md: dict, noise: dict | None = None):
+    """The run `pick` (the calibrated one where there is a calibration) against every measured channel, each in its
+    own quantity (displacement in mm, absolute acceleration in m/s^2; measured_residuals): measured and model
+    (left whole, right a 1 s zoom around the largest measured value), and under each its residual with the
+    channel's noise band +/- 2 sigma (`noise`: code -> sigma in SI, the calibration's noise floor); each title the
+    eq. 20 error and the residual's RMS against that noise."""
+    from pounding_sweep.engine.score import relative_rms_error_pct
+
+    data = measured_residuals(scene, pick, md)
+    codes = list(data)
+    t0, first = data[codes[0]][0], data[codes[0]][1]
+    zoom = around(float(t0[np.argmax(np.abs(first))]), float(t0[-1]), 1.0)
+    noise = noise or {}
+    fig = _figure(figsize=(12, 2.4 * 2 * len(codes) + 1.2))
+    axes = fig.subplots(2 * len(codes), 2, squeeze=False, gridspec_kw={"width_ratios": [3, 1]})
+    for i, code in enumerate(codes):
+        tk, xe, xm, res = data[code]
+        quantity, unit, factor = channel_quantity(code)
         rms, sigma = float(np.sqrt(np.mean(res * res))), noise.get(code)
-        err = float(relative_rms_error_pct(xm, xe))
-        head = f"{channel_label(code, md)}: eq. 20 error {err:.1f} %; RMS residual {rms * factor:.4g} {unit}"
+        head = (
+            f"{channel_label(code, md)}: eq. 20 error {float(relative_rms_error_pct(xm, xe)):.1f} %; "
+            f"RMS residual {rms * factor:.4g} {unit}"
+        )
         head += (
             f", {rms / sigma:.1f} times the channel's noise {sigma * factor:.3g} {unit}"
             if sigma
@@ -753,18 +769,22 @@ def measured_figure(scene, pick: dict, label: str, md: dict, noise: dict | None 
         top[0].axvspan(*zoom, color="0.9", zorder=0)
         top[0].set_title(head, loc="left", fontsize=9)
         top[1].set_title(f"zoom {_time_text(zoom[0])}-{_time_text(zoom[1])} s", fontsize=9)
-    handles = [h for ax in (axes[0, 0], axes[1, 0]) for h in ax.get_legend_handles_labels()[0]]
-    labels = [x for ax in (axes[0, 0], axes[1, 0]) for x in ax.get_legend_handles_labels()[1]]
+    handles, labels = [], []
+    for ax in (axes[0, 0], axes[1, 0]):
+        h, lab = ax.get_legend_handles_labels()
+        handles += h
+        labels += lab
     if noise:
         from matplotlib.patches import Patch
 
         handles.append(Patch(color="0.6", alpha=0.5))
         labels.append("+/- 2 x the channel's noise (sigma)")
     fig.legend(handles, labels, loc="outside lower center", ncols=4, fontsize=9)
+    lowpass = md.get("experiment", {}).get("lowpass")
     filt = f"; accelerations low-passed at {lowpass['cutoff_Hz']:g} Hz as scored" if lowpass else ""
     fig.suptitle(
         f"{scene.name}: measured against model, each channel in its own quantity, over the scored window "
-        f"{_time_text(tk[0])}-{_time_text(tk[-1])} s{filt}\n{label}",
+        f"{_time_text(t0[0])}-{_time_text(t0[-1])} s{filt}\n{label}",
         x=0.01,
         ha="left",
         fontsize=10,

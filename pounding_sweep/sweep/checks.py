@@ -288,8 +288,7 @@ def check_scene(prep) -> None:
             )
     if x.lowpass_Hz is not None:
         firsts = {
-            b.name or f"building {i}": float(b.modes().frequency_Hz[0])
-            for i, b in enumerate(prep.model.buildings, 1)
+            b.name or f"building {i}": float(b.modes().frequency_Hz[0]) for i, b in enumerate(prep.model.buildings, 1)
         }
         name, f1 = max(firsts.items(), key=lambda kv: kv[1])
         if x.lowpass_Hz < f1:

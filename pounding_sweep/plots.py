@@ -696,7 +696,7 @@ def history_figures(scene, pick: dict, label: str, md: dict | None = None, skipp
 
 
 def measured_residuals(scene, pick: dict, md: dict) -> dict:
-    """Every measured channel of the scene against the run `pick` over the scored window, in SI: code -> (t [s],
+    """Every measured channel of the scene against the run `pick` over the compared window, in SI: code -> (t [s],
     measured, model, residual = measured - model). The model is sampled at the table's instants by linear
     interpolation between steps (as the calibration samples it: sweep/calibrate.py) and, where the scene
     low-passes the acceleration channels, both are filtered with the scoring's sections from rest at the window's
@@ -710,10 +710,12 @@ def measured_residuals(scene, pick: dict, md: dict) -> dict:
     codes = list(exp.channels)
     hist, _ = simulate(scene, channels=[history_column(c).rsplit("_m", 1)[0] for c in codes], **pick)
     t = hist.t_s.to_numpy()
-    te = exp.time_s - pick.get("time_offset_s", scene.experiment.time_offset_s)
-    lo, hi = md.get("experiment", {}).get("window_s", (0.0, t[-1]))
-    keep = (te >= max(lo, 0.0) - 1e-9) & (te <= min(hi, t[-1]) + 1e-9)
-    tk = te[keep]
+    # the samples the calibration compares (sweep/calibrate.py Problem): those inside the window at the scene's own
+    # clock offset, each at its simulation time under the run's (a fitted time_offset_s)
+    lo, hi = scene.experiment.window_s or (0.0, t[-1])
+    t0 = exp.time_s - scene.experiment.time_offset_s
+    keep = (t0 >= lo) & (t0 <= hi)
+    tk = exp.time_s[keep] - pick.get("time_offset_s", scene.experiment.time_offset_s)
     lowpass = md.get("experiment", {}).get("lowpass")
     sos = np.asarray(lowpass["sos"], float) if lowpass else np.zeros((0, 6))
     out = {}

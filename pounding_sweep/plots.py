@@ -665,8 +665,6 @@ def history_figures(scene, pick: dict, label: str, md: dict | None = None, skipp
         out["pounding_force"] = fig
 
     # numerical against experimental (SSP), every channel in its own quantity
-    if not codes and skipped is not None:
-        skipped["ssp"] = "no [experiment]: nothing measured to plot the numerical values against"
     if codes:
         keep = (te >= 0) & (te <= t[-1])
         fig = _figure(figsize=(4.4 * len(codes), 5.6))  # tall enough for square boxes
@@ -765,9 +763,9 @@ def measured_figure(scene, pick: dict, label: str, md: dict, noise: dict | None 
                 bottom[col].axhspan(-2 * sigma * factor, 2 * sigma * factor, color="0.6", alpha=0.5, lw=0)
             for ax, what in ((top[col], quantity), (bottom[col], "residual")):
                 ax.set_xlim(*(lim or (tk[0], tk[-1])))
+                ax.set_xlabel("time [s]")
                 ax.set_ylabel(f"{what} [{unit}]")
                 ax.grid(alpha=0.3)
-            bottom[col].set_xlabel("time [s]")
         top[0].axvspan(*zoom, color="0.9", zorder=0)
         top[0].set_title(head, loc="left", fontsize=9)
         top[1].set_title(f"zoom {_time_text(zoom[0])}-{_time_text(zoom[1])} s", fontsize=9)
@@ -987,17 +985,14 @@ def figures(
             skipped["calibration_profiles"] = (
                 "the calibration profiled no parameter ([calibrate] profile, or profile_points = 0): no curve to draw"
             )
-    elif skipped is not None:
-        skipped["calibration_profiles"] = "not calibrated (no [calibrate]): no profile to draw"
     pick, label, _ = best_run(results, df)
     if calibrated is not None:  # the calibrated run, not the best grid run, is the one the figures show
         pick = {**{k: v for k, v in pick.items() if k in ("record",)}, **calibrated[0]}
         label = calibrated[1]
     out.update(history_figures(scene, pick, label, md, skipped))
     if scene.experiment is not None:
-        out["measured_vs_model"] = measured_figure(scene, pick, label, md, calibration_noise(best_file, pick))
-    elif skipped is not None:
-        skipped["measured_vs_model"] = "no [experiment]: nothing measured to compare the model with"
+        noise = calibration_noise(best_file, pick) if calibrated is not None else {}
+        out["measured_vs_model"] = measured_figure(scene, pick, label, md, noise)
     pick = {k: v for k, v in pick.items() if k != "time_offset_s"}  # the ladder runs without the experiment
     if accuracy is None:
         table = accuracy_ladder(scene, **pick)

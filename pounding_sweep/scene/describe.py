@@ -57,7 +57,7 @@ def describe() -> str:
         need = (
             " (required section)"
             if name in REQUIRED_SECTIONS
-            else " (required with the other of [building2] and [contact]; without both: one building on its own)"
+            else " (required with the other of building2 and contact; without both: one building on its own)"
             if name in PAIRED_SECTIONS
             else " (optional section)"
         )

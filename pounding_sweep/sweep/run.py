@@ -252,7 +252,7 @@ def _run_claimed(scene, folder, threads, progress, executor, kernel, size, notes
         tally.kernel_s,
         tally.steps,
         exe.workers if exe is not None else 0,
-        {"peak_force_N": tally.peak_force},
+        {} if scene.single else {"peak_force_N": tally.peak_force},  # one building: no pounding force
         parts=len(chunks),
         resumed_parts=len(done),
         executor=exe.name if exe is not None else ex.executor,

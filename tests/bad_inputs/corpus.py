@@ -860,9 +860,7 @@ CASES: list[Case] = [
         "one building, [calibrate] fits stiffness_scale_b2",
         [S, "[calibrate] parameters.stiffness_scale_b2"],
         "single-building",
-        single_building(
-            table_scene().replace('b2f3 = "b2f3"', 'b2f2 = "b1f2"'), "stiffness_scale_b1 = [1.0]\n"
-        )
+        single_building(table_scene().replace('b2f3 = "b2f3"', 'b2f2 = "b1f2"'), "stiffness_scale_b1 = [1.0]\n")
         + "\n[calibrate]\nparameters = { stiffness_scale_b2 = [0.9, 1.1] }\n",
     ),
     _c(

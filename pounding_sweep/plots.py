@@ -29,6 +29,7 @@ from pounding_sweep.errors import ResultError
 from pounding_sweep.scene import scene_from_dict, validate
 from pounding_sweep.scene.axes import STRUCTURE_AXES
 from pounding_sweep.scene.channels import ACC_PREFIX
+from pounding_sweep.scene.validate import FITTABLE
 from pounding_sweep.sweep.results import META_KEY, part_files, read_metadata, read_schema, sidecar_path
 
 DPI = 120
@@ -491,20 +492,6 @@ def best_run(results: str | Path, df: pd.DataFrame) -> tuple[dict, str, pd.Serie
     return pick, label, row
 
 
-#: a calibrated row's numeric parameters that simulate() takes (sweep/calibrate.py fits these)
-CALIBRATED_KEYS = (
-    "ks_ratio",
-    "ks_N_per_m",
-    "kh_N_per_m1_5",
-    "r",
-    "gap_m",
-    "amplitude_m",
-    "frequency_Hz",
-    "scale",
-    *STRUCTURE_AXES,
-)
-
-
 def calibrated_run(best: pd.DataFrame | None) -> tuple[dict, str] | None:
     """(parameters to re-simulate, a label) of the calibrated optimum in a best table (with several laws the one of
     least error), or None when the sweep was not calibrated. The fitted values only: the rest is the scene's."""
@@ -514,7 +501,7 @@ def calibrated_run(best: pd.DataFrame | None) -> tuple[dict, str] | None:
     if rows.empty:
         return None
     row = rows.sort_values("error_pct").iloc[0]
-    pick = {k: float(row[k]) for k in CALIBRATED_KEYS if k in row and pd.notna(row[k])}
+    pick = {k: float(row[k]) for k in FITTABLE if k in row and pd.notna(row[k])}
     law = row.get("contact_law")
     from pounding_sweep.sweep.calibrate import NO_CONTACT
 

@@ -117,6 +117,16 @@ def validate(s: Scene) -> None:
     _validate_rest(s, axes)
 
 
+def require_two_buildings(s: Scene, what: str) -> None:
+    """ConfigError naming the scene when `what` (a study of the gap between two buildings) is asked of one
+    building on its own."""
+    if s.single:
+        raise ConfigError(
+            f"{s.source}: a single-building scene (no [building2]): {what} needs two buildings and their "
+            "[contact]; add them"
+        )
+
+
 def _check_single_building(s: Scene, axes: dict) -> None:
     """A single-building scene sweeps and fits no parameter of the contact or of a second building."""
     if not s.single:

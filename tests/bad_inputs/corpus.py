@@ -2352,6 +2352,15 @@ CASES += [
         argv=("gaps", "{scene}", "--out", "{dir}/study", "--quiet"),
     ),
     _c(
+        "gaps_single_building",
+        "commands",
+        "gaps on a single-building scene",
+        [S, "single-building"],
+        "no [building2]",
+        single_building(BASE, "stiffness_scale_b1 = [1.0]\n"),
+        argv=("gaps", "{scene}", "--out", "{dir}/study", "--quiet"),
+    ),
+    _c(
         "gaps_length_scale_inf",
         "commands",
         "gaps --length-scale inf",
@@ -2454,6 +2463,15 @@ intensities_g = [0.4]
 RISK = ("risk", "{scene}", "--out", "{dir}/study.risk")
 
 CASES += [
+    _c(
+        "risk_single_building",
+        "risk",
+        "risk on a single-building scene",
+        [S, "single-building"],
+        "no [building2]",
+        single_building(STOCHASTIC),
+        argv=RISK,
+    ),
     _c(
         "risk_without_intensity",
         "risk",

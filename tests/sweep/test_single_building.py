@@ -200,3 +200,23 @@ def test_profiles_of_nothing_draw_no_figure(calibrated, tmp_path):
     none = tmp_path / "none.best.parquet"
     pq.write_table(table.replace_schema_metadata({**table.schema.metadata, META_KEY: json.dumps(meta).encode()}), none)
     assert plots.calibration_profile_figure(none) is None
+
+
+def test_identify_updates_the_one_building(tmp_path, capsys):
+    """identify --scene on the shipped table: the first mode against building 1's, the [building1] section to paste
+    (a single-building scene has no building 2 to update), which loads in place of the scene's own."""
+    from pounding_sweep.cli.identify import identify_main
+
+    out = tmp_path / "update.toml"
+    table = SWEEPS / "experiments" / "imu_northridge" / "table.parquet"
+    assert identify_main([str(table), "--scene", str(SCENE), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    update = tomllib.loads(out.read_text())
+    assert set(update) == {"building1"} and "building 2" not in printed
+    f1 = float(printed.split("building 1 (")[1].split("mode 1: ")[1].split(" Hz")[0])
+    assert 7.5 < f1 < 8.5  # the source's notebooks: periods of 0.125-0.134 s
+    raw = raw_scene()
+    raw["building1"] = update["building1"]
+    frame = CoupledModel.from_scene(from_raw(raw)).b1
+    # f1 printed to 4 decimals (6e-6 relative) and the stiffness written to 0.01 N/m (3e-6 in f = sqrt(k)): 1e-5
+    assert frame.modes().frequency_Hz[0] == pytest.approx(f1, rel=1e-5)

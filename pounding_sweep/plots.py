@@ -471,13 +471,13 @@ def best_run(results: str | Path, df: pd.DataFrame) -> tuple[dict, str, pd.Serie
         how = md.get("experiment", {}).get("combine", "combined")
         label = f"best grid run, {run_text(row, swept)} ({how} eq. 20 error {b.error_pct:.1f} %)"
     else:
-        forces = df[_force_columns(df)].to_numpy(float).max(axis=1)
+        forces = df[_force_columns(df)].to_numpy(float).max(axis=1, initial=0.0)  # one building: no force columns
         if np.nanmax(forces, initial=0.0) > 0:
             row = df.iloc[int(np.nanargmax(forces))]
             label = "run with the largest pounding force"
         else:
             row = df.iloc[0]
-            label = f"run {int(row.run_id)}; no run made contact"
+            label = f"run {int(row.run_id)}; " + ("one building" if not _force_columns(df) else "no run made contact")
         label += f": {run_text(row, swept)}" if swept else ""
     pick = {
         k: float(row[k])

@@ -220,3 +220,46 @@ def test_identify_updates_the_one_building(tmp_path, capsys):
     frame = CoupledModel.from_scene(from_raw(raw)).b1
     # f1 printed to 4 decimals (6e-6 relative) and the stiffness written to 0.01 N/m (3e-6 in f = sqrt(k)): 1e-5
     assert frame.modes().frequency_Hz[0] == pytest.approx(f1, rel=1e-5)
+
+
+def test_a_single_building_without_an_experiment_is_plotted(tmp_path):
+    """No experiment, no contact: the peak-displacement map alone, the displacement history, no force figure (said
+    why), no empty axes."""
+    pytest.importorskip("matplotlib")
+    from pounding_sweep import plots
+
+    (tmp_path / "one.toml").write_text(
+        "\n".join(
+            [
+                'name = "one_harmonic"',
+                "[building1]",
+                "masses_kg = [1.7, 1.7, 1.6]",
+                "story_stiffness_N_per_m = 5920.0",
+                "damping_ratio = 0.0105",
+                "[excitation]",
+                'type = "harmonic"',
+                "amplitude_m = 0.002",
+                "frequency_Hz = 6.0",
+                "duration_s = 0.5",
+                "[integration]",
+                "dt_s = 1e-3",
+                "[sweep]",
+                "frequency_Hz = [4.0, 6.0]",
+                "stiffness_scale_b1 = [0.9, 1.0]",
+                "[output]",
+                'path = "one.parquet"',
+            ]
+        )
+    )
+    summary = run_scene(load_scene(tmp_path / "one.toml"))
+    assert summary.warnings == [] and summary.extremes == {}
+    skipped = {}
+    ladder = pd.DataFrame(
+        {"scheme": ["event"] * 2, "dt_s": [2e-3, 1e-3], "run_time_s": [1e-3, 2e-3], "rel_rms_pct": [1.0, 0.3]}
+    )
+    figs = plots.figures(tmp_path / "one.parquet", accuracy=ladder, skipped=skipped)
+    assert set(figs) == {"heatmaps", "displacement_history", "error_vs_runtime"}
+    assert set(skipped) == {"pounding_force"} and "one building" in skipped["pounding_force"]
+    maps = [ax for ax in figs["heatmaps"].axes if ax.get_label() != "<colorbar>"]
+    assert len(maps) == 1 and "peak displacement [mm]" in maps[0].get_title()
+    assert all(ax.has_data() for ax in figs["displacement_history"].axes)

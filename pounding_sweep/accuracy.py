@@ -360,7 +360,7 @@ def accuracy_ladder(
         exc = dataclasses.replace(exc, duration_s=float(duration_s))
     base = dataclasses.replace(scene, experiment=None, calibrate=None, sweep=(), excitation=exc)
     validate(base)
-    floors = (len(scene.building1.masses_kg), len(scene.building2.masses_kg))
+    floors = scene.floors
     channel = channel or f"disp_b1f{floors[0]}"
     sample = dts[0]
 

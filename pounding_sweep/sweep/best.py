@@ -141,7 +141,7 @@ def _calibrated(scene: Scene, best, meta: dict, summary, progress, threads: int)
 def calibration_plan(scene: Scene) -> str:
     """One line saying what the calibration is about to do (it runs for a minute or more, silent otherwise)."""
     cal = scene.calibrate
-    laws = scene.axis_values("law") or (scene.contact.law,)
+    laws = () if scene.contact is None else scene.axis_values("law") or (scene.contact.law,)
     profiled = list(cal.profile) or default_profiled(cal.parameters)
     from pounding_sweep.sweep.globalsearch import design_size
 
@@ -155,7 +155,9 @@ def calibration_plan(scene: Scene) -> str:
     if cal.profile_points and profiled:
         what.append(f"profiles of {', '.join(profiled)} ({cal.profile_points} points each)")
     return (
-        f"calibrating {len(cal.parameters)} parameter(s) against the experiment for law {', '.join(laws)}: "
+        f"calibrating {len(cal.parameters)} parameter(s) against the experiment"
+        + (f" for law {', '.join(laws)}" if laws else " (one building, no contact)")
+        + ": "
         f"{'; '.join(what)} (kept in the best table: a rerun of this scene reuses it)"
     )
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -167,7 +168,7 @@ def prepare(scene: Scene, kernel: str = "auto") -> Prepared:
         if (score.kind == H_ABS_ACC).any():
             from pounding_sweep.sweep.sensor import sensor_model
 
-            sensor = sensor_model(scene.experiment, exp.dt_sample, dt, f"{exp.path}: [experiment]")
+            sensor = sensor_model(scene.experiment, exp.dt_sample, dt, Path(exp.path).name)
     else:
         exp = None
     auto = None

@@ -87,7 +87,9 @@ class Sensor:
     def describe(self) -> dict:
         """Plain data for the result metadata."""
         if self.kind == "average":
-            what = f"moving average of {self.taps} internal samples at {self.rate_Hz:g} Hz, output at the table's instants"
+            what = (
+                f"moving average of {self.taps} internal samples at {self.rate_Hz:g} Hz, output at the table's instants"
+            )
         else:
             at = f"{self.rate_Hz:g} Hz" if self.rate_Hz is not None else "the simulation step (analog)"
             what = f"Butterworth low-pass, {self.order} poles, cut-off {self.cutoff_Hz:g} Hz, run at {at}"
@@ -113,7 +115,7 @@ def _at(y: np.ndarray, x: np.ndarray) -> np.ndarray:
     return y[..., k] * (1.0 - w) + y[..., k + 1] * w
 
 
-def sensor_model(cfg, dt_sample: float, dt: float, where: str = "[experiment]") -> Sensor | None:
+def sensor_model(cfg, dt_sample: float, dt: float, table: str = "the table") -> Sensor | None:
     """The scene's sensor (None for sensor_filter = 'none'), checked against the table's sample interval
     dt_sample [s] and the simulation step dt [s]; a rate that does not fit is an ExperimentError naming it."""
     if cfg.sensor_filter == "none":
@@ -124,22 +126,23 @@ def sensor_model(cfg, dt_sample: float, dt: float, where: str = "[experiment]") 
         taps = round(ratio)
         if taps < 1 or abs(ratio - taps) > RATE_TOLERANCE * taps:
             raise ExperimentError(
-                f"{where}: sensor_rate_Hz = {rate!r} is not a whole multiple of the table's rate "
-                f"{1.0 / dt_sample:.6g} samples/s (the sensor averages its internal samples over one output interval)"
+                f"[experiment] sensor_rate_Hz = {rate!r}: not a whole multiple of the rate {1.0 / dt_sample:.6g} "
+                f"samples/s of {table} (a sample every {dt_sample:.6g} s); the sensor averages its internal samples "
+                "over one output interval"
             )
         sensor = Sensor("average", float(rate), int(taps))
     else:
         sensor = Sensor("butter", rate, 1, float(cfg.sensor_cutoff_Hz), int(cfg.sensor_order))
         if rate is None and not cfg.sensor_cutoff_Hz < 0.5 / dt:
             raise ExperimentError(
-                f"{where}: sensor_cutoff_Hz = {cfg.sensor_cutoff_Hz!r} is at or above the Nyquist frequency "
+                f"[experiment] sensor_cutoff_Hz = {cfg.sensor_cutoff_Hz!r}: at or above the Nyquist frequency "
                 f"{0.5 / dt:.6g} Hz of the simulation step dt = {dt:.6g} s (give sensor_rate_Hz, or a finer dt_s)"
             )
     if rate is not None and dt > 1.0 / rate * (1.0 + 1e-9):
         warn(
             "sensor",
-            f"{where}: the simulation step dt = {dt:.6g} s is coarser than the sensor's internal interval "
-            f"{1.0 / rate:.6g} s (sensor_rate_Hz = {rate:g}): its internal samples are interpolated between steps; "
+            f"[experiment] sensor_rate_Hz = {rate:g}: the simulation step dt = {dt:.6g} s is coarser than the sensor's internal interval "
+            f"{1.0 / rate:.6g} s: its internal samples are interpolated between steps; "
             "a finer dt_s models the sensor better",
         )
     return sensor

@@ -1,0 +1,163 @@
+"""Do accelerometers narrow the contact parameters once the sensor is modelled? Calibrations of synthetic tests
+whose accelerations went through a stated sensor filter, fitted on displacement alone, on displacement and
+acceleration with the sensor modelled ([experiment] sensor_filter: sweep/sensor.py), and on both without it
+(the model's acceleration sampled at the table's instants: the calibration before issue 28's item 1).
+
+Family (--cases, --seed): the 6 Hz and 4.613 Hz harmonic tests, 4 s, made by the continuous-time reference
+(solve_ivp with contact events, classic Kelvin-Voigt law: pounding_sweep.synthetic.make_ivp_experiment, no
+discretisation shared with the kernels) at a 1 ms output step, hidden k_s/k log-uniform in [1, 10] and r uniform
+in [0.4, 0.8], each building's stiffness perturbed by up to +/-2 %; 0.05 mm tracking noise at 100 samples/s and
+top-floor accelerometers with 0.02 m/s^2 noise whose filter alternates between cases: a moving average of 10
+samples at 1 kHz (a MEMS decimation filter) and a 2-pole Butterworth at 44 Hz run at 1 kHz (the MPU-6050's
+44 Hz digital low-pass setting, its form assumed). Each fit: k_s/k, r and both stiffness scales; the noise given
+as made ([experiment] noise, as a quiet window would measure it); the Gauss-Newton 95 % intervals (inflated for
+the residuals' correlation: sweep/calibrate.py).
+
+Printed per case and fit: estimate, 95 % interval and its width for k_s/k and r, whether it covers the truth,
+misfit (residual RMS / noise floor), runs and seconds; then per fit the coverage, the median width against the
+displacement-only fit's and the median |error| / half-width (bias in interval units), and the run times.
+
+Usage: python benchmarks/bench_sensor.py [--cases 4] [--threads 2] [--seed 7]
+(about 1-2 min per case on 2 busy cores)
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from pounding_sweep.scene import load_scene
+from pounding_sweep.scene.schema import CalibrateConfig, ExperimentConfig
+from pounding_sweep.sweep.calibrate import calibrate
+from pounding_sweep.synthetic import make_ivp_experiment, write_experiment
+from pounding_sweep.warn import collecting
+
+SWEEPS = Path(__file__).resolve().parents[1] / "sweeps"
+DISP = {"model1_floor3_mm": "b1f3", "model2_floor3_mm": "b2f3"}
+ACC = {"b1f3_acc": "abs_acc_b1f3", "b2f3_acc": "abs_acc_b2f3"}
+NOISE_MM, ACC_NOISE = 0.05, 0.02
+SENSORS = (
+    ("average", None, {"sensor_filter": "average", "sensor_rate_Hz": 1000.0}),
+    (
+        "butter 2 poles 44 Hz",
+        (2, 44.0),
+        {"sensor_filter": "butter", "sensor_rate_Hz": 1000.0, "sensor_cutoff_Hz": 44.0},
+    ),
+)
+FITS = ("displacement", "with sensor", "without sensor")
+SHOWN = ("ks_ratio", "r")
+
+
+def make_case(i: int, rng, folder: Path, duration_s: float) -> dict:
+    kind = ("6hz", "4.6hz")[i % 2]
+    label, butter, keys = SENSORS[(i // 2) % 2]
+    scene = load_scene(SWEEPS / {"6hz": "paper_6hz.toml", "4.6hz": "paper_4613hz.toml"}[kind])
+    scene = dataclasses.replace(
+        scene, sweep=(), excitation=dataclasses.replace(scene.excitation, duration_s=duration_s)
+    )
+    hidden = {"ks_ratio": float(np.exp(rng.uniform(0.0, np.log(10.0)))), "r": float(rng.uniform(0.4, 0.8))}
+    kf = tuple(float(x) for x in rng.uniform(0.98, 1.02, 2))
+    df, prov = make_ivp_experiment(
+        scene,
+        {**hidden, "law": "classic"},
+        stiffness_factor=kf,
+        seed=200 + i,
+        noise_mm=NOISE_MM,
+        acc_noise_m_s2=ACC_NOISE,
+        sensor_butter=butter,
+    )
+    table = folder / f"sensor{i}.parquet"
+    write_experiment(df, prov, table)
+    return dict(case=i, kind=kind, sensor=label, keys=keys, scene=scene, table=table, kf=kf, truth=hidden)
+
+
+def fit_case(c: dict, how: str, threads: int):
+    noise = {"model1_floor3_mm": NOISE_MM, "model2_floor3_mm": NOISE_MM, "b1f3_acc": ACC_NOISE, "b2f3_acc": ACC_NOISE}
+    if how == "displacement":
+        exp = ExperimentConfig(table=str(c["table"]), channels=DISP, noise={k: noise[k] for k in DISP})
+    else:
+        keys = c["keys"] if how == "with sensor" else {}
+        exp = ExperimentConfig(
+            table=str(c["table"]), channels={**DISP, **ACC}, use="both", weights="noise", noise=noise, **keys
+        )
+    params = {"ks_ratio": [0.5, 20.0], "r": [0.05, 0.99]} | {f"stiffness_scale_b{b}": [0.9, 1.1] for b in (1, 2)}
+    scene = dataclasses.replace(
+        c["scene"],
+        experiment=exp,
+        calibrate=CalibrateConfig(parameters=params, global_points=16, starts=2, profile_points=0),
+    )
+    t0 = time.perf_counter()
+    with collecting():
+        fit = calibrate(scene, threads=threads)[0]
+    return fit, time.perf_counter() - t0
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cases", type=int, default=4)
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--duration-s", type=float, default=4.0)
+    ap.add_argument("--dt-s", type=float, default=None, help="the calibrations' step (default: the scenes', 1e-4 s)")
+    ap.add_argument("--seed", type=int, default=7)
+    args = ap.parse_args(argv)
+    rng = np.random.default_rng(args.seed)
+    rows = []
+    with tempfile.TemporaryDirectory() as d:
+        for i in range(args.cases):
+            c = make_case(i, rng, Path(d), args.duration_s)
+            if args.dt_s is not None:
+                c["scene"] = dataclasses.replace(
+                    c["scene"], integration=dataclasses.replace(c["scene"].integration, dt_s=args.dt_s)
+                )
+            tr = c["truth"]
+            print(
+                f"\ncase {i}: {c['kind']}, sensor {c['sensor']}; truth k_s/k {tr['ks_ratio']:.4f}, r {tr['r']:.4f}, "
+                f"stiffness x{c['kf'][0]:.4f}/x{c['kf'][1]:.4f}",
+                flush=True,
+            )
+            for how in FITS:
+                fit, secs = fit_case(c, how, args.threads)
+                parts = []
+                row = {"case": i, "fit": how, "misfit": fit.misfit_ratio, "seconds": secs, "runs": fit.evaluations}
+                for n in SHOWN:
+                    lo, hi = fit.ci95[n]
+                    est, true = fit.estimate[n], tr[n]
+                    row[n] = {"width": hi - lo, "covers": lo <= true <= hi, "bias": abs(est - true) / ((hi - lo) / 2)}
+                    parts.append(
+                        f"{n} {est:.4f} [{lo:.4f}, {hi:.4f}] width {hi - lo:.4f} "
+                        f"{'covers' if lo <= true <= hi else 'MISSES'} (|error| {abs(est - true) / true * 100:.2f} %)"
+                    )
+                rows.append(row)
+                print(
+                    f"  {how:15s} misfit {fit.misfit_ratio:7.2f}  {'  '.join(parts)}  {fit.evaluations} runs {secs:.1f} s",
+                    flush=True,
+                )
+    print("\nsummary (Gauss-Newton 95 % intervals; width ratio against the displacement-only fit of the same case)")
+    base = {r["case"]: r for r in rows if r["fit"] == "displacement"}
+    for how in FITS:
+        sel = [r for r in rows if r["fit"] == how]
+        cells = []
+        for n in SHOWN:
+            cover = sum(r[n]["covers"] for r in sel)
+            ratio = np.median([r[n]["width"] / base[r["case"]][n]["width"] for r in sel])
+            bias = np.median([r[n]["bias"] for r in sel])
+            cells.append(
+                f"{n}: covers {cover}/{len(sel)}, width x{ratio:.2f} (median), |error|/half-width {bias:.2f} (median)"
+            )
+        secs = [r["seconds"] for r in sel]
+        print(
+            f"  {how:15s} {'; '.join(cells)}; misfit {min(r['misfit'] for r in sel):.2f}-"
+            f"{max(r['misfit'] for r in sel):.2f}; time median {np.median(secs):.1f} s, total {sum(secs):.0f} s, "
+            f"runs median {np.median([r['runs'] for r in sel]):.0f}"
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 from conftest import SWEEPS
-from scipy.signal import butter
+from scipy.signal import butter, sosfilt
 from tolerances import U, filtered_samples_bound, interpolation_bound, rel_rms_bound, sos_rounding_bound
 
 from pounding_sweep.errors import ExperimentError
@@ -20,7 +20,7 @@ from pounding_sweep.sweep.calibrate import calibrate
 from pounding_sweep.sweep.prepare import prepare
 from pounding_sweep.sweep.sensor import Sensor, sensor_model
 from pounding_sweep.sweep.simulate import simulate
-from pounding_sweep.synthetic import make_ivp_experiment, mems_samples, write_experiment
+from pounding_sweep.synthetic import butter_samples, make_ivp_experiment, mems_samples, write_experiment
 from pounding_sweep.warn import collecting
 
 DISP = {"model1_floor3_mm": "b1f3", "model2_floor3_mm": "b2f3"}
@@ -101,6 +101,20 @@ def test_the_average_is_the_synthetic_generators_mems_model():
     t_out, want = mems_samples(t_fine, a, 100.0, 1000.0)
     got = Sensor("average", 1000.0, 10).read(a, dt, t_out)
     bound = 2 * a.size * U * np.abs(np.cumsum(np.abs(a))).max() / 10 + 2 * _internal_samples_bound(a, dt, 3.0, 10)
+    assert np.abs(got - want).max() <= bound
+
+
+def test_the_butterworth_is_the_synthetic_generators_butterworth():
+    """On a history at the sensor's internal instants, 'butter' and the generator's butter_samples (the same
+    sections through scipy, every 10th output kept) agree up to reading the output at indices computed in floating
+    point: (L + 3) u relative per index, times the output's largest change between samples."""
+    dt = 1e-3
+    a = _history(4, dt, 3.0)
+    t_fine = np.arange(a.size) * dt
+    t_out, want = butter_samples(t_fine, a, 100.0, 1000.0, 2, 44.0)
+    got = Sensor("butter", 1000.0, 1, 44.0, 2).read(a, dt, t_out)
+    y = sosfilt(butter(2, 44.0, output="sos", fs=1000.0), a)
+    bound = 2 * (a.size + 3) * U * np.abs(np.diff(y)).max() + 4 * U * np.abs(y).max()
     assert np.abs(got - want).max() <= bound
 
 
@@ -222,3 +236,14 @@ def test_a_small_calibration_with_the_sensor_reaches_the_noise_floor(ivp_case):
     assert f.estimate["ks_ratio"] == pytest.approx(3.0, rel=0.05)
     assert f.estimate["r"] == pytest.approx(0.5, rel=0.05)
     assert fits["plain"].misfit_ratio > 3.0
+
+
+def test_the_results_say_which_sensor(ivp_case):
+    """The result metadata's experiment facts name the sensor and its settings (sweep/run.py)."""
+    from pounding_sweep.sweep.run import _acceleration_facts
+
+    s, path = ivp_case
+    facts = _acceleration_facts(prepare(_with(s, path, sensor_filter="butter", sensor_cutoff_Hz=44.0)))
+    assert facts["sensor"]["kind"] == "butter" and facts["sensor"]["rate_Hz"] is None
+    assert "simulation step (analog)" in facts["sensor"]["what"]
+    assert "sensor" not in _acceleration_facts(prepare(_with(s, path)))

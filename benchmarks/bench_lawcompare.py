@@ -50,15 +50,22 @@ DISP = {"model1_floor3_mm": "b1f3", "model2_floor3_mm": "b2f3"}
 ACC = {"b1f3_acc": "abs_acc_b1f3", "b2f3_acc": "abs_acc_b2f3"}
 
 
-def make_case(i: int, rng, folder: Path, duration_s: float):
-    kind = ("6hz", "4.6hz")[(i // len(GENERATING)) % 2]
-    law = GENERATING[i % len(GENERATING)]
+def harmonic_case(kind: str, rng, duration_s: float):
+    """The 6 Hz or 4.613 Hz scene cut to duration_s, and a draw of hidden k_s/k (log-uniform in [1, 10]), r (uniform
+    in [0.4, 0.8]) and the two buildings' stiffness factors (uniform in [0.98, 1.02])."""
     scene = load_scene(SWEEPS / {"6hz": "paper_6hz.toml", "4.6hz": "paper_4613hz.toml"}[kind])
     scene = dataclasses.replace(
         scene, sweep=(), excitation=dataclasses.replace(scene.excitation, duration_s=duration_s)
     )
     hidden = {"ks_ratio": float(np.exp(rng.uniform(0.0, np.log(10.0)))), "r": float(rng.uniform(0.4, 0.8))}
     kf = tuple(float(x) for x in rng.uniform(0.98, 1.02, 2))
+    return scene, hidden, kf
+
+
+def make_case(i: int, rng, folder: Path, duration_s: float):
+    kind = ("6hz", "4.6hz")[(i // len(GENERATING)) % 2]
+    law = GENERATING[i % len(GENERATING)]
+    scene, hidden, kf = harmonic_case(kind, rng, duration_s)
     df, prov = make_ivp_experiment(
         scene, {**hidden, "law": law}, stiffness_factor=kf, seed=100 + i, acc_noise_m_s2=0.02
     )

@@ -40,6 +40,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from bench_lawcompare import ACC, DISP, SWEEPS, harmonic_case
 
 from pounding_sweep.scene import load_scene
 from pounding_sweep.scene.schema import CalibrateConfig, ExperimentConfig
@@ -47,9 +48,6 @@ from pounding_sweep.sweep.calibrate import calibrate
 from pounding_sweep.synthetic import make_ivp_experiment, write_experiment
 from pounding_sweep.warn import collecting
 
-SWEEPS = Path(__file__).resolve().parents[1] / "sweeps"
-DISP = {"model1_floor3_mm": "b1f3", "model2_floor3_mm": "b2f3"}
-ACC = {"b1f3_acc": "abs_acc_b1f3", "b2f3_acc": "abs_acc_b2f3"}
 NOISE_MM, ACC_NOISE = 0.05, 0.02
 SENSORS = (
     ("average", None, {"sensor_filter": "average", "sensor_rate_Hz": 1000.0}),
@@ -66,12 +64,7 @@ SHOWN = ("ks_ratio", "r")
 def make_case(i: int, rng, folder: Path, duration_s: float) -> dict:
     kind = ("6hz", "4.6hz")[i % 2]
     label, butter, keys = SENSORS[(i // 2) % 2]
-    scene = load_scene(SWEEPS / {"6hz": "paper_6hz.toml", "4.6hz": "paper_4613hz.toml"}[kind])
-    scene = dataclasses.replace(
-        scene, sweep=(), excitation=dataclasses.replace(scene.excitation, duration_s=duration_s)
-    )
-    hidden = {"ks_ratio": float(np.exp(rng.uniform(0.0, np.log(10.0)))), "r": float(rng.uniform(0.4, 0.8))}
-    kf = tuple(float(x) for x in rng.uniform(0.98, 1.02, 2))
+    scene, hidden, kf = harmonic_case(kind, rng, duration_s)
     df, prov = make_ivp_experiment(
         scene,
         {**hidden, "law": "classic"},

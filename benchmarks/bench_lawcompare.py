@@ -115,6 +115,7 @@ def main(argv=None) -> int:
     ap.add_argument("--cases", type=int, default=6)
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--duration-s", type=float, default=4.0)
+    ap.add_argument("--from-case", type=int, default=0, help="draw but skip the cases before this one")
     ap.add_argument("--dt-s", type=float, default=None, help="the calibrations' step (default: the scenes', 1e-4 s)")
     ap.add_argument("--sets", default="displacement,acceleration,sensor")
     ap.add_argument("--seed", type=int, default=28)
@@ -125,6 +126,8 @@ def main(argv=None) -> int:
         for i in range(args.cases):
             t0 = time.perf_counter()
             c = make_case(i, rng, Path(d), args.duration_s)
+            if i < args.from_case:
+                continue
             if args.dt_s is not None:
                 c["scene"] = dataclasses.replace(
                     c["scene"], integration=dataclasses.replace(c["scene"].integration, dt_s=args.dt_s)

@@ -53,22 +53,24 @@ DISP = {"model1_floor3_mm": "b1f3", "model2_floor3_mm": "b2f3"}
 ACC = {"b1f3_acc": "abs_acc_b1f3", "b2f3_acc": "abs_acc_b2f3"}
 
 
-def harmonic_case(kind: str, rng, duration_s: float):
-    """The 6 Hz or 4.613 Hz scene cut to duration_s, and a draw of hidden k_s/k (log-uniform in [1, 10]), r (uniform
+def harmonic_case(kind: str, rng, duration_s: float, dt_s: float | None = None):
+    """The 6 Hz or 4.613 Hz scene cut to duration_s (at step dt_s, else the scene's), and a draw of hidden k_s/k (log-uniform in [1, 10]), r (uniform
     in [0.4, 0.8]) and the two buildings' stiffness factors (uniform in [0.98, 1.02])."""
     scene = load_scene(SWEEPS / {"6hz": "paper_6hz.toml", "4.6hz": "paper_4613hz.toml"}[kind])
     scene = dataclasses.replace(
         scene, sweep=(), excitation=dataclasses.replace(scene.excitation, duration_s=duration_s)
     )
+    if dt_s is not None:
+        scene = dataclasses.replace(scene, integration=dataclasses.replace(scene.integration, dt_s=dt_s))
     hidden = {"ks_ratio": float(np.exp(rng.uniform(0.0, np.log(10.0)))), "r": float(rng.uniform(0.4, 0.8))}
     kf = tuple(float(x) for x in rng.uniform(0.98, 1.02, 2))
     return scene, hidden, kf
 
 
-def make_case(i: int, rng, folder: Path, duration_s: float):
+def make_case(i: int, rng, folder: Path, duration_s: float, dt_s: float | None = None):
     kind = ("6hz", "4.6hz")[(i // len(GENERATING)) % 2]
     law = GENERATING[i % len(GENERATING)]
-    scene, hidden, kf = harmonic_case(kind, rng, duration_s)
+    scene, hidden, kf = harmonic_case(kind, rng, duration_s, dt_s)
     df, prov = make_ivp_experiment(
         scene, {**hidden, "law": law}, stiffness_factor=kf, seed=100 + i, acc_noise_m_s2=0.02
     )
@@ -128,13 +130,9 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as d:
         for i in range(args.cases):
             t0 = time.perf_counter()
-            c = make_case(i, rng, Path(d), args.duration_s)
+            c = make_case(i, rng, Path(d), args.duration_s, args.dt_s)
             if i < args.from_case:
                 continue
-            if args.dt_s is not None:
-                c["scene"] = dataclasses.replace(
-                    c["scene"], integration=dataclasses.replace(c["scene"].integration, dt_s=args.dt_s)
-                )
             print(
                 f"\ncase {i}: {c['kind']} made by {c['law']} (k_s/k {c['ks_ratio']:.3f}, r {c['r']:.3f}, stiffness "
                 f"x{c['kf'][0]:.3f}/x{c['kf'][1]:.3f}; {time.perf_counter() - t0:.0f} s to make)",

@@ -61,10 +61,10 @@ FITS = ("displacement", "with sensor", "without sensor")
 SHOWN = ("ks_ratio", "r")
 
 
-def make_case(i: int, rng, folder: Path, duration_s: float) -> dict:
+def make_case(i: int, rng, folder: Path, duration_s: float, dt_s: float | None = None) -> dict:
     kind = ("6hz", "4.6hz")[i % 2]
     label, butter, keys = SENSORS[(i // 2) % 2]
-    scene, hidden, kf = harmonic_case(kind, rng, duration_s)
+    scene, hidden, kf = harmonic_case(kind, rng, duration_s, dt_s)
     df, prov = make_ivp_experiment(
         scene,
         {**hidden, "law": "classic"},
@@ -155,13 +155,9 @@ def main(argv=None) -> int:
     rows = []
     with tempfile.TemporaryDirectory() as d:
         for i in range(args.cases):
-            c = make_case(i, rng, Path(d), args.duration_s)
+            c = make_case(i, rng, Path(d), args.duration_s, args.dt_s)
             if i < args.from_case:
                 continue
-            if args.dt_s is not None:
-                c["scene"] = dataclasses.replace(
-                    c["scene"], integration=dataclasses.replace(c["scene"].integration, dt_s=args.dt_s)
-                )
             tr = c["truth"]
             print(
                 f"\ncase {i}: {c['kind']}, sensor {c['sensor']}; truth k_s/k {tr['ks_ratio']:.4f}, r {tr['r']:.4f}, "

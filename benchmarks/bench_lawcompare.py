@@ -19,7 +19,7 @@ both stiffness scales:
   averaged as the accelerometer averages, then read at the table's instants), no filter after sampling.
 --dt-s sets the calibrations' step: 2.5e-5 s for the sensor set's figures (docs/how-to/calibrate.md), where the
 kernel's error in the 10 ms-averaged accelerations is below their 0.02 m/s^2 noise (at the scenes' 1e-4 s it is
-4-18 times that noise on these tests: bench_sensor.py's docstring).
+4-16 times that noise on these tests: bench_sensor.py's docstring).
 Printed per case and channel set: each law's misfit (residual RMS / noise floor), relative RMS, its own N_eff,
 the law chosen before (least AIC on own N_eff, ties within 2) and after (the verdict), and whether the
 generating law is chosen or among the laws the data cannot tell apart.

@@ -18,15 +18,19 @@ misfit (residual RMS / noise floor), runs and seconds; then per fit the coverage
 displacement-only fit's and the median |error| / half-width (bias in interval units), and the run times.
 
 The step: --dt-s 2.5e-5 for the figures in docs/how-to/calibrate.md. At the scenes' 1e-4 s the kernel's own
-error in the 10 ms-averaged top-floor acceleration of such a test is 0.09-0.36 m/s^2 RMS against the
-continuous-time reference (0.004-0.018 at 2.5e-5 s: second order), 4-18 times the accelerometers' 0.02 m/s^2
+error in the 10 ms-averaged top-floor acceleration of such a test is 0.08-0.31 m/s^2 RMS against the
+continuous-time reference (0.005-0.019 at 2.5e-5 s: second order), 4-16 times the accelerometers' 0.02 m/s^2
 noise, so a fit could not reach that noise floor for numerical reasons alone.
 
 --sweep-cost: instead, what the sensor costs a sweep: one batch of runs (a k_s/k ladder on the 6 Hz scene, 4 s,
 the scene's dt) scored against an accelerometer table with and without sensor_filter, best of 3, per run, and
 the step history it holds per run.
 
+--step-error CASE: instead, the model's own error at the hidden values of that case (its sensor-read accelerations
+and its displacements against the noise-free reference's) at dt = 1e-4, 5e-5 and 2.5e-5 s.
+
 Usage: python benchmarks/bench_sensor.py [--cases 4] [--threads 2] [--seed 7] [--dt-s 2.5e-5] [--sweep-cost]
+       [--step-error CASE]
 (about 1-2 min per case on 2 busy cores at the scenes' dt, 4 times that at 2.5e-5 s)
 """
 
@@ -137,6 +141,42 @@ def sweep_cost(threads: int, runs: int = 32) -> None:
     )
 
 
+def step_error(case: int, seed: int, duration_s: float, steps=(1e-4, 5e-5, 2.5e-5)) -> None:
+    """The model's own error at the hidden values of family case `case`: its accelerations through the stated sensor
+    (and its displacements) against the noise-free reference's, per simulation step."""
+    from pounding_sweep.sweep.sensor import Sensor
+    from pounding_sweep.sweep.simulate import simulate
+
+    rng = np.random.default_rng(seed)
+    for i in range(case + 1):
+        kind = ("6hz", "4.6hz")[i % 2]
+        label, butter, keys = SENSORS[(i // 2) % 2]
+        scene, hidden, kf = harmonic_case(kind, rng, duration_s)
+    df, _ = make_ivp_experiment(
+        scene, {**hidden, "law": "classic"}, stiffness_factor=kf, noise_mm=0.0, acc_noise_m_s2=0.0, sensor_butter=butter
+    )
+    sensor = Sensor("average", 1000.0, 10) if butter is None else Sensor("butter", 1000.0, 1, butter[1], butter[0])
+    t = df.t_s.to_numpy()
+    print(f"case {case}: {kind}, {duration_s:g} s, sensor {label}, k_s/k {hidden['ks_ratio']:.4f}, r {hidden['r']:.4f}")
+    for dt in steps:
+        h, _ = simulate(
+            scene,
+            channels=["abs_acc_b1f3", "abs_acc_b2f3", "disp_b1f3", "disp_b2f3"],
+            dt_s=dt,
+            stiffness_scale_b1=kf[0],
+            stiffness_scale_b2=kf[1],
+            **hidden,
+        )
+        cells = []
+        for b in (1, 2):
+            e = sensor.read(h[f"abs_acc_b{b}f3_m_s2"].to_numpy(), dt, t) - df[f"b{b}f3_acc"].to_numpy()
+            u = np.interp(t, h.t_s, h[f"disp_b{b}f3_m"]) * 1e3 - df[f"model{b}_floor3_mm"].to_numpy()
+            cells.append(
+                f"b{b}f3 acceleration {np.sqrt(np.mean(e * e)):.4f} m/s^2, displacement {np.sqrt(np.mean(u * u)):.4f} mm"
+            )
+        print(f"  dt {dt:g} s: RMS error " + "; ".join(cells), flush=True)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", type=int, default=4)
@@ -147,7 +187,11 @@ def main(argv=None) -> int:
     ap.add_argument("--dt-s", type=float, default=None, help="the calibrations' step (default: the scenes', 1e-4 s)")
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--sweep-cost", action="store_true", help="time a sweep's batch with and without the sensor")
+    ap.add_argument("--step-error", type=int, default=None, metavar="CASE", help="the model's error per step, CASE")
     args = ap.parse_args(argv)
+    if args.step_error is not None:
+        step_error(args.step_error, args.seed, args.duration_s)
+        return 0
     if args.sweep_cost:
         sweep_cost(args.threads)
         return 0

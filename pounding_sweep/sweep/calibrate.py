@@ -65,6 +65,7 @@ from pounding_sweep import codes as C
 from pounding_sweep.model.experiment import noise_floor
 from pounding_sweep.scene import Scene
 from pounding_sweep.scene.channels import channel_unit, shown_value
+from pounding_sweep.sweep.fitchecks import reversed_channel_warnings
 from pounding_sweep.sweep.fitstats import LOG_SCALE, gauss_newton, interval, local_fit, misfit_of
 from pounding_sweep.sweep.globalsearch import find_basin
 from pounding_sweep.sweep.lawcompare import compare_laws as compare_on_one_basis
@@ -449,6 +450,8 @@ def _calibrate_one(scene: Scene, names: list[str], threads: int, best_cell: dict
         search=search.stages,
         problem=prob,
     )
+    if misfit > cal.misfit_factor:  # a sign fault the fit bent around is named (sweep/fitchecks.py)
+        fit.warnings += reversed_channel_warnings(fit)
     if misfit > cal.misfit_factor:  # the model cannot explain the data: intervals that include its error
         model_error_intervals(fit, prob, cal.max_evals)
         if progress is not None:

@@ -1,6 +1,7 @@
 """A minimal lane-batched Newmark kernel of the engine's model and implicit scheme, and the engine against it.
 
-    python benchmarks/minimal_kernel.py [--quick] [--threads 2] [--rounds 3] [--groups ...] [--group-costs]
+    python benchmarks/minimal_kernel.py [--quick] [--duration S] [--threads 2] [--rounds 3] [--groups ...]
+        [--group-costs]
 
 The minimal kernel keeps only what a sweep for the peak pounding force needs: per run the peak contact force
 and the peak displacement of each building's top floor. Everything else the engine does per step (every
@@ -274,9 +275,10 @@ def run_minimal(prep, runs, rec, threads: int) -> np.ndarray:
     return out
 
 
-def grid(quick: bool):
+def grid(quick: bool, duration: float | None = None):
     s = load_scene(REPO / "sweeps" / "paper_6hz.toml")
     n_ks, n_r, dur = (8, 16, 5.0) if quick else (32, 80, 50.0)
+    dur = dur if duration is None else duration
     return dataclasses.replace(
         s,
         integration=dataclasses.replace(s.integration, scheme="implicit", dt_s=1e-4),
@@ -355,6 +357,7 @@ def group_costs(preps, steps, threads, rounds):
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="8 x 16 runs of 5 s")
+    ap.add_argument("--duration", type=float, default=None, help="the runs' length [s] (default 50, --quick 5)")
     ap.add_argument("--threads", type=int, default=len(os.sched_getaffinity(0)))
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument(
@@ -364,7 +367,7 @@ def main(argv=None) -> int:
         "--group-costs", action="store_true", help="instead of the rounds: each metric group's cost in the engine"
     )
     args = ap.parse_args(argv)
-    scene = grid(args.quick)
+    scene = grid(args.quick, args.duration)
     print(f"CPU: {cpu_name()}; {os.cpu_count()} CPUs, {args.threads} threads; load average {load()}")
     preps = {}
     for scheme in ("implicit", "event"):

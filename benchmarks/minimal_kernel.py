@@ -13,7 +13,7 @@ with the contact set that agrees with the end state (the implicit scheme's activ
 step's start, a set already tried means it cycles, then the union of the last two, as engine/scalar.py).
 The runs' 8 lanes are one SIMD value (engine/simd.py, as in the engine's vector steps) and the floor and pair
 counts are fixed at compile time (as in the engine); a lane's set of pairs is a bit mask, its forces come from
-the precomputed (I + diag(kappa) W)_SS^-1 of its set (of every set S, 2^P of them per lane), and only a lane
+(I + diag(kappa) W)_SS^-1 of its set (NumPy inverts it for every set S before the runs), and only a lane
 whose set changes leaves the vector code.
 
 The grid (the issue's): the 6 Hz scene, gap 0, classic law, k_s/k 0.1..10 log-spaced x 32, r 0.2..1 x 80
@@ -57,37 +57,16 @@ LANES = 8  # = engine.simd.VW: one SIMD value
 MAX_ITER = 16
 
 
-@numba.njit(nogil=True, cache=True, error_model="numpy")
-def set_inverses(ks, cd, W, dt, P):
-    """R[s, i, j, lane] = (I + diag(kappa) W)_SS^-1 of every set s (bit j: pair j in contact), zeros outside."""
-    nset = 1 << P
-    R = np.zeros((nset, P, P, LANES))
-    A = np.zeros((P, 2 * P))
-    idx = np.zeros(P, np.int64)
-    for l in range(LANES):
-        for s in range(nset):
-            na = 0
-            for j in range(P):
-                if (s >> j) & 1:
-                    idx[na] = j
-                    na += 1
-            for p in range(na):
-                kap = ks[l] + 2.0 * cd[l, idx[p]] / dt
-                for p2 in range(na):
-                    A[p, p2] = kap * W[idx[p], idx[p2]] + (1.0 if p == p2 else 0.0)
-                    A[p, na + p2] = 1.0 if p == p2 else 0.0
-            for k in range(na):  # Gauss-Jordan (positive pivots: I + diag(kappa) W is similar to I + SPD)
-                piv = A[k, k]
-                for z in range(2 * na):
-                    A[k, z] /= piv
-                for i in range(na):
-                    if i != k:
-                        f = A[i, k]
-                        for z in range(2 * na):
-                            A[i, z] -= f * A[k, z]
-            for p in range(na):
-                for p2 in range(na):
-                    R[s, idx[p], idx[p2], l] = A[p, na + p2]
+def set_inverses(ks, cd, W, dt):
+    """R[run, s, i, j] = (I + diag(kappa) W)_SS^-1 of every set s of pairs (bit j: pair j in contact) for
+    every run (kappa = k_s + 2 c / dt), zeros outside S: one batched NumPy inverse per set."""
+    n, P = cd.shape
+    R = np.zeros((n, 1 << P, P, P))
+    for s in range(1, 1 << P):
+        idx = [j for j in range(P) if (s >> j) & 1]
+        kap = ks[:, None] + 2.0 * cd[:, idx] / dt  # (runs, na)
+        A = np.eye(len(idx)) + kap[:, :, None] * W[np.ix_(idx, idx)][None]
+        R[:, s][:, np.ix_(idx, idx)[0], np.ix_(idx, idx)[1]] = np.linalg.inv(A)
     return R
 
 
@@ -128,9 +107,10 @@ def _lane_set(l, s, R, RL, Y, PF, W, seen):
 
 
 @numba.njit(nogil=True, cache=True, error_model="numpy")
-def minimal_group(lanes_in, nsteps, ks, cd, gap, coef, prof, modal, sizes, out):
+def minimal_group(lanes_in, nsteps, ks, cd, gap, coef, prof, modal, sizes, Rrun, out):
     """The runs lanes_in (LANES of them; -1: an empty lane) for nsteps steps; out[run] = (peak force [N],
-    peak |top displacement| of building 1 and of building 2 [m]). modal = (phi, psi, W, cq, cr, cf, gam, dt, n1)
+    peak |top displacement| of building 1 and of building 2 [m]). Rrun: set_inverses' R of every run.
+    modal = (phi, psi, W, cq, cr, cf, gam, dt, n1)
     (model/modal.py; n1: building 1's floors); sizes = (a tuple of N zeros, one of P zeros): the floor and
     pair counts fixed at compile time, as the engine's lane kernel has them (its loops unrolled). The lanes
     are one SIMD value (engine/simd.py, as the engine's vector steps); a lane whose set of pairs in contact
@@ -156,20 +136,22 @@ def minimal_group(lanes_in, nsteps, ks, cd, gap, coef, prof, modal, sizes, out):
     PK = np.zeros(3 * LANES)
     mask = np.zeros(LANES, np.int64)
     seen = np.zeros(MAX_ITER + 1, np.int64)
-    cl = np.zeros((LANES, P))
+    R = np.zeros((1 << P, P, P, LANES))  # the lanes' set inverses, lane last
     for l in range(LANES):
         run = lanes_in[l]
         if run >= 0:
             KS[l] = ks[run]
             for j in range(P):
                 C2[j * LANES + l] = (2.0 / dt) * cd[run, j]
-                cl[l, j] = cd[run, j]
             CF[l] = coef[run]
             GP[l] = gap[run]
+            for z in range(1 << P):
+                for i in range(P):
+                    for j in range(P):
+                        R[z, i, j, l] = Rrun[run, z, i, j]
         else:
             KS[l] = 1.0
             GP[l] = 1.0
-    R = set_inverses(KS, cl, W, dt, P)
     ksv = vload(KS, 0)
     cfv = vload(CF, 0)
     gpv = vload(GP, 0)
@@ -262,13 +244,14 @@ def run_minimal(prep, runs, rec, threads: int) -> np.ndarray:
     modal = (ma.phi, ma.psi, ma.W, ma.cq, ma.cr, ma.cf, ma.gam, float(prep.dt), n1)
     out = np.zeros((runs.n, 3))
     sizes = ((0,) * ma.phi.shape[0], (0,) * ma.psi.shape[1])
+    R = set_inverses(runs.ks, runs.cdash, ma.W, float(prep.dt))
     groups = [
         np.array(list(range(s, min(s + LANES, runs.n))) + [-1] * max(0, s + LANES - runs.n), np.int64)
         for s in range(0, runs.n, LANES)
     ]
 
     def work(lanes_in):
-        minimal_group(lanes_in, nst, runs.ks, runs.cdash, runs.gap, coef, prof[pid[0]], modal, sizes, out)
+        minimal_group(lanes_in, nst, runs.ks, runs.cdash, runs.gap, coef, prof[pid[0]], modal, sizes, R, out)
 
     with ThreadPoolExecutor(max_workers=threads) as pool:
         list(pool.map(work, groups))

@@ -27,6 +27,9 @@ import pandas as pd
 
 from pounding_sweep.errors import ResultError
 from pounding_sweep.scene import scene_from_dict, validate
+from pounding_sweep.scene.axes import STRUCTURE_AXES
+from pounding_sweep.scene.channels import ACC_PREFIX
+from pounding_sweep.scene.validate import FITTABLE
 from pounding_sweep.sweep.results import META_KEY, part_files, read_metadata, read_schema, sidecar_path
 
 DPI = 120
@@ -221,18 +224,20 @@ def run_text(row, axes) -> str:
 
 
 def channel_label(code: str, md: dict) -> str:
-    """'b1f3' -> 'Model-1, floor 3' (the building's name from the result file's metadata)."""
-    b, f = int(code[1]), int(code.split("f")[1])
+    """'b1f3' -> 'Model-1, floor 3' (the building's name from the result file's metadata); 'abs_acc_b1f3' ->
+    'Model-1, floor 3 (acceleration)'."""
+    floor = code.removeprefix(ACC_PREFIX)
+    b, f = int(floor[1]), int(floor.split("f")[1])
     name = md["buildings"][b - 1].get("name") or f"building {b}"
-    return f"{name}, floor {f}"
+    return f"{name}, floor {f}" + (" (acceleration)" if floor != code else "")
 
 
 def score_codes(df: pd.DataFrame) -> list[str]:
-    """The scored channels of a result table ('b1f3', ...), in column order."""
+    """The scored channels of a result table ('b1f3', 'abs_acc_b1f3', ...), in column order."""
     return [
         c.removeprefix("rel_rms_").removesuffix("_pct")
         for c in df.columns
-        if c.startswith("rel_rms_b") and c.endswith("_pct")
+        if c.startswith(("rel_rms_b", f"rel_rms_{ACC_PREFIX}b")) and c.endswith("_pct")
     ]
 
 
@@ -342,15 +347,18 @@ def heatmap_figure(df: pd.DataFrame, md: dict, best: pd.DataFrame | None = None)
         norm = LogNorm(lo, hi) if hi > 3 * lo else Normalize(lo, hi)
         maps = [(f"rel_rms_{c}_pct", channel_label(c, md), norm, True) for c in codes]
         unit = "relative RMS error, eq. 20 [%]"
-        what = f"relative RMS error of the displacement against the experiment (eq. 20){over}"
+        quantities = sorted({channel_quantity(c)[0] for c in codes})
+        what = f"relative RMS error of the {' and '.join(quantities)} against the experiment (eq. 20){over}"
     else:
         nf1 = len(md["buildings"][0]["masses_kg"])
-        top = _force_columns(df)[-1]
-        j = top.removeprefix("peak_force_f").removesuffix("_N")
         df = df.assign(**{f"peak_disp_b1f{nf1}_mm": df[f"peak_disp_b1f{nf1}_m"] * 1e3})
         maps = [(f"peak_disp_b1f{nf1}_mm", f"{channel_label(f'b1f{nf1}', md)}: peak displacement [mm]", None, False)]
-        if np.nanmax(df[_force_columns(df)].to_numpy(float), initial=0.0) > 0:
-            maps.append((top, f"floor {j}: peak pounding force [N]", None, False))
+        forces = _force_columns(df)
+        if not forces:
+            notes.append("one building: no pounding-force map")
+        elif np.nanmax(df[forces].to_numpy(float), initial=0.0) > 0:
+            j = forces[-1].removeprefix("peak_force_f").removesuffix("_N")
+            maps.append((forces[-1], f"floor {j}: peak pounding force [N]", None, False))
         else:
             notes.append("no run made contact: no pounding-force map")
         unit = None
@@ -382,7 +390,7 @@ def experiment_peaks(scene, md: dict) -> dict[str, tuple[float, float]]:
     """Largest |experimental displacement| [m] and its simulation time [s] per channel, in the scored window."""
     from pounding_sweep.sweep.scoring import load_experiment
 
-    floors = (len(scene.building1.masses_kg), len(scene.building2.masses_kg))
+    floors = scene.floors
     exp = load_experiment(scene.experiment, floors)
     t = exp.time_s - scene.experiment.time_offset_s
     lo, hi = md["experiment"]["window_s"]
@@ -405,9 +413,9 @@ def peak_difference_table(
     `peaks` (from `experiment_peaks`) adds the experimental peak's time to the headers; without it
     the experimental peak is recovered from the columns. `r_values` / `ks_values` pick a subset.
     """
-    codes = score_codes(df)
+    codes = [c for c in score_codes(df) if not c.startswith(ACC_PREFIX)]  # Table 4: displacements
     if not codes:
-        raise ValueError("peak_difference_table: the result file was not scored against an experiment")
+        raise ValueError("peak_difference_table: the result file was not scored against a displacement")
     if layout not in ("long", "paper"):
         raise ValueError(f"peak_difference_table: layout {layout!r}: use 'long' or 'paper'")
     keep = np.ones(len(df), bool)
@@ -463,17 +471,17 @@ def best_run(results: str | Path, df: pd.DataFrame) -> tuple[dict, str, pd.Serie
         how = md.get("experiment", {}).get("combine", "combined")
         label = f"best grid run, {run_text(row, swept)} ({how} eq. 20 error {b.error_pct:.1f} %)"
     else:
-        forces = df[_force_columns(df)].to_numpy(float).max(axis=1)
+        forces = df[_force_columns(df)].to_numpy(float).max(axis=1, initial=0.0)  # one building: no force columns
         if np.nanmax(forces, initial=0.0) > 0:
             row = df.iloc[int(np.nanargmax(forces))]
             label = "run with the largest pounding force"
         else:
             row = df.iloc[0]
-            label = f"run {int(row.run_id)}; no run made contact"
+            label = f"run {int(row.run_id)}; " + ("one building" if not _force_columns(df) else "no run made contact")
         label += f": {run_text(row, swept)}" if swept else ""
     pick = {
         k: float(row[k])
-        for k in ("ks_ratio", "r", "gap_m", "amplitude_m", "frequency_Hz", "scale")
+        for k in ("ks_ratio", "r", "gap_m", "amplitude_m", "frequency_Hz", "scale", *STRUCTURE_AXES)
         if k in row and np.isfinite(row[k])
     }
     if "ks_ratio" not in pick and "ks_N_per_m" in row:
@@ -482,6 +490,26 @@ def best_run(results: str | Path, df: pd.DataFrame) -> tuple[dict, str, pd.Serie
     if len(records) > 1:  # a swept record: re-simulate the row's own
         pick["record"] = next(p for p in records if Path(p).stem == row["record"])
     return pick, label, row
+
+
+def calibrated_run(best: pd.DataFrame | None) -> tuple[dict, str] | None:
+    """(parameters to re-simulate, a label) of the calibrated optimum in a best table (with several laws the one of
+    least error), or None when the sweep was not calibrated. The fitted values only: the rest is the scene's."""
+    if best is None or "criterion" not in best:
+        return None
+    rows = best[best.criterion == "calibrated"]
+    if rows.empty:
+        return None
+    row = rows.sort_values("error_pct").iloc[0]
+    pick = {k: float(row[k]) for k in FITTABLE if k in row and pd.notna(row[k])}
+    law = row.get("contact_law")
+    from pounding_sweep.sweep.calibrate import NO_CONTACT
+
+    if isinstance(law, str) and law != NO_CONTACT:
+        pick["law"] = law
+    fitted = ", ".join(f"{k} = {v:.4g}" for k, v in pick.items() if k != "law")
+    how = f"{law} law, " if "law" in pick else ""
+    return pick, f"calibrated run ({how}{fitted}; relative RMS error {row.error_pct:.1f} %)"
 
 
 def _time_text(t: float) -> str:
@@ -541,16 +569,18 @@ def history_figures(scene, pick: dict, label: str, md: dict | None = None, skipp
     from pounding_sweep.sweep.scoring import load_experiment
     from pounding_sweep.sweep.simulate import simulate
 
-    floors = (len(scene.building1.masses_kg), len(scene.building2.masses_kg))
-    names = [scene.building1.name or "building 1", scene.building2.name or "building 2"]
+    floors = scene.floors
+    names = [b.name or f"building {i}" for i, b in enumerate((scene.building1, scene.building2), 1) if b is not None]
     md = md or {"buildings": [{"name": n} for n in names]}
-    top = min(floors)
+    top = min(floors)  # 0: one building, no pairs
     exp = load_experiment(scene.experiment, floors) if scene.experiment is not None else None
-    codes = list(exp.displacements) if exp is not None else []  # accelerations are not drawn
-    shown = [f"b1f{floors[0]}", f"b2f{floors[1]}"] + [
-        c for c in codes if c not in (f"b1f{floors[0]}", f"b2f{floors[1]}")
-    ]
-    hist, m = simulate(scene, channels=[f"disp_{c}" for c in shown] + [f"force_f{top}"], **pick)
+    codes = list(exp.channels) if exp is not None else []  # displacements here, every channel in the SSP
+    disp_codes = list(exp.displacements) if exp is not None else []
+    tops = [f"b{b}f{n}" for b, n in zip((1, 2), floors) if n]
+    shown = tops + [c for c in disp_codes if c not in tops]
+    model_of = {c: c if c.startswith(ACC_PREFIX) else f"disp_{c}" for c in codes}
+    channels = list(dict.fromkeys([f"disp_{c}" for c in shown] + [model_of[c] for c in codes]))
+    hist, m = simulate(scene, channels=channels + ([f"force_f{top}"] if top else []), **pick)
     t = hist.t_s.to_numpy()
     te = exp.time_s - scene.experiment.time_offset_s if exp is not None else None
     zoom = zoom_window(scene, t[-1], exp, hist[f"disp_{shown[0]}_m"].to_numpy())
@@ -564,7 +594,7 @@ def history_figures(scene, pick: dict, label: str, md: dict | None = None, skipp
         x = hist[f"disp_{code}_m"].to_numpy() * 1e3
         for ax, lim in ((axes[i, 0], None), (axes[i, 1], zoom)):
             ax.plot(t, x, lw=0.9, color="C0", label="numerical")
-            if code in codes:
+            if code in disp_codes:
                 ax.plot(
                     te,
                     exp.channels[code] * 1e3,
@@ -579,7 +609,7 @@ def history_figures(scene, pick: dict, label: str, md: dict | None = None, skipp
             ax.grid(alpha=0.3)
         axes[i, 0].axvspan(*zoom, color="0.85", zorder=0, label=zoom_text)
         title = channel_label(code, md)
-        if code in codes:
+        if code in disp_codes:
             pn, diff = m[f"peak_num_{code}_m"] * 1e3, m[f"peak_diff_{code}_pct"]
             title += (
                 f": eq. 20 error {m[f'rel_rms_{code}_pct']:.1f} %; peak {pn:.2f} mm, experiment "
@@ -589,12 +619,15 @@ def history_figures(scene, pick: dict, label: str, md: dict | None = None, skipp
         axes[i, 1].set_title(zoom_text, fontsize=10)
     handles, labels = axes[0, 0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="outside lower center", ncols=3, fontsize=9)
-    fig.suptitle(f"{scene.name}: displacement relative to the table; {label}", x=0.01, ha="left")
+    fig.suptitle(f"{scene.name}: displacement relative to the table\n{label}", x=0.01, ha="left", fontsize=11)
     out["displacement_history"] = fig
 
     # pounding force (Fig. 19)
-    f = hist[f"force_f{top}_N"].to_numpy()
-    if not np.any(f != 0.0):
+    f = hist[f"force_f{top}_N"].to_numpy() if top else np.zeros(0)
+    if not top:
+        if skipped is not None:
+            skipped["pounding_force"] = "one building (no [building2]): no contact, so no pounding force to draw"
+    elif not np.any(f != 0.0):
         if skipped is not None:
             skipped["pounding_force"] = f"no contact at floor {top} in the run shown, so no force to draw ({label})"
     else:
@@ -618,21 +651,22 @@ def history_figures(scene, pick: dict, label: str, md: dict | None = None, skipp
         )
         out["pounding_force"] = fig
 
-    # numerical against experimental (SSP)
+    # numerical against experimental (SSP), every channel in its own quantity
     if codes:
         keep = (te >= 0) & (te <= t[-1])
         fig = _figure(figsize=(4.4 * len(codes), 5.6))  # tall enough for square boxes
         axes = fig.subplots(1, len(codes), squeeze=False)[0]
         for ax, code in zip(axes, codes):
-            xe = exp.channels[code][keep] * 1e3
-            xd = np.interp(te[keep], t, hist[f"disp_{code}_m"].to_numpy()) * 1e3
+            quantity, unit, factor = channel_quantity(code)
+            xe = exp.channels[code][keep] * factor
+            xd = np.interp(te[keep], t, hist[history_column(code)].to_numpy()) * factor
             lim = float(np.max(np.abs(np.r_[xe, xd]))) * 1.05
             ax.plot([-lim, lim], [-lim, lim], "k--", lw=0.8, label="numerical = experimental")
             ax.plot(xe, xd, "o", ms=2, alpha=0.6, color="C0", label=f"{keep.sum()} samples")
             ax.set_xlim(-lim, lim)
             ax.set_ylim(-lim, lim)
-            ax.set_xlabel("experimental displacement [mm]")
-            ax.set_ylabel("numerical displacement [mm]")
+            ax.set_xlabel(f"experimental {quantity} [{unit}]")
+            ax.set_ylabel(f"numerical {quantity} [{unit}]")
             ax.set_title(
                 f"{channel_label(code, md)}\neq. 20 error {m[f'rel_rms_{code}_pct']:.1f} %, "
                 f"correlation {m[f'corr_{code}']:.4f}",
@@ -644,6 +678,118 @@ def history_figures(scene, pick: dict, label: str, md: dict | None = None, skipp
         fig.suptitle(f"{scene.name}: numerical against experimental (sub-space plot)\n{label}", fontsize=11)
         out["ssp"] = fig
     return out
+
+
+def measured_residuals(scene, pick: dict, md: dict) -> dict:
+    """Every measured channel of the scene against the run `pick` over the compared window, in SI: code -> (t [s],
+    measured, model, residual = measured - model). The model is sampled at the table's instants by linear
+    interpolation between steps (as the calibration samples it: sweep/calibrate.py) and, where the scene
+    low-passes the acceleration channels, both are filtered with the scoring's sections from rest at the window's
+    start, as scored."""
+    from scipy.signal import sosfilt
+
+    from pounding_sweep.sweep.scoring import load_experiment
+    from pounding_sweep.sweep.simulate import simulate
+
+    exp = load_experiment(scene.experiment, scene.floors)
+    codes = list(exp.channels)
+    hist, _ = simulate(scene, channels=[history_column(c).rsplit("_m", 1)[0] for c in codes], **pick)
+    t = hist.t_s.to_numpy()
+    # the samples the calibration compares (sweep/calibrate.py Problem): those inside the window at the scene's own
+    # clock offset, each at its simulation time under the run's (a fitted time_offset_s)
+    lo, hi = scene.experiment.window_s or (0.0, t[-1])
+    t0 = exp.time_s - scene.experiment.time_offset_s
+    keep = (t0 >= lo) & (t0 <= hi)
+    tk = exp.time_s[keep] - pick.get("time_offset_s", scene.experiment.time_offset_s)
+    lowpass = md.get("experiment", {}).get("lowpass")
+    sos = np.asarray(lowpass["sos"], float) if lowpass else np.zeros((0, 6))
+    out = {}
+    for code in codes:
+        xe = exp.channels[code][keep]
+        xm = np.interp(tk, t, hist[history_column(code)].to_numpy())
+        if code.startswith(ACC_PREFIX) and sos.shape[0]:
+            xe, xm = sosfilt(sos, xe), sosfilt(sos, xm)
+        out[code] = (tk, xe, xm, xe - xm)
+    return out
+
+
+def measured_figure(scene, pick: dict, label: str, md: dict, noise: dict | None = None):
+    """The run `pick` (the calibrated one where there is a calibration) against every measured channel, each in its
+    own quantity (displacement in mm, absolute acceleration in m/s^2; measured_residuals): measured and model
+    (left whole, right a 1 s zoom around the largest measured value), and under each its residual with the
+    channel's noise band +/- 2 sigma (`noise`: code -> sigma in SI, the calibration's noise floor); each title the
+    eq. 20 error and the residual's RMS against that noise."""
+    from pounding_sweep.engine.score import relative_rms_error_pct
+
+    data = measured_residuals(scene, pick, md)
+    codes = list(data)
+    t0, first = data[codes[0]][0], data[codes[0]][1]
+    zoom = around(float(t0[np.argmax(np.abs(first))]), float(t0[-1]), 1.0)
+    noise = noise or {}
+    fig = _figure(figsize=(12, 2.4 * 2 * len(codes) + 1.2))
+    axes = fig.subplots(2 * len(codes), 2, squeeze=False, gridspec_kw={"width_ratios": [3, 1]})
+    for i, code in enumerate(codes):
+        tk, xe, xm, res = data[code]
+        quantity, unit, factor = channel_quantity(code)
+        rms, sigma = float(np.sqrt(np.mean(res * res))), noise.get(code)
+        head = (
+            f"{channel_label(code, md)}: eq. 20 error {float(relative_rms_error_pct(xm, xe)):.1f} %; "
+            f"RMS residual {rms * factor:.4g} {unit}"
+        )
+        head += (
+            f", {rms / sigma:.1f} times the channel's noise {sigma * factor:.3g} {unit}"
+            if sigma
+            else " (no noise value for this channel: give [experiment] noise or noise_window_s)"
+        )
+        top, bottom = axes[2 * i], axes[2 * i + 1]
+        for col, lim in ((0, None), (1, zoom)):
+            top[col].plot(tk, xe * factor, color="C1", lw=0.8, label="measured")
+            top[col].plot(tk, xm * factor, color="C0", lw=0.8, label="model")
+            bottom[col].plot(tk, res * factor, color="C3", lw=0.7, label="residual (measured - model)")
+            if sigma:
+                bottom[col].axhspan(-2 * sigma * factor, 2 * sigma * factor, color="0.6", alpha=0.5, lw=0)
+            for ax, what in ((top[col], quantity), (bottom[col], "residual")):
+                ax.set_xlim(*(lim or (tk[0], tk[-1])))
+                ax.set_xlabel("time [s]")
+                ax.set_ylabel(f"{what} [{unit}]")
+                ax.grid(alpha=0.3)
+        top[0].axvspan(*zoom, color="0.9", zorder=0)
+        top[0].set_title(head, loc="left", fontsize=9)
+        top[1].set_title(f"zoom {_time_text(zoom[0])}-{_time_text(zoom[1])} s", fontsize=9)
+    handles, labels = [], []
+    for ax in (axes[0, 0], axes[1, 0]):
+        h, lab = ax.get_legend_handles_labels()
+        handles += h
+        labels += lab
+    if noise:
+        from matplotlib.patches import Patch
+
+        handles.append(Patch(color="0.6", alpha=0.5))
+        labels.append("+/- 2 x the channel's noise (sigma)")
+    fig.legend(handles, labels, loc="outside lower center", ncols=4, fontsize=9)
+    lowpass = md.get("experiment", {}).get("lowpass")
+    filt = f"; accelerations low-passed at {lowpass['cutoff_Hz']:g} Hz as scored" if lowpass else ""
+    fig.suptitle(
+        f"{scene.name}: measured against model, each channel in its own quantity, over the scored window "
+        f"{_time_text(t0[0])}-{_time_text(t0[-1])} s{filt}\n{label}",
+        x=0.01,
+        ha="left",
+        fontsize=10,
+    )
+    return fig
+
+
+def channel_quantity(code: str) -> tuple[str, str, float]:
+    """(quantity, unit shown, factor from SI) of an experiment channel: displacements in mm, absolute
+    accelerations in m/s^2 (each in its own quantity, as the messages show them: scene/channels.shown_value)."""
+    if code.startswith(ACC_PREFIX):
+        return "absolute acceleration", "m/s^2", 1.0
+    return "displacement", "mm", 1e3
+
+
+def history_column(code: str) -> str:
+    """The simulate() history column of an experiment channel's model side."""
+    return f"{code}_m_s2" if code.startswith(ACC_PREFIX) else f"disp_{code}_m"
 
 
 # ----------------------------------------------------------------------------- error against run time
@@ -685,7 +831,7 @@ def accuracy_ladder(
         exc = dataclasses.replace(exc, duration_s=float(duration_s))
     base = dataclasses.replace(scene, experiment=None, calibrate=None, sweep=(), excitation=exc)
     validate(base)
-    floors = (len(scene.building1.masses_kg), len(scene.building2.masses_kg))
+    floors = scene.floors
     channel = channel or f"disp_b1f{floors[0]}"
     sample = dts[0]
 
@@ -817,10 +963,24 @@ def figures(
         skipped["heatmaps"] = (
             f"no map: the sweep varies {' and '.join(swept) if swept else 'nothing'}, a map needs two axes"
         )
-    if best is not None and "calibrated" in set(best.get("criterion", ())):
-        out["calibration_profiles"] = calibration_profile_figure(best_file)
+    calibrated = calibrated_run(best)
+    if calibrated is not None:
+        profiled = calibration_profile_figure(best_file)
+        if profiled is not None:
+            out["calibration_profiles"] = profiled
+        elif skipped is not None:
+            skipped["calibration_profiles"] = (
+                "the calibration profiled no parameter ([calibrate] profile, or profile_points = 0): no curve to draw"
+            )
     pick, label, _ = best_run(results, df)
+    if calibrated is not None:  # the calibrated run, not the best grid run, is the one the figures show
+        pick = {**{k: v for k, v in pick.items() if k in ("record",)}, **calibrated[0]}
+        label = calibrated[1]
     out.update(history_figures(scene, pick, label, md, skipped))
+    if scene.experiment is not None:
+        noise = calibration_noise(best_file, pick) if calibrated is not None else {}
+        out["measured_vs_model"] = measured_figure(scene, pick, label, md, noise)
+    pick = {k: v for k, v in pick.items() if k != "time_offset_s"}  # the ladder runs without the experiment
     if accuracy is None:
         table = accuracy_ladder(scene, **pick)
     else:
@@ -838,12 +998,15 @@ def figures(
 def calibration_profile_figure(best_path: str | Path):
     """Profile curves of a calibration (sweep/calibrate.py): per profiled parameter and law, the increase of
     the residual (delta chi^2, the rest refitted) against the parameter, the 95 % threshold 3.84 and the
-    fitted value; the law comparison in the title when several laws were calibrated."""
+    fitted value; the law comparison in the title when several laws were calibrated. None when the calibration
+    profiled nothing."""
     from pounding_sweep.sweep.calibrate import CHI2_1_95, read_calibration
 
     cal = read_calibration(best_path)
     prof, fits, laws = cal["profiles"], cal["fits"], cal["laws"]
     names = list(dict.fromkeys(prof.parameter)) if not prof.empty else []
+    if not names:  # nothing profiled: no figure rather than empty axes
+        return None
     fig = _figure(figsize=(5.2 * max(1, len(names)), 4.0))
     axes = fig.subplots(1, max(1, len(names)), squeeze=False)
     for ax, name in zip(axes[0], names):
@@ -870,6 +1033,15 @@ def calibration_profile_figure(best_path: str | Path):
     else:
         fig.suptitle("calibration profiles (shaded: the values the data cannot exclude, 95 %)", fontsize=9)
     return fig
+
+
+def calibration_noise(best_path: str | Path, pick: dict) -> dict:
+    """Each channel's noise floor (SI) the calibration scaled its residuals by, of the law `pick` shows."""
+    from pounding_sweep.sweep.calibrate import NO_CONTACT, read_calibration
+
+    per_law = read_calibration(best_path).get("per_law") or {}
+    one = per_law.get(pick.get("law", NO_CONTACT)) or next(iter(per_law.values()), {})
+    return {**one.get("noise_floor_m", {}), **one.get("noise_floor_m_s2", {})}
 
 
 def posterior_corner_figure(post, fit=None):
@@ -980,5 +1152,6 @@ FIGURE_NAMES = (
     "displacement_history",
     "pounding_force",
     "ssp",
+    "measured_vs_model",
     "error_vs_runtime",
 )

@@ -68,7 +68,7 @@ def make_experiment(
     steps, no anti-alias filter) plus Gaussian noise of that RMS, in m/s^2, as columns `b<b>f<f>_acc`.
     The displacement columns are the same with or without them (their noise is drawn first)."""
     truth = perturbed(scene, stiffness_factor, damping_factor)
-    floors = (len(scene.building1.masses_kg), len(scene.building2.masses_kg))
+    floors = scene.floors
     chans = [f"disp_b{b}f{f}" for b, nf in zip((1, 2), floors) for f in range(1, nf + 1)]
     accs = [f"abs_acc_b{b}f{f}" for b, nf in zip((1, 2), floors) for f in range(1, nf + 1)]
     extra = (["ground_acc"] if with_table else []) + (accs if acc_noise_m_s2 is not None else [])
@@ -186,7 +186,7 @@ def make_ivp_experiment(
     n = int(round(sensor_hz / fps))
     t = t_fine[::n]
     rng = np.random.default_rng(seed)
-    floors = (len(scene.building1.masses_kg), len(scene.building2.masses_kg))
+    floors = scene.floors
     dofs = [(b, f, i) for i, (b, f) in enumerate((b, f) for b, nf in zip((1, 2), floors) for f in range(1, nf + 1))]
     table = {"t_s": t + time_offset_s}
     for b, f, i in dofs:

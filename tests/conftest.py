@@ -91,6 +91,11 @@ SLOW = {
         "test_sigterm_on_the_local_executor_is_one_line",
     ),
     "tests/sweep/test_run.py": ("test_6hz_scene_writes_20_rows",),
+    "tests/sweep/test_single_building.py": (  # the small walkthrough's calibration (one fixture, about 8 s) and figures
+        "test_profiles_of_nothing_draw_no_figure",
+        "test_the_small_walkthrough_calibrates_one_building",
+        "test_the_walkthrough_figures_show_the_calibrated_run",
+    ),
     "tests/sweep/test_scoring.py": (
         "test_cli_summary_names_the_best_runs",
         "test_peak_memory_does_not_grow_with_runs",

@@ -16,7 +16,7 @@ from pounding_sweep import plots
 from pounding_sweep.scene import load_scene  # noqa: E402
 from pounding_sweep.sweep.results import read_metadata  # noqa: E402
 
-FIGURES = {"heatmaps", "displacement_history", "pounding_force", "ssp", "error_vs_runtime"}
+FIGURES = {"heatmaps", "displacement_history", "pounding_force", "ssp", "measured_vs_model", "error_vs_runtime"}
 
 
 @pytest.fixture(scope="module")

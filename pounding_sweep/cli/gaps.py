@@ -122,6 +122,9 @@ def gaps_main(argv: list[str]) -> int:
     try:
         rel = _check_options(args)
         scene = load_scene(args.scene)
+        from pounding_sweep.scene.validate import require_two_buildings
+
+        require_two_buildings(scene, "a seismic-gap study")
         out = Path(args.out) if args.out else Path(scene.output.path).with_name(f"{scene.name}.gaps")
         check_study_folder(out)
         from pounding_sweep.gaps import RELATIVE_GAPS, gap_study

@@ -91,7 +91,9 @@ def _print_summary(s) -> None:
         ("scene", s.scene),
         ("runs", f"{s.runs}"),
         ("status", ", ".join(f"{k}: {v}" for k, v in sorted(s.statuses.items()))),
-        ("largest pounding force", f"{s.extremes['peak_force_N']:.3f} N"),
+        ("largest pounding force", f"{s.extremes['peak_force_N']:.3f} N")
+        if "peak_force_N" in s.extremes
+        else ("largest pounding force", "none: one building, no contact"),
         ("compile (or cache load)", f"{s.compile_s:.2f} s" if s.compile_s > 0 else "none needed"),
         ("run", _run_text(s)),
         (
@@ -138,10 +140,11 @@ def _print_calibration(md: dict, reused: bool) -> None:
 
     ft, lt = pd.DataFrame(md["fits"]), pd.DataFrame(md["laws"])
     kept = "; kept from an earlier run of this calibration" if reused else ""
-    print(
-        "\ncalibration (contact and structure fitted together; 95 % intervals; stored in the best table's "
-        f"metadata{kept}):"
-    )
+    from pounding_sweep.sweep.calibrate import NO_CONTACT
+
+    one = list(lt.contact_law) == [NO_CONTACT]
+    what = "one building's structure, no contact" if one else "contact and structure fitted together"
+    print(f"\ncalibration ({what}; 95 % intervals; stored in the best table's metadata{kept}):")
     for f in lt.itertuples():
         print(
             f"  {f.contact_law}: relative RMS {f.rel_rms_pct:.3f} %, residual {f.misfit_over_noise:.2f} x the noise "

@@ -1,5 +1,6 @@
 """The coupled two-building model: both shear frames, their facing floor pairs, and the
-Newmark matrices the kernel needs for a given dt (see kernel.py for the algebra)."""
+Newmark matrices the kernel needs for a given dt (see kernel.py for the algebra). A single-building
+scene's model is building 1 alone: no building 2, no pairs (P = 0: the engine runs it on the scalar kernel)."""
 
 from __future__ import annotations
 
@@ -52,20 +53,25 @@ class SystemArrays:
 
 @dataclass(frozen=True)
 class CoupledModel:
-    """Two shear frames side by side; floor j of one faces floor j of the other (same levels)."""
+    """Two shear frames side by side; floor j of one faces floor j of the other (same levels). b2 None: building
+    1 on its own (a single-building scene)."""
 
     b1: ShearFrame
-    b2: ShearFrame
+    b2: ShearFrame | None
 
     @classmethod
     def from_scene(cls, scene: Scene) -> CoupledModel:
-        return cls(
-            building_from_config(scene.building1, "building 1"), building_from_config(scene.building2, "building 2")
-        )
+        b2 = None if scene.building2 is None else building_from_config(scene.building2, "building 2")
+        return cls(building_from_config(scene.building1, "building 1"), b2)
+
+    @property
+    def buildings(self) -> tuple[ShearFrame, ...]:
+        """The model's buildings, building 1 first (one in a single-building scene)."""
+        return (self.b1,) if self.b2 is None else (self.b1, self.b2)
 
     @property
     def floors(self) -> tuple[int, int]:
-        return self.b1.n_floors, self.b2.n_floors
+        return self.b1.n_floors, 0 if self.b2 is None else self.b2.n_floors
 
     @property
     def n_pairs(self) -> int:
@@ -76,15 +82,17 @@ class CoupledModel:
         return sum(self.floors)
 
     def pair_masses(self) -> tuple[np.ndarray, np.ndarray]:
-        """Masses of the two floors of each pair [kg] (for eq. 9)."""
+        """Masses of the two floors of each pair [kg] (for eq. 9; empty without building 2)."""
         p = self.n_pairs
+        if self.b2 is None:
+            return np.zeros(0), np.zeros(0)
         return np.asarray(self.b1.masses_kg[:p]), np.asarray(self.b2.masses_kg[:p])
 
     def matrices(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Block-diagonal M, C, K of the uncoupled 2N-DOF system (contact couples them)."""
         n1, n = self.b1.n_floors, self.n_dof
         M, C, K = np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, n))
-        for b, sl in ((self.b1, slice(0, n1)), (self.b2, slice(n1, n))):
+        for b, sl in zip(self.buildings, (slice(0, n1), slice(n1, n))):
             M[sl, sl], C[sl, sl], K[sl, sl] = b.M, b.C, b.K
         return M, C, K
 

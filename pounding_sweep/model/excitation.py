@@ -241,4 +241,4 @@ def intensity_period(scene: Scene) -> float | None:
     from pounding_sweep.model.intensity import geometric_mean_period
 
     model = CoupledModel.from_scene(scene)
-    return geometric_mean_period([2.0 * math.pi / float(b.modes().omega_rad_s[0]) for b in (model.b1, model.b2)])
+    return geometric_mean_period([2.0 * math.pi / float(b.modes().omega_rad_s[0]) for b in model.buildings])

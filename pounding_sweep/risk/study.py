@@ -77,6 +77,9 @@ def check_risk_scene(scene: Scene) -> None:
     """A scene a risk study can run: a [risk] section and only ensemble axes."""
     if scene.risk is None:
         raise ConfigError(f"{scene.source}: no [risk] section: nothing to study (python -m pounding_sweep --describe)")
+    from pounding_sweep.scene.validate import require_two_buildings
+
+    require_two_buildings(scene, "a study of the probability of pounding")
     from pounding_sweep.scene.risk import check_ensemble
 
     check_ensemble(scene)

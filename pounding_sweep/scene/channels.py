@@ -24,6 +24,8 @@ def floor_dof(code: str, floors: tuple[int, int], key: str, value: str | None = 
     b, f = int(m.group(1)), int(m.group(2))
     if b not in (1, 2):
         raise ConfigError(f"{key} = {said}: there is no building {b} (the model has buildings 1 and 2)")
+    if not floors[b - 1]:
+        raise ConfigError(f"{key} = {said}: there is no building {b} (a single-building scene: no [building2])")
     if not 1 <= f <= floors[b - 1]:
         raise ConfigError(f"{key} = {said}: building {b} has floors 1..{floors[b - 1]}, so it maps to no floor")
     return (f - 1) if b == 1 else floors[0] + f - 1
@@ -55,6 +57,8 @@ def parse_channel(name: str, floors: tuple[int, int]) -> tuple[int, int, str]:
     m = re.fullmatch(r"force_f(\d+)", name)
     if m:
         j = int(m.group(1))
+        if not min(floors):
+            raise ConfigError(f"[output] histories: channel '{name}': a single-building scene has no contact force")
         if not 1 <= j <= min(floors):
             raise ConfigError(f"[output] histories: channel '{name}': facing floor pairs are 1..{min(floors)}")
         return codes.H_FORCE, j - 1, f"{name}_N"

@@ -26,7 +26,9 @@ from pounding_sweep.scene.stochastic import StochasticConfig
 MAX_EVENTS = 16  # engine.events.MAX_EVENTS: the scene layer loads no Numba (tests/scene checks they agree)
 
 #: sections a scene must have (scene_from_dict refuses it without them)
-REQUIRED_SECTIONS = ("building1", "building2", "contact", "excitation")
+REQUIRED_SECTIONS = ("building1", "excitation")
+#: sections required together: a second building and the contact between the two (without both: one building)
+PAIRED_SECTIONS = ("building2", "contact")
 TOP = (
     ("name", "the scene's name: the default output results/<name>.parquet and a label in outputs", "the file's name"),
     ("description", "free text about the scene, kept in the result metadata", "''"),
@@ -52,7 +54,13 @@ def describe() -> str:
     lines += [f"  {k}: {doc} (default {d})" for k, doc, d in TOP]
     optional = {"experiment": ExperimentConfig, "calibrate": CalibrateConfig, "stochastic": StochasticConfig}
     for name, cls in {**SECTIONS, **optional, "risk": RiskConfig}.items():
-        need = " (required section)" if name in REQUIRED_SECTIONS else " (optional section)"
+        need = (
+            " (required section)"
+            if name in REQUIRED_SECTIONS
+            else " (required with the other of building2 and contact; without both: one building on its own)"
+            if name in PAIRED_SECTIONS
+            else " (optional section)"
+        )
         lines.append(f"[{name}]{need}  {cls.__doc__}")
         for f in dataclasses.fields(cls):
             lines.append(f"  {f.name}: {f.metadata['doc']}{_default(f)}")

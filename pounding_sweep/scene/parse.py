@@ -95,14 +95,32 @@ def _toml_line(text: str, message: str) -> str:
     return f": {show(i)} (line {i + 1})" if i >= 0 else ""
 
 
+def _single_building(raw: dict) -> bool:
+    """A scene of one building: neither [building2] nor [contact]. Either without the other is refused: a
+    [contact] has nothing to touch without a second building, and two buildings need their contact."""
+    has2, hasc = "building2" in raw, "contact" in raw
+    if has2 and not hasc:
+        raise ConfigError("missing section [contact]: two buildings need their contact (or leave out [building2])")
+    if hasc and not has2:
+        raise ConfigError(
+            "[contact] without [building2]: one building has nothing to touch; add [building2], or leave out "
+            "[contact] for a single-building scene"
+        )
+    return not has2
+
+
 def scene_from_dict(raw: dict, base_dir: Path, source: str = "<dict>", toml_text: str = "") -> Scene:
     """Build a Scene from parsed TOML (keys checked, types coerced, values validated)."""
     check_keys(raw, TOP_KEYS, "top level")
-    for req in ("building1", "building2", "contact", "excitation"):
+    for req in ("building1", "excitation"):
         if req not in raw:
             raise ConfigError(f"missing section [{req}]")
+    single = _single_building(raw)
     sections = {}
     for name, cls in SECTIONS.items():
+        if single and name in ("building2", "contact"):
+            sections[name] = None
+            continue
         table = raw.get(name, {})
         if not isinstance(table, dict):
             raise ConfigError(f"'{name}' must be a table [{name}], got {type(table).__name__} {shown(table)}")

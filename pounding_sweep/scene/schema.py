@@ -365,8 +365,8 @@ class Scene:
     name: str
     description: str
     building1: BuildingConfig
-    building2: BuildingConfig
-    contact: ContactConfig
+    building2: BuildingConfig | None  # None: a single-building scene (no [building2], no [contact])
+    contact: ContactConfig | None  # None exactly when building2 is
     excitation: ExcitationConfig
     integration: IntegrationConfig
     output: OutputConfig
@@ -390,6 +390,16 @@ class Scene:
         from pounding_sweep.scene.hashing import config_hash
 
         return config_hash(self)
+
+    @property
+    def single(self) -> bool:
+        """One building on its own (no [building2]): no contact pairs, no contact columns."""
+        return self.building2 is None
+
+    @property
+    def floors(self) -> tuple[int, int]:
+        """Floors of building 1 and of building 2 (0 in a single-building scene)."""
+        return len(self.building1.masses_kg), 0 if self.building2 is None else len(self.building2.masses_kg)
 
     def axis_values(self, name: str) -> tuple:
         """The values of the sweep axis `name` (empty when it is not swept)."""

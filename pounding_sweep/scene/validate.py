@@ -16,7 +16,7 @@ from pounding_sweep.codes import (
     is_nonlinear,
 )
 from pounding_sweep.errors import ConfigError, shown
-from pounding_sweep.scene.axes import STRUCTURE_AXES, check_ks
+from pounding_sweep.scene.axes import STRUCTURE_AXES, SWEEPABLE, check_ks
 from pounding_sweep.scene.channels import experiment_channel, parse_channel
 from pounding_sweep.scene.schema import (
     ACC_UNITS,
@@ -55,7 +55,9 @@ def one_storey_damping_modes(bname: str, modes) -> str:
 def validate(s: Scene) -> None:
     """Physical and logical checks that the type coercion cannot make."""
     for bname in ("building1", "building2"):
-        b: BuildingConfig = getattr(s, bname)
+        b: BuildingConfig | None = getattr(s, bname)
+        if b is None:  # a single-building scene
+            continue
         n = len(b.masses_kg)
         if n > MAX_FLOORS:
             raise ConfigError(
@@ -104,8 +106,44 @@ def validate(s: Scene) -> None:
                     f"[{bname}] damping_modes = {shown(list(b.damping_modes))}: two different modes between 1 and {n}"
                 )
     axes = {a.name: a.values for a in s.sweep}
+    _check_single_building(s, axes)
     _check_structure_axes(s, axes)
     _check_calibrate(s)
+    if s.contact is not None:
+        _check_contact(s, axes)
+    for k in ("amplitude_m", "frequency_Hz", "scale"):
+        for v in axes.get(k, ()):
+            _positive(v, f"[sweep] {k}")
+    _validate_rest(s, axes)
+
+
+def require_two_buildings(s: Scene, what: str) -> None:
+    """ConfigError naming the scene when `what` (a study of the gap between two buildings) is asked of one
+    building on its own."""
+    if s.single:
+        raise ConfigError(
+            f"{s.source}: a single-building scene (no [building2]): {what} needs two buildings and their "
+            "[contact]; add them"
+        )
+
+
+def _check_single_building(s: Scene, axes: dict) -> None:
+    """A single-building scene sweeps and fits no parameter of the contact or of a second building."""
+    if not s.single:
+        return
+    named = [(f"[sweep] {n}", n) for n in axes]
+    named += [(f"[calibrate] parameters.{n}", n) for n in (s.calibrate.parameters if s.calibrate else ())]
+    for key, name in named:
+        section = SWEEPABLE.get(name, ("",))[0]
+        if section in ("contact", "building2"):
+            raise ConfigError(
+                f"{key}: a single-building scene (no [building2]) has no {'contact' if section == 'contact' else 'building 2'}"
+                " to vary; add [building2] and [contact], or leave it out"
+            )
+
+
+def _check_contact(s: Scene, axes: dict) -> None:
+    """[contact] and the contact axes: r, the laws, one form of k_s, positive stiffnesses, gaps >= 0."""
     c = s.contact
     _check_r(c.r, "[contact] r")
     for v in axes.get("r", ()):
@@ -115,7 +153,7 @@ def validate(s: Scene) -> None:
     _positive(c.ks_ratio, "[contact] ks_ratio")
     _positive(c.ks_N_per_m, "[contact] ks_N_per_m")
     _positive(c.k_ref_N_per_m, "[contact] k_ref_N_per_m")
-    for k in ("ks_ratio", "ks_N_per_m", "amplitude_m", "frequency_Hz", "scale"):
+    for k in ("ks_ratio", "ks_N_per_m"):
         for v in axes.get(k, ()):
             _positive(v, f"[sweep] {k}")
     if c.gap_m < 0:
@@ -123,6 +161,10 @@ def validate(s: Scene) -> None:
     for v in axes.get("gap_m", ()):
         if v < 0:
             raise ConfigError(f"[sweep] gap_m = {v!r}: must be >= 0")
+
+
+def _validate_rest(s: Scene, axes: dict) -> None:
+    """The excitation, integration, output, execution and experiment sections."""
     e = s.excitation
     if e.type not in ("harmonic", "record", "stochastic"):
         raise ConfigError(f"[excitation] type = {e.type!r}: expected 'harmonic', 'record' or 'stochastic'")
@@ -183,7 +225,7 @@ def validate(s: Scene) -> None:
         )
     _positive(s.output.history_decimate, "[output] history_decimate")
     for ch in s.output.histories:
-        parse_channel(ch, (len(s.building1.masses_kg), len(s.building2.masses_kg)))
+        parse_channel(ch, s.floors)
     check_workers(s.execution.threads, "[execution] threads")
     if s.execution.batch_runs < 0:
         raise ConfigError(f"[execution] batch_runs = {s.execution.batch_runs}: must be >= 0")
@@ -270,7 +312,7 @@ def _validate_experiment(s: Scene) -> None:
             f"[experiment] channels.{x.time_column} = {x.channels[x.time_column]!r}: '{x.time_column}' is the "
             "time column (time_column), not a displacement; map the floor's displacement column instead"
         )
-    floors = (len(s.building1.masses_kg), len(s.building2.masses_kg))
+    floors = s.floors
     seen = {}
     kinds = {}  # column -> codes.H_DISP or codes.H_ABS_ACC
     for col, target in x.channels.items():
@@ -454,6 +496,8 @@ def _check_calibrate_effect(s: Scene, cal) -> None:
     reported 'identified' with an infinite standard error, or leaves a law nothing to fit); r's bounds keep the
     damping finite (r = 0 is a perfectly plastic impact for hertzdamp and jankowski)."""
     params = cal.parameters
+    if s.contact is None:  # one building: no contact parameter is fitted (_check_single_building)
+        return
     laws = list(dict.fromkeys(s.axis_values("law") or (s.contact.law,)))
     law_key = "[sweep] law" if s.axis_values("law") else "[contact] law"
     if "amplitude_m" in params and s.excitation.type != "harmonic":
@@ -498,6 +542,8 @@ def _check_structure_axes(s: Scene, axes: dict) -> None:
     """The structure's scales (> 0), damping ratios in [0, 1) on a building damped by damping_ratio, and a
     time offset only where there is an experiment to offset."""
     for bname, b in (("building1", s.building1), ("building2", s.building2)):
+        if b is None:
+            continue
         _positive(b.stiffness_scale, f"[{bname}] stiffness_scale")
         _positive(b.mass_scale, f"[{bname}] mass_scale")
     for name, values in axes.items():

@@ -157,7 +157,7 @@ class Problem:
         self.threads = threads
         self.evaluations = 0
         self.scene, self.noise_m = scene, noise_m
-        floors = (len(scene.building1.masses_kg), len(scene.building2.masses_kg))
+        floors = scene.floors
         fixed = dataclasses.replace(scene, sweep=())
         if window is not None:
             shift = 0.0
@@ -361,9 +361,20 @@ def _hermite(u: np.ndarray, v: np.ndarray, dt: float, t: np.ndarray) -> np.ndarr
     return h00 * u[k] + h10 * dt * v[k] + h01 * u[k + 1] + h11 * dt * v[k + 1]
 
 
+#: the law label of a single-building scene's fit (no contact; Fit.law, the contact_law column of its rows)
+NO_CONTACT = "none"
+
+
+def law_label(scene: Scene) -> str:
+    """The contact law a fit is for: the scene's, or NO_CONTACT for one building."""
+    return NO_CONTACT if scene.contact is None else scene.contact.law
+
+
 def calibrate(scene: Scene, threads: int = 1, best_cell: dict | None = None, progress=None) -> list[Fit]:
     """Calibrate the scene's [calibrate] parameters: one Fit per law (the [sweep] law axis, else the scene's law)."""
     cal = scene.calibrate
+    if scene.contact is None:  # one building: no contact, no law (its fit is labelled NO_CONTACT)
+        return [_calibrate_one(scene, list(cal.parameters), threads, best_cell, progress)]
     laws = scene.axis_values("law") or (scene.contact.law,)
     fits = []
     for law in laws:
@@ -407,7 +418,7 @@ def _calibrate_one(scene: Scene, names: list[str], threads: int, best_cell: dict
     misfit = misfit_of(r, sizes)
 
     fit = Fit(
-        scene.contact.law,
+        law_label(scene),
         names,
         prob.bounds,
         estimate,
@@ -433,7 +444,7 @@ def _calibrate_one(scene: Scene, names: list[str], threads: int, best_cell: dict
     if misfit > cal.misfit_factor:  # the model cannot explain the data: intervals that include its error
         model_error_intervals(fit, prob, cal.max_evals)
         if progress is not None:
-            progress(f"calibration ({scene.contact.law}): model-error intervals from {len(fit.windows)} windows")
+            progress(f"calibration ({law_label(scene)}): model-error intervals from {len(fit.windows)} windows")
     # profiles
     profiled = (list(cal.profile) or [n for n in CONTACT if n in names]) if cal.profile_points > 0 else []
     for n in profiled:

@@ -141,7 +141,7 @@ def check_contact(tally: ContactTally, scene) -> None:
     parameters then change nothing. Not when the scene is separated on purpose (every gap at least twice the
     closest approach: ContactTally.separated_on_purpose). A gap of half a metre or more is named as the likely
     cause (millimetres written in gap_m, which is in metres)."""
-    if tally.contact or tally.runs == 0 or tally.separated_on_purpose():
+    if scene.contact is None or tally.contact or tally.runs == 0 or tally.separated_on_purpose():  # None: one building
         return
     swept = [a.name for a in scene.sweep if a.name in CONTACT_AXES and len(a.values) > 1]
     gap = tally.min_gap
@@ -263,7 +263,7 @@ def check_scene(prep) -> None:
 
     scene = prep.scene
     r_values = scene.axis_values("r")
-    laws = list(dict.fromkeys(scene.axis_values("law") or (scene.contact.law,)))
+    laws = [] if scene.contact is None else list(dict.fromkeys(scene.axis_values("law") or (scene.contact.law,)))
     if len(r_values) > 1 and "hertz" in laws:
         others = [x for x in laws if x != "hertz"]
         who = f"law 'hertz' is elastic and ignores r: the {len(r_values)} values of [sweep] r give identical runs" + (
@@ -288,8 +288,7 @@ def check_scene(prep) -> None:
             )
     if x.lowpass_Hz is not None:
         firsts = {
-            b.name or f"building {i}": float(b.modes().frequency_Hz[0])
-            for i, b in enumerate((prep.model.b1, prep.model.b2), 1)
+            b.name or f"building {i}": float(b.modes().frequency_Hz[0]) for i, b in enumerate(prep.model.buildings, 1)
         }
         name, f1 = max(firsts.items(), key=lambda kv: kv[1])
         if x.lowpass_Hz < f1:

@@ -64,7 +64,7 @@ class Search:
 def horizons(prob) -> list[float]:
     """The ladder of horizon ends [s, simulation time] (module docstring), the last the scored window's end."""
     lo, hi = prob.window
-    periods = [float(b.modes().period_s.max()) for b in (prob.prep.model.b1, prob.prep.model.b2)]
+    periods = [float(b.modes().period_s.max()) for b in prob.prep.model.buildings]
     first = FIRST_PERIODS * max(periods)
     exc = prob.scene.excitation
     if exc.type == "harmonic":

@@ -26,7 +26,7 @@ from pounding_sweep.model.coupled import CoupledModel, SystemArrays
 from pounding_sweep.model.excitation import Excitation
 from pounding_sweep.model.grid import Grid
 from pounding_sweep.model.laws import hertz_stiffness, law_arrays
-from pounding_sweep.scene import SWEEPABLE, Scene, contact_stiffness
+from pounding_sweep.scene import SWEEPABLE, ContactConfig, Scene, contact_stiffness
 from pounding_sweep.scene.axes import STRUCTURE_AXES
 from pounding_sweep.scene.channels import parse_channel
 from pounding_sweep.warn import warn
@@ -117,7 +117,7 @@ class Prepared:
         runs = RunArrays(
             k,
             c,
-            params["gap_m"],
+            params["gap_m"] if self.model.n_pairs else np.zeros(k.size),
             ex["exc_kind"],
             ex["exc_amp"],
             ex["exc_omega"],
@@ -133,6 +133,8 @@ class Prepared:
     @property
     def law_codes_used(self) -> list[int]:
         """The codes.LAW_* of every law the grid runs (what compile_kernel compiles for)."""
+        if self.scene.contact is None:  # one building: no pair, the law is never evaluated (law_codes)
+            return [LAW_CLASSIC]
         return sorted({CONTACT_LAWS[x] for x in self.scene.axis_values("law") or (self.scene.contact.law,)})
 
 
@@ -147,7 +149,8 @@ def prepare(scene: Scene, kernel: str = "auto", groups: int = L.GROUPS_ALL) -> P
     opts = KernelOptions(
         SCHEMES[scene.integration.scheme],
         scene.integration.max_contact_iterations,
-        scene.contact.min_impact_speed_m_s,
+        # one building: no impact, the floor is never read; [contact]'s default stands in
+        ContactConfig.min_impact_speed_m_s if scene.contact is None else scene.contact.min_impact_speed_m_s,
         groups,
     )
     hspec, hcols = history_spec(scene, model.floors)
@@ -224,11 +227,12 @@ def with_structure(scene: Scene, values: dict) -> Scene:
 
 
 def law_codes(params: dict[str, np.ndarray]) -> np.ndarray:
-    """codes.LAW_* of each run (params["law"] holds the laws' names)."""
+    """codes.LAW_* of each run (params["law"] holds the laws' names; None in a single-building scene, which has
+    no pair to apply a law to: the classic code, so the chunk goes to a kernel that runs P = 0 models)."""
     names = params["law"]
     out = np.empty(names.size, np.int64)
     for name in set(names):
-        out[names == name] = CONTACT_LAWS[name]
+        out[names == name] = LAW_CLASSIC if name is None else CONTACT_LAWS[name]
     return out
 
 
@@ -238,6 +242,9 @@ def contact_arrays(model: CoupledModel, scene: Scene, params: dict[str, np.ndarr
     contact columns, and the status bits known before the run (too few steps per contact period)."""
     c = scene.contact
     codes_ = law_codes(params)
+    if c is None:  # one building: no pairs, no contact columns, nothing to flag before the run
+        n = codes_.size
+        return np.zeros(n), np.zeros((n, 0)), {}, np.zeros(n, np.int64)
     hertz = np.isin(codes_, HERTZ_LAWS)
     ks = contact_stiffness(params["ks_ratio"], params["ks_N_per_m"], c.k_ref_N_per_m)
     kh = np.where(
@@ -282,6 +289,8 @@ def drift_ratio_columns(scene: Scene, metrics: np.ndarray, names: list[str]) -> 
     story heights the scene gives (story_height_m) [-]."""
     out = {}
     for b, cfg in ((1, scene.building1), (2, scene.building2)):
+        if cfg is None:
+            continue
         h = cfg.story_height_m
         if not h:
             continue

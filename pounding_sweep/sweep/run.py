@@ -252,7 +252,7 @@ def _run_claimed(scene, folder, threads, progress, executor, kernel, size, notes
         tally.kernel_s,
         tally.steps,
         exe.workers if exe is not None else 0,
-        {"peak_force_N": tally.peak_force},
+        {} if scene.single else {"peak_force_N": tally.peak_force},  # one building: no pounding force
         parts=len(chunks),
         resumed_parts=len(done),
         executor=exe.name if exe is not None else ex.executor,
@@ -371,7 +371,7 @@ def _calibrated(scene: Scene, best, meta: dict, summary: SweepSummary, progress,
 def calibration_plan(scene: Scene) -> str:
     """One line saying what the calibration is about to do (it runs for a minute or more, silent otherwise)."""
     cal = scene.calibrate
-    laws = scene.axis_values("law") or (scene.contact.law,)
+    laws = () if scene.contact is None else scene.axis_values("law") or (scene.contact.law,)
     profiled = list(cal.profile) or [n for n in ("ks_ratio", "ks_N_per_m", "kh_N_per_m1_5", "r") if n in cal.parameters]
     from pounding_sweep.sweep.globalsearch import design_size
 
@@ -385,7 +385,9 @@ def calibration_plan(scene: Scene) -> str:
     if cal.profile_points and profiled:
         what.append(f"profiles of {', '.join(profiled)} ({cal.profile_points} points each)")
     return (
-        f"calibrating {len(cal.parameters)} parameter(s) against the experiment for law {', '.join(laws)}: "
+        f"calibrating {len(cal.parameters)} parameter(s) against the experiment"
+        + (f" for law {', '.join(laws)}" if laws else " (one building, no contact)")
+        + ": "
         f"{'; '.join(what)} (kept in the best table: a rerun of this scene reuses it)"
     )
 
@@ -534,12 +536,12 @@ def refine_best(prep: Prepared, best: pd.DataFrame) -> Refinement | None:
 
 def _model_facts(prep: Prepared) -> dict:
     model, grid, scene = prep.model, prep.grid, prep.scene
-    modes = [b.modes() for b in (model.b1, model.b2)]
+    modes = [b.modes() for b in model.buildings]
     facts = {
         "kind": "runs",
         "dt_s": "auto" if scene.integration.auto else prep.dt,
         "scheme": scene.integration.scheme,
-        "contact_law": scene.contact.law,
+        "contact_law": None if scene.contact is None else scene.contact.law,  # None: one building, no contact
         "grid_axes": {name: list(v) for name, v in grid.axes},
         "grid_size": grid.size,
         "buildings": [
@@ -552,7 +554,7 @@ def _model_facts(prep: Prepared) -> dict:
                 "frequencies_Hz": md.frequency_Hz.tolist(),
                 "damping_ratios": md.damping_ratio.tolist(),
             }
-            for b, md in zip((model.b1, model.b2), modes)
+            for b, md in zip(model.buildings, modes)
         ],
         "records": [
             {"name": r.name, "source": Path(r.source).name, "dt_s": r.dt_s, "description": r.description}
@@ -603,11 +605,13 @@ def _param_columns(exc: Excitation, params: dict, derived: dict, grid: Grid) -> 
     """The parameter columns of the result rows (only those that mean something for this scene; the structure's
     scales, damping ratios and the experiment's clock where they are swept)."""
     cols = {}
-    if not np.all(np.isnan(params["ks_ratio"])):
-        cols["ks_ratio"] = params["ks_ratio"]
-    cols["ks_N_per_m"] = derived["ks_N_per_m"]
-    cols["r"] = params["r"]
-    cols["gap_m"] = params["gap_m"]
+    contact = "ks_N_per_m" in derived  # prepare.contact_arrays derives none for one building (no contact columns)
+    if contact:
+        if not np.all(np.isnan(params["ks_ratio"])):
+            cols["ks_ratio"] = params["ks_ratio"]
+        cols["ks_N_per_m"] = derived["ks_N_per_m"]
+        cols["r"] = params["r"]
+        cols["gap_m"] = params["gap_m"]
     if exc.kind == "harmonic":
         cols["amplitude_m"] = params["amplitude_m"]
         cols["frequency_Hz"] = params["frequency_Hz"]
@@ -616,7 +620,8 @@ def _param_columns(exc: Excitation, params: dict, derived: dict, grid: Grid) -> 
     else:
         cols["record"] = np.array([exc.record_name(p) for p in params["record"]], dtype=object)
     cols["scale"] = params["scale"]
-    cols["contact_law"] = np.asarray(params["law"], dtype=object)
+    if contact:
+        cols["contact_law"] = np.asarray(params["law"], dtype=object)
     for key in ("intensity_g", "kh_N_per_m1_5", "contact_damping_ratio", "hertzdamp_a", "r_single_impact"):
         if key in derived:
             cols[key] = derived[key]
@@ -624,7 +629,8 @@ def _param_columns(exc: Excitation, params: dict, derived: dict, grid: Grid) -> 
     for name in STRUCTURE_AXES:
         if name in swept:
             cols[name] = params[name]
-    cols["steps_per_contact_period"] = derived["steps_per_contact_period"]
+    if contact:
+        cols["steps_per_contact_period"] = derived["steps_per_contact_period"]
     for key in ("dt_s", "dt_error_estimate"):  # dt = 'auto'
         if key in derived:
             cols[key] = derived[key]

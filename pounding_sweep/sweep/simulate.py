@@ -64,7 +64,7 @@ def simulate(scene: Scene, channels: list[str] | None = None, decimate: int = 1,
         _, _, _, _, derived = prepare(s).run(prepare(s).grid.chunk(0, 1))
         auto = {"dt_s": float(derived["dt_s"][0]), "dt_error_estimate": float(derived["dt_error_estimate"][0])}
         s = with_overrides(s, dt_s=auto["dt_s"])
-    floors = (len(s.building1.masses_kg), len(s.building2.masses_kg))
+    floors = s.floors
     s = dataclasses.replace(
         s,
         output=dataclasses.replace(

@@ -119,6 +119,23 @@ def table_scene(table: str = "exp.csv") -> str:
     return BASE + TABLE_SECTION.format(table=table)
 
 
+BUILDING2 = """\
+[building2]
+masses_kg = [0.56, 0.56, 0.45]
+story_stiffness_N_per_m = 5140.0
+damping_ratio = 0.0107
+
+"""
+
+
+def single_building(text: str, sweep: str | None = None) -> str:
+    """`text` as a single-building scene: no [building2], no [contact]; its [sweep] replaced by `sweep`."""
+    out = edit(edit(text, BUILDING2, ""), CONTACT, "")
+    if sweep is not None:
+        out = edit(out, "ks_ratio = [0.1, 1.0]\nr = [0.2, 0.6]\n", sweep)
+    return out
+
+
 MARKERS = ["table_left", "table_right", "b1f1", "b1f2", "b1f3", "b2f1", "b2f2", "b2f3"]
 VIDEO_SECTION = """
 [experiment]
@@ -820,6 +837,51 @@ CASES: list[Case] = [
         edit(BASE, 'type = "harmonic"', 'type = "sine"'),
     ),
     _c("missing_section", "values", "no [contact] section", [S, "[contact]"], "missing", edit(BASE, CONTACT, "")),
+    # ------------------------------------------------------------------ single-building scenes (issue 27)
+    _c(
+        "contact_without_building2",
+        "values",
+        "[contact] but no [building2]",
+        [S, "[contact]", "[building2]"],
+        "without",
+        edit(BASE, BUILDING2, ""),
+    ),
+    _c(
+        "single_building_contact_axis",
+        "values",
+        "one building, [sweep] ks_ratio",
+        [S, "[sweep] ks_ratio"],
+        "single-building",
+        single_building(BASE),
+    ),
+    _c(
+        "single_building_fits_building2",
+        "values",
+        "one building, [calibrate] fits stiffness_scale_b2",
+        [S, "[calibrate] parameters.stiffness_scale_b2"],
+        "single-building",
+        single_building(table_scene().replace('b2f3 = "b2f3"', 'b2f2 = "b1f2"'), "stiffness_scale_b1 = [1.0]\n")
+        + "\n[calibrate]\nparameters = { stiffness_scale_b2 = [0.9, 1.1] }\n",
+    ),
+    _c(
+        "single_building_channel_b2",
+        "values",
+        "one building, an experiment channel on building 2",
+        [S, "[experiment] channels.b2f3"],
+        ["'b2f3'", "no building 2"],
+        single_building(table_scene(), "stiffness_scale_b1 = [1.0]\n"),
+        files={"exp.csv": table_csv()},
+    ),
+    _c(
+        "single_building_force_history",
+        "values",
+        "one building, [output] histories = ['force_f3']",
+        [S, "[output] histories", "force_f3"],
+        "no contact force",
+        single_building(BASE, "stiffness_scale_b1 = [1.0]\n").replace(
+            'path = "out.parquet"', 'path = "out.parquet"\nhistories = ["force_f3"]'
+        ),
+    ),
     _c(
         "cli_negative_threads",
         "values",
@@ -2290,6 +2352,15 @@ CASES += [
         argv=("gaps", "{scene}", "--out", "{dir}/study", "--quiet"),
     ),
     _c(
+        "gaps_single_building",
+        "commands",
+        "gaps on a single-building scene",
+        [S, "single-building"],
+        "no [building2]",
+        single_building(BASE, "stiffness_scale_b1 = [1.0]\n"),
+        argv=("gaps", "{scene}", "--out", "{dir}/study", "--quiet"),
+    ),
+    _c(
         "gaps_length_scale_inf",
         "commands",
         "gaps --length-scale inf",
@@ -2392,6 +2463,15 @@ intensities_g = [0.4]
 RISK = ("risk", "{scene}", "--out", "{dir}/study.risk")
 
 CASES += [
+    _c(
+        "risk_single_building",
+        "risk",
+        "risk on a single-building scene",
+        [S, "single-building"],
+        "no [building2]",
+        single_building(STOCHASTIC),
+        argv=RISK,
+    ),
     _c(
         "risk_without_intensity",
         "risk",

@@ -219,8 +219,10 @@ def test_describe_lists_the_top_level_keys_and_marks_what_is_required():
     assert keyed["ks_ratio"].endswith("(required unless ks_N_per_m is given, or either swept)")
     assert keyed["amplitude_m"].endswith("(required for type = 'harmonic')")
     assert keyed["gap_m"].endswith("(default 0.0)")
-    for name in ("building1", "building2", "contact", "excitation"):
+    for name in ("building1", "excitation"):
         assert f"[{name}] (required section)" in describe()
+    for name in ("building2", "contact"):  # both, or neither: one building on its own
+        assert f"[{name}] (required with the other of building2 and contact; without both: one building" in (describe())
     # every key of every section is listed, once per section
     for name, cls in {**SECTIONS, "experiment": ExperimentConfig}.items():
         section = describe().split(f"[{name}]", 1)[1].split("\n[", 1)[0]

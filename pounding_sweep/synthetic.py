@@ -137,6 +137,21 @@ def mems_samples(
     return t_fine[idx], means[idx]
 
 
+def butter_samples(
+    t_fine: np.ndarray, a_fine: np.ndarray, fps: float, internal_hz: float, order: int, cutoff_hz: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """An accelerometer whose digital low-pass is a Butterworth of `order` poles and cut-off `cutoff_hz` run at its
+    internal rate (scipy.signal.butter, second-order sections, causal from rest), output every internal_hz / fps-th
+    filtered sample; `t_fine`, `a_fine` as mems_samples takes them."""
+    from scipy.signal import butter, sosfilt
+
+    n = int(round(internal_hz / fps))
+    if n < 1 or abs(n * fps - internal_hz) > 1e-9 * internal_hz:
+        raise ValueError(f"butter_samples: internal rate {internal_hz} Hz is not a multiple of {fps} samples/s")
+    y = sosfilt(butter(order, cutoff_hz, btype="low", output="sos", fs=internal_hz), a_fine)
+    return t_fine[::n], y[::n]
+
+
 def make_ivp_experiment(
     scene: Scene,
     hidden: dict,
@@ -147,6 +162,7 @@ def make_ivp_experiment(
     noise_mm: float = 0.05,
     fps: float = 100.0,
     sensor_hz: float = 1000.0,
+    sensor_butter: tuple[int, float] | None = None,
     acc_noise_m_s2: float | None = None,
     seed: int = 0,
     time_offset_s: float = 0.0,
@@ -163,7 +179,8 @@ def make_ivp_experiment(
     them) plus AR(1) noise of `noise_mm` RMS, columns model<b>_floor<f>_mm; with `acc_noise_m_s2`, every floor's
     absolute acceleration as a MEMS accelerometer gives it (mems_samples: the truth sampled at `sensor_hz`,
     averaged over sensor_hz / fps samples, output at `fps`) plus Gaussian noise of that RMS, columns
-    b<b>f<f>_acc [m/s^2]. The table's clock runs `time_offset_s` ahead of the simulation's. Returns (table,
+    b<b>f<f>_acc [m/s^2]; with `sensor_butter` = (order, cut-off Hz), a Butterworth at `sensor_hz` in place of the
+    average (butter_samples). The table's clock runs `time_offset_s` ahead of the simulation's. Returns (table,
     provenance)."""
     from pounding_sweep.reference.ivp import law_ivp_reference
     from pounding_sweep.reference.nonlinear import LAWS as HERTZ_LAWS
@@ -193,7 +210,10 @@ def make_ivp_experiment(
         table[f"model{b}_floor{f}_mm"] = u[::n, i] * 1e3 + ar1_noise(rng, t.size, noise_mm, noise_rho)
     if acc_noise_m_s2 is not None:
         for b, f, i in dofs:
-            _, acc = mems_samples(t_fine, a_abs[:, i], fps, sensor_hz)
+            if sensor_butter is None:
+                _, acc = mems_samples(t_fine, a_abs[:, i], fps, sensor_hz)
+            else:
+                _, acc = butter_samples(t_fine, a_abs[:, i], fps, sensor_hz, *sensor_butter)
             table[f"b{b}f{f}_acc"] = acc + rng.normal(0.0, acc_noise_m_s2, t.size)
     provenance = {
         "synthetic": True,
@@ -213,7 +233,12 @@ def make_ivp_experiment(
         **(
             {
                 "acc_noise_m_s2_rms": acc_noise_m_s2,
-                "accelerometer": f"moving average of {n} samples at {sensor_hz:g} Hz, output at {fps:g} samples/s",
+                "accelerometer": (
+                    f"moving average of {n} samples"
+                    if sensor_butter is None
+                    else f"Butterworth low-pass, {sensor_butter[0]} poles, cut-off {sensor_butter[1]:g} Hz,"
+                )
+                + f" at {sensor_hz:g} Hz, output at {fps:g} samples/s",
             }
             if acc_noise_m_s2 is not None
             else {}

@@ -25,6 +25,10 @@ ADDED_EXPERIMENT_KEYS = {
     "weights": "equal",
     "noise": None,
     "noise_window_s": None,
+    "sensor_filter": "none",
+    "sensor_rate_Hz": None,
+    "sensor_cutoff_Hz": None,
+    "sensor_order": 2,
 }
 #: [excitation] keys and sections added for ensembles of ground motions (intensity measures, stochastic
 #: motions), left out at the values they had before they existed, like ADDED_EXPERIMENT_KEYS

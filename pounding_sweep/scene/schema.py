@@ -28,6 +28,8 @@ EXECUTORS = ("local", "dask")
 ACC_UNITS = ("m/s2", "g")
 #: [experiment] use: which kind of channel enters the combined error ('both': every channel)
 USES = {"displacement": codes.H_DISP, "acceleration": codes.H_ABS_ACC, "both": None}
+#: [experiment] sensor_filter: the accelerometers' own filter before sampling (sweep/sensor.py)
+SENSOR_FILTERS = ("none", "average", "butter")
 #: [experiment] weights as a word (or a table column -> weight)
 WEIGHTINGS = ("equal", "noise")
 #: [experiment] lowpass_order: a Butterworth filter in second-order sections is well conditioned at any
@@ -278,6 +280,25 @@ class ExperimentConfig:
         when="optional; without it accelerations are compared unfiltered",
     )
     lowpass_order: int = _f("order of that Butterworth filter (1-12)", 4)
+    sensor_filter: str = _f(
+        "the accelerometers' own filter before they output a sample (sweep/sensor.py), run on the model's "
+        "acceleration at every simulation step, then sampled at the table's instants: 'average' (a moving average "
+        "of its internal samples over one output interval: a MEMS part's decimation), 'butter' (a Butterworth "
+        "low-pass of sensor_order and sensor_cutoff_Hz at sensor_rate_Hz, or at the simulation step: analog), "
+        "'none' (the model's acceleration sampled as it is)",
+        "none",
+    )
+    sensor_rate_Hz: float | None = _f(
+        "the accelerometers' internal sample rate [Hz] ('average': a multiple of the table's rate)",
+        None,
+        when="required with sensor_filter = 'average'; optional with 'butter' (without it: an analog filter)",
+    )
+    sensor_cutoff_Hz: float | None = _f(
+        "cut-off [Hz] of the sensor's Butterworth low-pass; below half of sensor_rate_Hz",
+        None,
+        when="required with sensor_filter = 'butter'",
+    )
+    sensor_order: int = _f("order of the sensor's Butterworth low-pass (1-12)", 2)
     use: str = _f(
         "channels whose eq. 20 errors make the combined error (and the refinement's objective): "
         "'displacement', 'acceleration' or 'both' (every channel is scored and written either way)",

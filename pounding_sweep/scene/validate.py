@@ -28,6 +28,7 @@ from pounding_sweep.scene.schema import (
     MAX_STEPS,
     MAX_THREADS,
     NOISE_M_RANGE,
+    SENSOR_FILTERS,
     USES,
     WEIGHTINGS,
     BuildingConfig,
@@ -345,6 +346,7 @@ def _validate_acceleration(x, kinds: dict) -> None:
             )
     if not 1 <= x.lowpass_order <= MAX_LOWPASS_ORDER:
         raise ConfigError(f"[experiment] lowpass_order = {x.lowpass_order}: expected 1 to {MAX_LOWPASS_ORDER}")
+    _validate_sensor(x, acc)
     if x.use not in USES:
         raise ConfigError(f"[experiment] use = {shown(x.use)}: expected one of {list(USES)}")
     used = [c for c, k in kinds.items() if x.use == "both" or k == USES[x.use]]
@@ -377,6 +379,53 @@ def _validate_acceleration(x, kinds: dict) -> None:
         raise ConfigError(f"[experiment] weights: no weight for channel '{missing[0]}' (use = {x.use!r} includes it)")
     if not any(x.weights[c] > 0 for c in used):
         raise ConfigError(f"[experiment] weights = {shown(x.weights)}: at least one weight must be > 0")
+
+
+def _validate_sensor(x, acc: list[str]) -> None:
+    """[experiment] sensor_filter and its settings (sweep/sensor.py); the sensor's rate against the table's
+    is checked where the table is read."""
+    f = x.sensor_filter
+    if f not in SENSOR_FILTERS:
+        raise ConfigError(f"[experiment] sensor_filter = {shown(f)}: expected one of {list(SENSOR_FILTERS)}")
+    if f == "none":
+        for key in ("sensor_rate_Hz", "sensor_cutoff_Hz"):
+            if getattr(x, key) is not None:
+                raise ConfigError(
+                    f"[experiment] {key} = {getattr(x, key)!r}: sensor_filter = 'none' has no sensor to set "
+                    "(give sensor_filter = 'average' or 'butter', or leave the key out)"
+                )
+        return
+    if not acc:
+        raise ConfigError(
+            f"[experiment] sensor_filter = {f!r}: it models accelerometers, and no acceleration channel is mapped "
+            "(map one as 'abs_acc_b1f3', or leave sensor_filter out)"
+        )
+    rate = x.sensor_rate_Hz
+    if rate is not None and not (rate > 0 and math.isfinite(rate)):
+        raise ConfigError(f"[experiment] sensor_rate_Hz = {rate!r}: a sample rate must be > 0 Hz and finite")
+    if f == "average":
+        if rate is None:
+            raise ConfigError(
+                "[experiment] sensor_filter = 'average': give sensor_rate_Hz, the sensor's internal rate it averages at"
+            )
+        if x.sensor_cutoff_Hz is not None:
+            raise ConfigError(
+                f"[experiment] sensor_cutoff_Hz = {x.sensor_cutoff_Hz!r}: sensor_filter = 'average' has no cut-off "
+                "(its window is one output interval); use sensor_filter = 'butter' for a stated cut-off"
+            )
+        return
+    cut = x.sensor_cutoff_Hz
+    if cut is None:
+        raise ConfigError("[experiment] sensor_filter = 'butter': give sensor_cutoff_Hz, the filter's cut-off in Hz")
+    if not (cut > 0 and math.isfinite(cut)):
+        raise ConfigError(f"[experiment] sensor_cutoff_Hz = {cut!r}: a cut-off frequency must be > 0 Hz and finite")
+    if rate is not None and not cut < rate / 2:
+        raise ConfigError(
+            f"[experiment] sensor_cutoff_Hz = {cut!r}: at or above the Nyquist frequency {rate / 2:g} Hz of "
+            f"sensor_rate_Hz = {rate!r}"
+        )
+    if not 1 <= x.sensor_order <= MAX_LOWPASS_ORDER:
+        raise ConfigError(f"[experiment] sensor_order = {x.sensor_order}: expected 1 to {MAX_LOWPASS_ORDER}")
 
 
 def _check_laws(c, axes: dict) -> None:

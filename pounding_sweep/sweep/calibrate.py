@@ -11,8 +11,10 @@ Method.
   floor sigma_c, so channels weigh by their noise. Displacement: cubic Hermite interpolation of the kernel's
   displacement and velocity at dt (error ~ dt^4 |u^(4)| / 384, far below any tracking noise). Absolute
   acceleration ([experiment] acceleration channels): linear interpolation between steps, as the kernel's
-  scoring samples it, then the experiment's low-pass filter (lowpass_Hz: the same causal sections from rest at
-  the window's first sample) on both sides. Channels that [experiment] use leaves out are left out here too.
+  scoring samples it, or with [experiment] sensor_filter the sensor's own filter run on the acceleration at
+  every step and read at the table's instants (sweep/sensor.py); then the experiment's low-pass filter
+  (lowpass_Hz: the same causal sections from rest at the window's first sample) on both sides. Channels that
+  [experiment] use leaves out are left out here too.
 * Noise floor sigma_c: the channel's own noise where the scene gives it ([experiment] noise, in the channel's
   unit, or noise_window_s: the standard deviation in a quiet window), else the [calibrate] noise_m (displacement
   channels; m), else estimated from the data by the difference method (model/experiment.py noise_floor: an upper
@@ -180,9 +182,12 @@ class Problem:
             floor = c.removeprefix("abs_acc_")
             self.slots.append(tuple(range(len(channels), len(channels) + (1 if a else 2))))
             channels += [f"abs_acc_{floor}"] if a else [f"disp_{floor}", f"vel_{floor}"]
-        kept = dataclasses.replace(fixed, output=dataclasses.replace(fixed.output, histories=tuple(channels)))
+        kept = dataclasses.replace(
+            fixed, output=dataclasses.replace(fixed.output, histories=tuple(channels), history_decimate=1)
+        )
         hspec, hcols = history_spec(kept, floors)  # the probe with histories: the record and table read once
-        self.prep: Prepared = dataclasses.replace(probe, scene=kept, hist=hspec, hist_columns=hcols)
+        self.sensor = probe.sensor  # the accelerometers' filter (sweep/sensor.py), on the step history below
+        self.prep: Prepared = dataclasses.replace(probe, scene=kept, hist=hspec, hist_columns=hcols, sensor=None)
         self.base = self.prep.grid.chunk(0, 1)
         cfg = scene.experiment
         duration = self.prep.excitation.max_duration_s
@@ -289,7 +294,10 @@ class Problem:
                 ts = T.time_exp[c] - offsets[i]
                 if T.acc[c]:
                     a = hist[i, slot[0]]
-                    model = np.interp(ts / self.dt, np.arange(a.size), a)
+                    if self.sensor is not None:
+                        model = self.sensor.read(a, self.dt, ts)
+                    else:
+                        model = np.interp(ts / self.dt, np.arange(a.size), a)
                     if T.sos.shape[0]:
                         model = sosfilt(T.sos, model)
                 else:

@@ -6,11 +6,13 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from pounding_sweep.codes import (
     CONTACT_LAWS,
+    H_ABS_ACC,
     HERTZ_LAWS,
     LAW_CLASSIC,
     LAW_HERTZDAMP,
@@ -53,6 +55,7 @@ class Prepared:
     combination: object | None = None  # sweep.scoring.Combination: how the channels' errors combine
     experiment: object | None = None  # the loaded experiment (model.experiment.Experiment), for variants
     variants: dict = field(default_factory=dict, compare=False, repr=False)  # structure values -> Prepared
+    sensor: object | None = None  # sweep.sensor.Sensor: the accelerometers' own filter (scored via run_sensed)
 
     @property
     def dt(self) -> float:
@@ -66,6 +69,10 @@ class Prepared:
         groups = structure_groups(self.scene, params)
         if groups is not None:
             return self._run_groups(groups, params, threads, batch_runs, done)
+        if self.sensor is not None and self.score.active:
+            from pounding_sweep.sweep.sensor import run_sensed
+
+            return run_sensed(self, params, threads, batch_runs, done)
         runs, rec, derived = self.kernel_inputs(params, threads)
         metrics, run_time, hist, scores = run_chunk(
             self.sysarr,
@@ -154,7 +161,7 @@ def prepare(scene: Scene, kernel: str = "auto", groups: int = L.GROUPS_ALL) -> P
         groups,
     )
     hspec, hcols = history_spec(scene, model.floors)
-    score, codes, comb = ScoreSpec.none(), [], None
+    score, codes, comb, sensor = ScoreSpec.none(), [], None, None
     if scene.experiment is not None:
         from pounding_sweep.sweep.scoring import load_experiment, score_spec, sensor_warnings
 
@@ -163,6 +170,10 @@ def prepare(scene: Scene, kernel: str = "auto", groups: int = L.GROUPS_ALL) -> P
             warn(kind, message)
         score, comb = score_spec(exp, scene.experiment, model.floors, exc.max_duration_s, dt)
         codes = list(exp.channels)
+        if (score.kind == H_ABS_ACC).any():
+            from pounding_sweep.sweep.sensor import sensor_model
+
+            sensor = sensor_model(scene.experiment, exp.dt_sample, dt, Path(exp.path).name)
     else:
         exp = None
     auto = None
@@ -185,6 +196,7 @@ def prepare(scene: Scene, kernel: str = "auto", groups: int = L.GROUPS_ALL) -> P
         kernel,
         comb,
         exp,
+        sensor=sensor,
     )
 
 

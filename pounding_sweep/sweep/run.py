@@ -593,6 +593,8 @@ def _acceleration_facts(prep: Prepared) -> dict:
                 "sos": prep.score.sos.tolist(),
                 "applied_to": [c for c in prep.score_codes if c.startswith(ACC_PREFIX)],
             }
+        if prep.sensor is not None:
+            out["sensor"] = prep.sensor.describe()
     if comb is not None and comb.weights is not None:
         out["use"] = x.use
         out["weights"] = dict(zip(prep.score_codes, map(float, comb.weights)))

@@ -79,7 +79,8 @@ def score_spec(
     1 / (2 pi f_c sin(pi / (2 n))) for n poles (a Butterworth's group delay at 0 Hz: 14 ms for 4 poles at
     30 Hz), which the comparison does not see. The model's acceleration is sampled as the displacement is,
     by linear interpolation between the steps around each sample instant, with no anti-alias filter
-    before it (an accelerometer's own, such as the MPU-6050's digital low-pass, is not modelled): record
+    before it, unless [experiment] sensor_filter states the accelerometer's own filter: then the sweep layer
+    (sweep/sensor.py run_sensed) rescores those channels from the step history through it. Without it, record
     accelerations at a rate that resolves the impacts, which last 6-23 ms here (500-1000 samples/s; at
     100 samples/s even their noise floor cannot be told from the signal: noise_floor).
     """

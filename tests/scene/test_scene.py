@@ -259,6 +259,30 @@ BAD_ACC = {
     ),
     "lowpass_zero": (ACC + "\nlowpass_Hz = 0", r"lowpass_Hz = 0.0: a cut-off frequency must be > 0"),
     "lowpass_order": (ACC + "\nlowpass_Hz = 20.0\nlowpass_order = 0", r"lowpass_order = 0: expected 1 to 12"),
+    "sensor_unknown": (ACC + '\nsensor_filter = "kalman"', r"sensor_filter = 'kalman': expected one of \['none'"),
+    "sensor_average_without_rate": (ACC + '\nsensor_filter = "average"', r"'average': give sensor_rate_Hz"),
+    "sensor_rate_negative": (
+        ACC + '\nsensor_filter = "average"\nsensor_rate_Hz = -1.0',
+        r"sensor_rate_Hz = -1.0: a sample rate must be > 0 Hz",
+    ),
+    "sensor_average_with_cutoff": (
+        ACC + '\nsensor_filter = "average"\nsensor_rate_Hz = 1000\nsensor_cutoff_Hz = 40',
+        r"sensor_cutoff_Hz = 40.0: sensor_filter = 'average' has no cut-off",
+    ),
+    "sensor_butter_without_cutoff": (ACC + '\nsensor_filter = "butter"', r"'butter': give sensor_cutoff_Hz"),
+    "sensor_cutoff_above_nyquist": (
+        ACC + '\nsensor_filter = "butter"\nsensor_rate_Hz = 1000\nsensor_cutoff_Hz = 500',
+        r"sensor_cutoff_Hz = 500.0: at or above the Nyquist frequency 500 Hz of sensor_rate_Hz = 1000.0",
+    ),
+    "sensor_order": (
+        ACC + '\nsensor_filter = "butter"\nsensor_cutoff_Hz = 40\nsensor_order = 13',
+        r"sensor_order = 13: expected 1 to 12",
+    ),
+    "sensor_rate_without_filter": (ACC + "\nsensor_rate_Hz = 1000", r"sensor_rate_Hz = 1000.0: sensor_filter = 'none'"),
+    "sensor_without_acceleration": (
+        CHANNELS + '\nsensor_filter = "average"\nsensor_rate_Hz = 1000',
+        r"sensor_filter = 'average': it models accelerometers, and no acceleration channel is mapped",
+    ),
     "use_unknown": (
         ACC + '\nuse = "accel"',
         r"use = 'accel': expected one of \['displacement', 'acceleration', 'both'\]",
@@ -312,15 +336,17 @@ def test_acceleration_keys_in_the_hash_only_when_used(tmp_path):
         "lowpass_Hz = 20.0\nacc_units = 'g'",
         "use = 'displacement'",
         "weights = 'noise'",
+        "sensor_filter = 'average'\nsensor_rate_Hz = 1000",
+        "sensor_filter = 'butter'\nsensor_cutoff_Hz = 40",
     ):
         text = SCORED.replace(CHANNELS, ACC + "\n" + extra)
         hashes.add(load_scene(write(tmp_path, text, f"s{len(hashes)}.toml")).config_hash())
-    assert len(hashes) == 6
+    assert len(hashes) == 8
 
 
 def test_describe_documents_the_acceleration_keys():
     text = describe()
-    for key in ("acc_units", "lowpass_Hz", "lowpass_order", "use", "weights", "abs_acc_b1f3"):
+    for key in ("acc_units", "lowpass_Hz", "lowpass_order", "use", "weights", "abs_acc_b1f3", "sensor_filter"):
         assert key in text
 
 

@@ -5,7 +5,9 @@
 For each case a scene is run twice by `python -m pounding_sweep` in a fresh process with an empty Numba
 cache (NUMBA_CACHE_DIR pointing at a new temporary folder): the first run compiles, the second loads the
 cache. The runs are 10 ms long, so both are start-up plus compile or cache load; their difference is the
-compile time a user waits for once. Cases: the README's scored scene (the scalar kernel with scoring),
+compile time a user waits for once. Wall time is what a user waits; on a shared machine it grows with the
+other processes' load, so the table also gives the runs' CPU time (user + system, of the child process):
+compiling is one thread's work, so that one does not. Cases: the README's scored scene (the scalar kernel with scoring),
 the Duzce metrics-only scene (the lane kernel), the same with another pair of story counts (4 + 2:
 what a new building pair costs), and the 6 Hz scene with histories (the scalar kernel without scoring).
 The runs are not --quiet: the table says whether the cold run announced its compile on stderr
@@ -19,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -76,20 +79,25 @@ def cases(folder: Path) -> dict[str, Path]:
     return out
 
 
-def timed_run(scene: Path, cache: Path, out: Path) -> tuple[float, str]:
-    """(wall seconds, stderr) of one run through the command line."""
+def _children_cpu() -> float:
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return ru.ru_utime + ru.ru_stime
+
+
+def timed_run(scene: Path, cache: Path, out: Path) -> tuple[float, float, str]:
+    """(wall seconds, CPU seconds, stderr) of one run through the command line."""
     env = dict(os.environ, NUMBA_CACHE_DIR=str(cache))
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), _children_cpu()
     r = subprocess.run(
         [sys.executable, "-m", "pounding_sweep", str(scene), "--out", str(out), "--yes"],
         env=env,
         capture_output=True,
         text=True,
     )
-    dt = time.perf_counter() - t0
+    dt, dc = time.perf_counter() - t0, _children_cpu() - c0
     if r.returncode:
         raise SystemExit(f"{scene}: exit {r.returncode}: {r.stderr.strip()[-400:]}")
-    return dt, r.stderr
+    return dt, dc, r.stderr
 
 
 def main(argv=None) -> int:
@@ -98,33 +106,39 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     import pounding_sweep
 
-    print(f"package: {Path(pounding_sweep.__file__).parent}")
+    with open("/proc/loadavg") as f:
+        print(f"package: {Path(pounding_sweep.__file__).parent}; load average {' '.join(f.read().split()[:3])}")
     rows = []
     with tempfile.TemporaryDirectory() as d:
         d = Path(d)
         for name, scene in cases(d).items():
-            cold, warm, said, silent = [], [], [], []
+            cold, warm, cold_cpu, warm_cpu, said, silent = [], [], [], [], [], []
             for k in range(args.repeats):
                 cache = d / f"cache-{scene.stem}-{k}"
-                t, err = timed_run(scene, cache, d / f"o-{scene.stem}-{k}-a.parquet")
+                t, c, err = timed_run(scene, cache, d / f"o-{scene.stem}-{k}-a.parquet")
                 cold.append(t)
+                cold_cpu.append(c)
                 said.append("compiling" in err)
-                t, err = timed_run(scene, cache, d / f"o-{scene.stem}-{k}-b.parquet")
+                t, c, err = timed_run(scene, cache, d / f"o-{scene.stem}-{k}-b.parquet")
                 warm.append(t)
+                warm_cpu.append(c)
                 silent.append("compiling" not in err)
-            rows.append((name, min(cold), min(warm), min(cold) - min(warm), all(said), all(silent)))
+            comp_cpu = min(cold_cpu) - min(warm_cpu)
+            rows.append((name, min(cold), min(warm), min(cold) - min(warm), comp_cpu, all(said), all(silent)))
         w = max(len(r[0]) for r in rows)
         print(
             f"{'case':<{w}}  {'empty cache [s]':>15}  {'warm cache [s]':>14}  {'compile [s]':>11}  "
-            f"{'cold run announced':>18}  {'warm run silent':>15}"
+            f"{'compile CPU [s]':>15}  {'cold run announced':>18}  {'warm run silent':>15}"
         )
-        for name, c, wa, comp, said, silent in rows:
-            print(f"{name:<{w}}  {c:15.1f}  {wa:14.1f}  {comp:11.1f}  {str(said):>18}  {str(silent):>15}")
+        for name, c, wa, comp, comp_cpu, said, silent in rows:
+            print(
+                f"{name:<{w}}  {c:15.1f}  {wa:14.1f}  {comp:11.1f}  {comp_cpu:15.1f}  {str(said):>18}  {str(silent):>15}"
+            )
         full = d / "scored.toml"
         full.write_text((SWEEPS / "scored_6hz.toml").read_text().replace('"experiments/', f'"{SWEEPS}/experiments/'))
         cache = d / f"cache-{cases(d)['scored 6 Hz (README scene; scalar kernel + scoring)'].stem}-0"
-        first, _ = timed_run(full, cache, d / "full.parquet")
-        again, _ = timed_run(full, cache, d / "full.parquet")
+        first, _, _ = timed_run(full, cache, d / "full.parquet")
+        again, _, _ = timed_run(full, cache, d / "full.parquet")
         print(
             f"\nscored 6 Hz in full, warm cache: {first:.1f} s; the same command again (everything kept, "
             f"refinement stored): {again:.1f} s"

@@ -2,6 +2,8 @@
 
     python benchmarks/check_identity.py run OUT_DIR        # run the fixed set of scenes into OUT_DIR
     python benchmarks/check_identity.py compare A_DIR B_DIR  # every table of A equal to B's, bit for bit
+    python benchmarks/check_identity.py rows OUT.npz         # the lane kernel's scenes' metric rows, in process
+    python benchmarks/check_identity.py compare-rows A.npz B.npz
 
 `run` writes the scenes it uses into OUT_DIR/scenes (the shipped scenes, the throughput benchmark's
 uneven grids for both lane schemes and both laws, a history-producing scene, a record and scale
@@ -10,6 +12,12 @@ the same script drives any version of the package. `compare` reads every Parquet
 best runs, histories), drops the run-time columns (wall clock), and requires every other column
 equal value for value (NaN equal to NaN, 0.0 equal to -0.0); columns B adds (new metrics) are listed,
 columns of A that B lacks are a difference. It prints one line per table and exits 1 on any difference.
+
+`rows` is the quick check of a change to the lane kernel on a busy machine: it runs only the scenes the
+lane kernel computes (the four uneven grids, the paper's Duzce and 6 Hz grids) through
+sweep.prepare in this process (one compile, no subprocess per scene) and saves each scene's metric rows;
+`compare-rows` requires them equal slot for slot (NaN equal to NaN). Run it from a folder other than the
+checkout with PYTHONPATH=OTHER_CHECKOUT for the other side.
 """
 
 from __future__ import annotations
@@ -139,11 +147,64 @@ def compare(a: Path, b: Path) -> int:
     return 1 if bad else 0
 
 
+LANE_SCENES = (
+    "uneven_event_classic",
+    "uneven_event_no_tension",
+    "uneven_implicit_classic",
+    "uneven_implicit_no_tension",
+    "paper_duzce",
+    "paper_6hz",
+)
+
+
+def rows(out: Path) -> int:
+    import tempfile
+
+    from pounding_sweep.scene import load_scene
+    from pounding_sweep.sweep.prepare import prepare
+
+    found = {}
+    with tempfile.TemporaryDirectory() as d:
+        paths = scenes(Path(d))
+        for name in LANE_SCENES:
+            prep = prepare(load_scene(paths[name]))
+            found[name] = prep.run(prep.grid.chunk(0, prep.grid.size), threads=2)[0]
+            print(f"{name}: {found[name].shape[0]} runs x {found[name].shape[1]} slots", flush=True)
+    np.savez(out, **found)
+    return 0
+
+
+def compare_rows(a: Path, b: Path) -> int:
+    x, y = np.load(a), np.load(b)
+    bad = 0
+    for name in sorted(set(x.files) | set(y.files)):
+        if name not in x.files or name not in y.files:
+            print(f"{name}: only in {a if name in x.files else b}")
+            bad += 1
+            continue
+        u, v = x[name], y[name]
+        if u.shape != v.shape:
+            print(f"{name}: shapes differ {u.shape} vs {v.shape}")
+            bad += 1
+            continue
+        differ = int((~((u == v) | (np.isnan(u) & np.isnan(v)))).sum())
+        print(
+            f"{name}: {u.shape[0]} rows x {u.shape[1]} slots "
+            + ("identical" if not differ else f"DIFFER: {differ} slots")
+        )
+        bad += bool(differ)
+    return 1 if bad else 0
+
+
 def main(argv: list[str]) -> int:
     if len(argv) == 2 and argv[0] == "run":
         return run(Path(argv[1]))
     if len(argv) == 3 and argv[0] == "compare":
         return compare(Path(argv[1]), Path(argv[2]))
+    if len(argv) == 2 and argv[0] == "rows":
+        return rows(Path(argv[1]))
+    if len(argv) == 3 and argv[0] == "compare-rows":
+        return compare_rows(Path(argv[1]), Path(argv[2]))
     print(__doc__, file=sys.stderr)
     return 2
 

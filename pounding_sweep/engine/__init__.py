@@ -8,7 +8,7 @@ step, written once, each kernel supplying its coordinate-specific pieces), floor
 coordinates), scalar (one run at a time, floor coordinates, every option, the linear laws), nonlinear
 (the same for the Hertz-type laws), bookkeeping (the metric rows both share), lanes (a package: 8 runs
 side by side in SIMD lanes, modal coordinates) and simd (its vector type), clock, score (eq. 20 and the
-scores of a run against an experiment), driver (threads; the kernel the registry chooses). docs/engine.md
+scores of a run against an experiment), driver (threads; the kernel the registry chooses). docs/explanation/engine.md
 explains them.
 
 May import the model layer (its array types), the shared bottom modules, NumPy, Numba and llvmlite.

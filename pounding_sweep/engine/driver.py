@@ -190,6 +190,7 @@ def run_chunk_scalar(
     else:
         with ThreadPoolExecutor(max_workers=threads) as pool:
             list(pool.map(work, bounds))
+    L.leave_out(metrics, sys.m.size, sys.i1.size, opts.groups)
     return metrics, run_time, (hist_arr if hist.active else None), (scores if score.active else None)
 
 
@@ -206,7 +207,8 @@ def run_chunk_lanes(
     """run_chunk on the lane kernel (the caller checked that it can run the chunk: registry.choose; the runs
     share one contact law; `ma`: the system's modal data when the caller has them, from lanes.lane_modes):
     (metrics, run_time_s). `stats` (int64[lanes.ST_N]), when given, is added the kernel's work counters (the
-    benchmarks' profile); `done(n)`: as run_chunk's.
+    benchmarks' profile); `done(n)`: as run_chunk's. The metric groups not in opts.groups are left out of
+    the vector steps' work and NaN in the rows (layout.leave_out), as run_chunk_scalar leaves them.
 
     Runs are grouped by length, then by excitation profile, then by gap, so a group's lanes end
     together, share their ground motion and tend to be in contact at the same time (a group pays
@@ -259,6 +261,7 @@ def run_chunk_lanes(
         run_time[again] = t2
     if stats is not None:
         stats += stats_g.sum(axis=0)
+    L.leave_out(metrics, sys.m.size, sys.i1.size, opts.groups)
     return metrics, run_time
 
 

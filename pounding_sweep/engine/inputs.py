@@ -14,6 +14,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from pounding_sweep.engine.layout import GROUPS_ALL
+
 
 class Structure(NamedTuple):
     """The coupled two-building model at one dt (model.coupled.SystemArrays), float64 / int64, C-contiguous.
@@ -90,12 +92,14 @@ class Records(NamedTuple):
 
 class KernelOptions(NamedTuple):
     """How to integrate: codes.SCHEME_*, the implicit scheme's active-set iterations per step, and the
-    Hertz-damp law's floor on the approach speed of an impact [m/s] (engine/nonlinear.py). The contact law
-    is the runs' (RunArrays.law)."""
+    Hertz-damp law's floor on the approach speed of an impact [m/s] (engine/nonlinear.py), and the metric
+    groups to compute (engine/layout.py GROUP_*: a bit mask; the others are left out). The contact law is
+    the runs' (RunArrays.law)."""
 
     scheme: int
     max_iter: int
     min_impact_speed: float = 0.01
+    groups: int = GROUPS_ALL
 
 
 class HistorySpec(NamedTuple):

@@ -51,6 +51,15 @@ STATUS_WORDS = {
     STATUS_DT_UNCONVERGED: "dt_tolerance_not_met",
     STATUS_GRAZING: "grazing_impact",
 }
+# metric groups: the columns a sweep may leave out of the lane kernel's per-step work (KernelOptions.groups, a
+# bit mask). A group left out has its columns NaN (not computed) in every kernel's rows, and the status bits
+# derived from it cleared, so a row is the same whichever kernel computed it.
+GROUP_ENERGY = 1  # the energy balance (RUN_E_*) and STATUS_ENERGY
+GROUP_DRIFT = 2  # each story's peak interstory drift (DOF_PEAK_DRIFT)
+GROUP_CLOSEST = 4  # each pair's closest approach and its time (PAIR_CLOSEST, PAIR_CLOSEST_TIME)
+GROUP_PHASES = 8  # compressive phases: compression time, count, median duration; STATUS_MEDIAN_TRUNCATED
+GROUPS = {"energy": GROUP_ENERGY, "drift": GROUP_DRIFT, "closest": GROUP_CLOSEST, "phases": GROUP_PHASES}
+GROUPS_ALL = GROUP_ENERGY | GROUP_DRIFT | GROUP_CLOSEST | GROUP_PHASES
 DIVERGED_M = 1.0e3  # a displacement beyond a kilometre is a numerical blow-up, not physics
 MEDIAN_BUFFER = 4096  # compressive phases kept per pair for the median duration
 
@@ -69,6 +78,56 @@ def pair_slot(n_dof: int, pair: int, what: int) -> int:
 
 def run_slot(n_dof: int, n_pairs: int, what: int) -> int:
     return PER_DOF * n_dof + PER_PAIR * n_pairs + what
+
+
+def groups_mask(names) -> int:
+    """The bit mask of the metric groups named (GROUPS keys; "all", "none"); ValueError for an unknown name."""
+    mask = 0
+    for name in names:
+        name = name.strip()
+        if name == "all":
+            mask |= GROUPS_ALL
+        elif name in ("none", ""):
+            continue
+        elif name in GROUPS:
+            mask |= GROUPS[name]
+        else:
+            raise ValueError(f"unknown metric group {name!r} (one of: {', '.join(GROUPS)}, all, none)")
+    return mask
+
+
+def group_names(groups: int) -> list[str]:
+    """The names of the groups in a mask, in GROUPS order."""
+    return [name for name, bit in GROUPS.items() if groups & bit]
+
+
+def left_out_slots(n_dof: int, n_pairs: int, groups: int) -> list[int]:
+    """The metric row's slots of the groups not in `groups` (their columns are NaN)."""
+    out: list[int] = []
+    if not groups & GROUP_DRIFT:
+        out += [dof_slot(i, DOF_PEAK_DRIFT) for i in range(n_dof)]
+    for j in range(n_pairs):
+        if not groups & GROUP_CLOSEST:
+            out += [pair_slot(n_dof, j, PAIR_CLOSEST), pair_slot(n_dof, j, PAIR_CLOSEST_TIME)]
+        if not groups & GROUP_PHASES:
+            out += [
+                pair_slot(n_dof, j, w)
+                for w in (PAIR_COMPRESSION_TIME, PAIR_COMPRESSION_PHASES, PAIR_MEDIAN_COMPRESSION)
+            ]
+    if not groups & GROUP_ENERGY:
+        out += [run_slot(n_dof, n_pairs, w) for w in range(RUN_E_IN, PER_RUN)]
+    return out
+
+
+def leave_out(metrics, n_dof: int, n_pairs: int, groups: int) -> None:
+    """Rows (runs, n_metrics) in place: the slots of the groups left out NaN, the status bits they give cleared."""
+    if groups & GROUPS_ALL == GROUPS_ALL or metrics.shape[0] == 0:
+        return
+    metrics[:, left_out_slots(n_dof, n_pairs, groups)] = float("nan")
+    clear = (0 if groups & GROUP_ENERGY else STATUS_ENERGY) | (0 if groups & GROUP_PHASES else STATUS_MEDIAN_TRUNCATED)
+    if clear:
+        st = run_slot(n_dof, n_pairs, RUN_STATUS)
+        metrics[:, st] = (metrics[:, st].astype("int64") & ~clear).astype(metrics.dtype)
 
 
 def metric_columns(floors: tuple[int, int], n_pairs: int) -> list[str]:

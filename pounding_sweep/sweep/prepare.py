@@ -146,10 +146,11 @@ class Prepared:
         return sorted({CONTACT_LAWS[x] for x in self.scene.axis_values("law") or (self.scene.contact.law,)})
 
 
-def prepare(scene: Scene, kernel: str = "auto") -> Prepared:
+def prepare(scene: Scene, kernel: str = "auto", groups: int = L.GROUPS_ALL) -> Prepared:
     """Model, system matrices at dt, excitation, grid, history and experiment specs of a scene.
     With dt_s = 'auto' these are at dt_max_s, and runs go through the step-doubling ladder.
-    `kernel`: which kernel runs its chunks (engine.driver.KERNELS; "auto": the lane kernel where it can)."""
+    `kernel`: which kernel runs its chunks (engine.driver.KERNELS; "auto": the lane kernel where it can);
+    `groups`: the metric groups the caller reads (engine.layout.GROUP_* bits; the others are NaN)."""
     dt = scene.integration.first_dt_s
     model = CoupledModel.from_scene(scene)
     exc = Excitation.from_scene(scene, dt)
@@ -158,6 +159,7 @@ def prepare(scene: Scene, kernel: str = "auto") -> Prepared:
         scene.integration.max_contact_iterations,
         # one building: no impact, the floor is never read; [contact]'s default stands in
         ContactConfig.min_impact_speed_m_s if scene.contact is None else scene.contact.min_impact_speed_m_s,
+        groups,
     )
     hspec, hcols = history_spec(scene, model.floors)
     score, codes, comb, sensor = ScoreSpec.none(), [], None, None
@@ -176,7 +178,7 @@ def prepare(scene: Scene, kernel: str = "auto") -> Prepared:
     if scene.integration.auto:
         from pounding_sweep.sweep.autodt import AutoDt
 
-        auto = AutoDt(scene, lambda s: prepare(s, kernel))
+        auto = AutoDt(scene, lambda s: prepare(s, kernel, groups))
     return Prepared(
         scene,
         model,

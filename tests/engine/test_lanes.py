@@ -467,3 +467,47 @@ def test_median_of_compressive_phases_equals_numpys():
         buf = np.zeros((1, 1, max(k, 1)))
         buf[0, 0, :k] = x
         assert median(buf, k) == (np.median(x) if k else 0.0)
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+@pytest.mark.parametrize("law", ["classic", "no_tension"])
+def test_metric_groups_left_out_change_no_other_column(law, scheme):
+    """A metric group left out (KernelOptions.groups) is NaN in the rows, and every other column is bit for bit
+    what the lane kernel computes with every group: the groups' work in the vector steps feeds nothing else.
+    The scalar kernel's rows are its all-groups rows with the same columns NaN (layout.leave_out), so a row is
+    the same whichever kernel computes it. The divergence guard without the energy group (vector._nonfinite)
+    hands the diverging run of test_uneven_lengths_... to the scalar kernel too (its row checked here)."""
+    prep, runs, rec, lanes_all, scalar_all = harmonic_grid(law, scheme)
+    n_dof, n_pairs = sum(prep.model.floors), prep.model.n_pairs
+    for groups in (0, L.GROUP_ENERGY, L.GROUP_DRIFT, L.GROUP_CLOSEST, L.GROUP_PHASES, L.GROUPS_ALL ^ L.GROUP_ENERGY):
+        opts = prep.opts._replace(groups=groups)
+        got, _ = driver.run_chunk_lanes(prep.sysarr, runs, rec, opts, 2)
+        want = lanes_all.copy()
+        L.leave_out(want, n_dof, n_pairs, groups)
+        np.testing.assert_array_equal(got, want)
+        out = L.left_out_slots(n_dof, n_pairs, groups)
+        assert np.isnan(got[:, out]).all() and not np.isnan(np.delete(got, out, axis=1)).any()
+        scalar, _, _, _ = driver.run_chunk_scalar(prep.sysarr, runs, rec, HistorySpec.none(), opts, 1)
+        want = scalar_all.copy()
+        L.leave_out(want, n_dof, n_pairs, groups)
+        np.testing.assert_array_equal(scalar, want)
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_diverging_run_without_the_energy_group(scheme):
+    """Without the energy group the lane kernel's divergence guard is the floors' own (vector._nonfinite):
+    a run with a table motion of 100 km still goes to the scalar kernel, its row flagged diverged, and the
+    other runs of its group are unchanged."""
+    prep = prepare(implicit(load_scene(SWEEPS / "paper_6hz.toml"), duration=0.05, scheme=scheme))
+    params = prep.grid.chunk(0, 1)
+    base, rec = chunk_inputs(prep, params)
+    runs = base.take(np.zeros(8, np.int64))
+    amp = runs.exc_amp.copy()
+    amp[3] = 1e5
+    runs = runs._replace(exc_amp=amp)
+    opts = prep.opts._replace(groups=0)
+    got, _ = driver.run_chunk_lanes(prep.sysarr, runs, rec, opts)
+    assert int(col(got, "status_code")[3]) & L.STATUS_NONFINITE
+    want, _, _, _ = driver.run_chunk_scalar(prep.sysarr, runs, rec, HistorySpec.none(), opts, 1)
+    np.testing.assert_array_equal(got[3], want[3])
+    assert not (col(got, "status_code")[[0, 1, 2, 4, 5, 6, 7]].astype(int) & L.STATUS_NONFINITE).any()

@@ -418,7 +418,9 @@ def _integrate_groups(order, groups, model, opts, runs, excitation, out, gw):
             step_before = step
             last = next_end if next_end <= max_nst else max_nst
             if n_act == 0:
-                step, nevt, nbad = _quiet(W, step + 1, last, dt, scheme, law, nt, n1t, Cv, prof, pid, uniform, pid0)
+                step, nevt, nbad = _quiet(
+                    W, step + 1, last, dt, scheme, law, nt, n1t, Cv, prof, pid, uniform, pid0, opts.groups
+                )
                 nend = 0
             else:
                 pon = gw.act_pair[0] * 0  # int64, not a literal (see uniform)
@@ -426,7 +428,7 @@ def _integrate_groups(order, groups, model, opts, runs, excitation, out, gw):
                     if gw.act_pair[j] > 0:
                         pon |= 1 << j
                 step, nevt, nbad, nend = _contact(
-                    W, step + 1, last, dt, scheme, law, nt, n1t, Cv, pon, prof, pid, uniform, pid0
+                    W, step + 1, last, dt, scheme, law, nt, n1t, Cv, pon, prof, pid, uniform, pid0, opts.groups
                 )
             stats[ST_CALLS] += 1
             stats[ST_VSTEPS] += step - step_before

@@ -149,24 +149,29 @@ def _floor_acc(T, i, N, N1, t_qa, Cv, c_phi):
 
 
 @inline
-def _floor_peaks(W, c, T, N, N1, P, t_u, t_qa, r_met, Cv, c_phi, vt, gap, ok_mask):
-    """Per-floor peaks of |u| (and its time), of |absolute acceleration| and of |interstory drift| (the story
-    below the floor), and each pair's closest approach gap - (u1 - u2) (and its time). One test for all
-    floors and pairs; rows are written only in the rare steps where some extreme grows in some lane of
-    `ok_mask`. Returns the lanes that diverged (|u| >= DIVERGED_M or |a| >= 1e300; a NaN never grows a
-    peak and is caught by the energy rows instead)."""
+def _floor_peaks(W, c, T, N, N1, P, t_u, t_qa, r_met, Cv, c_phi, vt, gap, ok_mask, groups):
+    """Per-floor peaks of |u| (and its time), of |absolute acceleration| and (metric group drift) of
+    |interstory drift| (the story below the floor), and (group closest) each pair's closest approach
+    gap - (u1 - u2) (and its time). One test for all floors and pairs; rows are written only in the rare
+    steps where some extreme grows in some lane of `ok_mask`. Returns the lanes that diverged (|u| >=
+    DIVERGED_M or |a| >= 1e300; a NaN never grows a peak and is caught by the energy rows, or without the
+    energy group by _nonfinite, instead)."""
     pbase = r_met + ML.PER_DOF * N
+    drifts = (groups & ML.GROUP_DRIFT) != 0
+    closest = (groups & ML.GROUP_CLOSEST) != 0
     grow = mconst(False)
     for i in range(N):
         base = r_met + ML.PER_DOF * i
         u = sget(T, t_u + i)
-        drift = u if i == 0 or i == N1 else u - sget(T, t_u + i - 1)
         grow = grow | (abs(u) > _row(W, base + ML.DOF_PEAK_DISP, c))
-        grow = grow | (abs(drift) > _row(W, base + ML.DOF_PEAK_DRIFT, c))
+        if drifts:
+            drift = u if i == 0 or i == N1 else u - sget(T, t_u + i - 1)
+            grow = grow | (abs(drift) > _row(W, base + ML.DOF_PEAK_DRIFT, c))
         grow = grow | (abs(_floor_acc(T, i, N, N1, t_qa, Cv, c_phi)) > _row(W, base + ML.DOF_PEAK_ABS_ACC, c))
-    for j in range(P):
-        near = gap - (sget(T, t_u + j) - sget(T, t_u + N1 + j))
-        grow = grow | (near < _row(W, pbase + ML.PER_PAIR * j + ML.PAIR_CLOSEST, c))
+    if closest:
+        for j in range(P):
+            near = gap - (sget(T, t_u + j) - sget(T, t_u + N1 + j))
+            grow = grow | (near < _row(W, pbase + ML.PER_PAIR * j + ML.PAIR_CLOSEST, c))
     bad = mconst(False)
     if many(grow & ok_mask):
         for i in range(N):
@@ -177,20 +182,32 @@ def _floor_peaks(W, c, T, N, N1, P, t_u, t_qa, r_met, Cv, c_phi, vt, gap, ok_mas
             _keep(W, base + ML.DOF_PEAK_DISP, c, up, ad)
             _keep(W, base + ML.DOF_PEAK_DISP_TIME, c, up, vt)
             bad = bad | (up & (ad >= ML.DIVERGED_M))
-            dr = abs(u if i == 0 or i == N1 else u - sget(T, t_u + i - 1))
-            up = (dr > _row(W, base + ML.DOF_PEAK_DRIFT, c)) & ok_mask
-            _keep(W, base + ML.DOF_PEAK_DRIFT, c, up, dr)
+            if drifts:
+                dr = abs(u if i == 0 or i == N1 else u - sget(T, t_u + i - 1))
+                up = (dr > _row(W, base + ML.DOF_PEAK_DRIFT, c)) & ok_mask
+                _keep(W, base + ML.DOF_PEAK_DRIFT, c, up, dr)
             aa = abs(_floor_acc(T, i, N, N1, t_qa, Cv, c_phi))
             up = (aa > _row(W, base + ML.DOF_PEAK_ABS_ACC, c)) & ok_mask
             _keep(W, base + ML.DOF_PEAK_ABS_ACC, c, up, aa)
             bad = bad | (up & (aa >= 1e300))
         for j in range(P):
+            if not closest:
+                break
             base = pbase + ML.PER_PAIR * j
             near = gap - (sget(T, t_u + j) - sget(T, t_u + N1 + j))
             up = (near < _row(W, base + ML.PAIR_CLOSEST, c)) & ok_mask
             _keep(W, base + ML.PAIR_CLOSEST, c, up, near)
             _keep(W, base + ML.PAIR_CLOSEST_TIME, c, up, vt)
     return bad
+
+
+@inline
+def _nonfinite(T, N, N1, t_u, keep):
+    """Without the energy group: the lanes of `keep` whose floors are not finite or beyond DIVERGED_M (each
+    building's top floor: a NaN or inf in any of its modes reaches every floor through Phi)."""
+    top1 = abs(sget(T, t_u + N1 - 1))
+    top2 = abs(sget(T, t_u + N - 1))
+    return keep & (~(top1 < ML.DIVERGED_M) | ~(top2 < ML.DIVERGED_M))
 
 
 @inline
@@ -239,7 +256,7 @@ def _energy(W, c, r_s, s, pin, dsum, keep):
 
 
 @inline
-def _events_energy_peaks(W, c, T, dst, quiet, s, pin, dsum, vt, law, scheme, N, N1, P, Cv, lay):
+def _events_energy_peaks(W, c, T, dst, quiet, s, pin, dsum, vt, law, scheme, N, N1, P, Cv, lay, groups):
     """The end of a vector step, the floors of the new state in T: the lanes with an event (EVT row),
     then energy increments and per-floor peaks of the others. The exact event test runs only where a
     pair out of contact penetrates or one in contact does not: every event of either scheme under the
@@ -268,8 +285,11 @@ def _events_energy_peaks(W, c, T, dst, quiet, s, pin, dsum, vt, law, scheme, N, 
             _put(W, r_s + S_EVT, c, mfloat(evt))
             nevt = mcount(evt)
     ok = ~evt
-    bad = _energy(W, c, r_s, s, pin, dsum, ok)
-    bad = bad | _floor_peaks(W, c, T, N, N1, P, t_u, t_qa, r_met, Cv, c_phi, vt, gap, ok)
+    if groups & ML.GROUP_ENERGY:
+        bad = _energy(W, c, r_s, s, pin, dsum, ok)
+    else:
+        bad = _nonfinite(T, N, N1, t_u, ok)
+    bad = bad | _floor_peaks(W, c, T, N, N1, P, t_u, t_qa, r_met, Cv, c_phi, vt, gap, ok, groups)
     nbad = 0
     if many(bad):
         _keep(W, r_s + S_BAD, c, bad, vsplat(1.0))
@@ -295,7 +315,7 @@ def _fill_ag(W, r_s, prof, pid_lane, step, uniform, pid0):
 
 
 @njit_step
-def _quiet(W, step0, step1, dt, scheme, law, nt, n1t, Cv, prof, pid_lane, uniform, pid0):
+def _quiet(W, step0, step1, dt, scheme, law, nt, n1t, Cv, prof, pid_lane, uniform, pid0, groups):
     """Steps step0..step1 with no lane in contact at their start: the free step of every lane. Returns
     at the first step with an event or a divergence: (that step, lanes with an event, lanes diverged);
     event lanes are left for their scalar step (only their dst rows were written)."""
@@ -308,14 +328,14 @@ def _quiet(W, step0, step1, dt, scheme, law, nt, n1t, Cv, prof, pid_lane, unifor
         src = lay[0] if (step - 1) % 2 == 0 else lay[1]
         dst = lay[1] if (step - 1) % 2 == 0 else lay[0]
         _fill_ag(W, lay[11], prof, pid_lane, step, uniform, pid0)
-        nevt, nbad = _quiet_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, lay)
+        nevt, nbad = _quiet_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, lay, groups)
         if nevt > 0 or nbad > 0:
             return step, nevt, nbad
     return step1, 0, 0
 
 
 @inline
-def _quiet_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, lay):
+def _quiet_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, lay, groups):
     """One quiet step of every chunk of lanes: modes (Newmark, modal.py), floors, the cheap test
     "some pair penetrates" (then the exact event test), energy increments, peaks."""
     r_q0, r_q1, r_g, r_f, r_pen, r_act, r_inc, r_cac, r_end, r_cd, r_R, r_s, r_met = lay
@@ -341,14 +361,14 @@ def _quiet_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, lay):
             dsum = vfma(_cv(Cv, C_DH * N + k) * dq, dq, dsum)
             sset(T, t_qa + k, vfma(_cv(Cv, C_NDA * N + k), rn, _cv(Cv, C_NW2 * N + k) * qn))
         _floors(T, N, N1, t_u, t_dq, Cv, c_phi)
-        ok, ne, nb = _events_energy_peaks(W, c, T, dst, True, s, pin, dsum, vt, law, scheme, N, N1, P, Cv, lay)
+        ok, ne, nb = _events_energy_peaks(W, c, T, dst, True, s, pin, dsum, vt, law, scheme, N, N1, P, Cv, lay, groups)
         nevt += ne
         nbad += nb
     return nevt, nbad
 
 
 @njit_step
-def _contact(W, step0, step1, dt, scheme, law, nt, n1t, Cv, pon, prof, pid_lane, uniform, pid0):
+def _contact(W, step0, step1, dt, scheme, law, nt, n1t, Cv, pon, prof, pid_lane, uniform, pid0, groups):
     """Steps step0..step1 with some lane in contact: the step with each lane's contact set (forces from
     its R), contact metrics and energies. Pairs in contact in no lane (bit j of pon clear) have zero
     force in every lane. Returns at the first step with an event, a divergence or the end of a
@@ -363,15 +383,18 @@ def _contact(W, step0, step1, dt, scheme, law, nt, n1t, Cv, pon, prof, pid_lane,
         src = lay[0] if (step - 1) % 2 == 0 else lay[1]
         dst = lay[1] if (step - 1) % 2 == 0 else lay[0]
         _fill_ag(W, lay[11], prof, pid_lane, step, uniform, pid0)
-        nevt, nbad, nend = _contact_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, pon, lay)
+        nevt, nbad, nend = _contact_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, pon, lay, groups)
         if nevt > 0 or nbad > 0 or nend > 0:
             return step, nevt, nbad, nend
     return step1, 0, 0, 0
 
 
 @inline
-def _contact_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, pon, lay):
-    """One step of every chunk of lanes, some lane in contact."""
+def _contact_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, pon, lay, groups):
+    """One step of every chunk of lanes, some lane in contact (the energy and phases groups' work only
+    where `groups` asks for them)."""
+    energy = (groups & ML.GROUP_ENERGY) != 0
+    phases = (groups & ML.GROUP_PHASES) != 0
     r_q0, r_q1, r_g, r_f, r_pen, r_act, r_inc, r_cac, r_end, r_cd, r_R, r_s, r_met = lay
     c_phi, c_psi, c_psv = table_offsets(N, P)
     t_qa, t_u, t_dq, t_f, t_g, t_qf, t_rf = scratch_entries(N, P)
@@ -439,7 +462,7 @@ def _contact_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, pon, lay)
             dsum = vfma(_cv(Cv, C_DH * N + k) * dq, dq, dsum)
             sset(T, t_qa + k, vfma(_cv(Cv, C_NDA * N + k), rn, _cv(Cv, C_NW2 * N + k) * qn) - g)
         _floors(T, N, N1, t_u, t_dq, Cv, c_phi)
-        ok, ne, nb = _events_energy_peaks(W, c, T, dst, False, s, pin, dsum, vt, law, scheme, N, N1, P, Cv, lay)
+        ok, ne, nb = _events_energy_peaks(W, c, T, dst, False, s, pin, dsum, vt, law, scheme, N, N1, P, Cv, lay, groups)
         nevt += ne
         nbad += nb
         # contact spring and dashpot work on each pair's penetration, contact metrics (kernel.py's order)
@@ -452,14 +475,15 @@ def _contact_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, pon, lay)
             f = sget(T, t_f + j)
             pen = (sget(T, t_u + j) - sget(T, t_u + N1 + j)) - gap
             act = _row(W, r_act + j, c) > 0.5
-            pen0 = _row(W, r_pen + j, c)
-            sp0 = vsel(act, ks * pen0, zero)
-            dp0 = vsel(act, _row(W, r_f + j, c) - sp0, zero)
-            sp = vsel(act, ks * pen, zero)
-            dp = vsel(act, f - sp, zero)
-            dpen = pen - pen0
-            wsp = vsel(ok, wsp + half * (sp0 + sp) * dpen, wsp)
-            wda = vsel(ok, wda + half * (dp0 + dp) * dpen, wda)
+            if energy:
+                pen0 = _row(W, r_pen + j, c)
+                sp0 = vsel(act, ks * pen0, zero)
+                dp0 = vsel(act, _row(W, r_f + j, c) - sp0, zero)
+                sp = vsel(act, ks * pen, zero)
+                dp = vsel(act, f - sp, zero)
+                dpen = pen - pen0
+                wsp = vsel(ok, wsp + half * (sp0 + sp) * dpen, wsp)
+                wda = vsel(ok, wda + half * (dp0 + dp) * dpen, wda)
             _keep(W, r_pen + j, c, ok, pen)
             _keep(W, r_f + j, c, ok, f)
             base = pbase + ML.PER_PAIR * j
@@ -477,19 +501,21 @@ def _contact_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, pon, lay)
             up = ak & (f < _row(W, base + ML.PAIR_MIN_FORCE, c))
             if many(up):
                 _keep(W, base + ML.PAIR_MIN_FORCE, c, up, f)
-            comp = ak & (f > 0.0)
-            x = _row(W, base + ML.PAIR_COMPRESSION_TIME, c)
-            _keep(W, base + ML.PAIR_COMPRESSION_TIME, c, comp, x + vdt)
-            inc = _row(W, r_inc + j, c) > 0.5
-            x = _row(W, r_cac + j, c)
-            _keep(W, r_cac + j, c, comp, vsel(inc, x + vdt, vdt))
-            end = inc & ~comp & ok
-            if many(end):
-                _put(W, r_end + j, c, mfloat(end))
-                ended = ended | end
-            _keep(W, r_inc + j, c, ok, mfloat(comp))
-        _put(W, r_s + S_WSP, c, wsp)
-        _put(W, r_s + S_WDA, c, wda)
+            if phases:
+                comp = ak & (f > 0.0)
+                x = _row(W, base + ML.PAIR_COMPRESSION_TIME, c)
+                _keep(W, base + ML.PAIR_COMPRESSION_TIME, c, comp, x + vdt)
+                inc = _row(W, r_inc + j, c) > 0.5
+                x = _row(W, r_cac + j, c)
+                _keep(W, r_cac + j, c, comp, vsel(inc, x + vdt, vdt))
+                end = inc & ~comp & ok
+                if many(end):
+                    _put(W, r_end + j, c, mfloat(end))
+                    ended = ended | end
+                _keep(W, r_inc + j, c, ok, mfloat(comp))
+        if energy:
+            _put(W, r_s + S_WSP, c, wsp)
+            _put(W, r_s + S_WDA, c, wda)
         nend += mcount(ended)
         for k in range(N):
             _keep(W, r_g + k, c, ok, sget(T, t_g + k))

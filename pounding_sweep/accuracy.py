@@ -1,5 +1,7 @@
 """Error against run time, observed orders, and the stability of runs: what `benchmarks/bench_accuracy.py`
-and `benchmarks/stability_map.py` report, and what the plots draw.
+and `benchmarks/stability_map.py` report, and what the plots draw. The one home of the dt-ladder study: `ladder`
+against the continuous reference, `accuracy_ladder` against a fine run of the kernel itself (no reference solver:
+what `plot` draws for any scene); both run their points through `kernel_run`.
 
 Every (scheme, dt) run of a scene's point is compared with the converged continuous-time reference
 (reference.ivp.continuous_reference) on a common 5 ms grid: eq. 20 of the top floors' displacement,
@@ -10,6 +12,7 @@ gap (input work minus every stored and dissipated term, over the absolute input 
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -17,6 +20,7 @@ import pandas as pd
 
 from pounding_sweep.engine.score import relative_rms_error_pct
 from pounding_sweep.reference.ivp import REF_ATOL, SAMPLE_DT, TOP, Reference, continuous_reference
+from pounding_sweep.scene import validate
 from pounding_sweep.sweep.simulate import simulate
 
 SCHEMES = ("event", "implicit", "paper")
@@ -64,18 +68,24 @@ def check_against_ivp_reference(scene, ref: Reference, **overrides) -> dict:
     }
 
 
-def kernel_run(scene, dt: float, scheme: str, repeats: int = 3, **overrides) -> dict:
-    """One (scheme, dt) point: top-floor histories on the SAMPLE_DT grid, metrics, least run time."""
-    n = SAMPLE_DT / dt
-    if abs(n - round(n)) > 1e-9 * n:
-        raise ValueError(f"dt = {dt:g} s does not divide the {SAMPLE_DT:g} s sampling step")
-    chans = [f"disp_b1f{TOP}", f"disp_b2f{TOP}"]
+def kernel_run(
+    scene, dt: float, scheme: str, repeats: int = 3, channels=None, sample_dt=SAMPLE_DT, **overrides
+) -> dict:
+    """One (scheme, dt) point: the histories of `channels` (default: both top floors' displacement) every
+    `sample_dt` seconds, which dt must divide, the metrics, and the least run time of `repeats` runs."""
+    n = sample_dt / dt
+    if abs(n - round(n)) > 1e-9 * n:  # n = sample / dt carries one rounding (~1e-16 n): far inside 1e-9 n
+        raise ValueError(
+            f"dt = {dt:g} s does not divide the {sample_dt:g} s sampling step: use time steps that are whole "
+            "fractions of it"
+        )
+    chans = [f"disp_b1f{TOP}", f"disp_b2f{TOP}"] if channels is None else list(channels)
     times = []
     for _ in range(max(1, repeats)):
         hist, m = simulate(scene, channels=chans, decimate=int(round(n)), dt_s=dt, scheme=scheme, **overrides)
         times.append(m["run_time_s"])
     m["run_time_s"] = min(times)
-    return {"top": hist[[f"{c}_m" for c in chans]].to_numpy(), "metrics": m}
+    return {"top": hist.iloc[:, 1:].to_numpy(), "metrics": m}  # t_s first, then the channels in order
 
 
 def error_row(run: dict, ref: Reference, scheme: str, dt: float) -> dict:
@@ -314,3 +324,70 @@ def divergence_by_steps(df: pd.DataFrame, scheme: str = "paper", what: str = "di
     )
     t["ks_dt2/m_eff"] = [(2 * math.pi / v) ** 2 for v in t.index]
     return t.sort_index(ascending=False)
+
+
+def accuracy_ladder(
+    scene,
+    dts=None,
+    schemes=None,
+    ref_dt: float | None = None,
+    ref_scheme: str | None = None,
+    duration_s: float | None = 2.0,
+    channel: str | None = None,
+    repeats: int = 3,
+    **params,
+) -> pd.DataFrame:
+    """Error against run time over a ladder of time steps, per integration scheme.
+
+    Each (scheme, dt) run of `scene` (its base point with `params`, e.g. ks_ratio=5, r=0.4; no
+    sweep, no experiment; the first `duration_s` seconds) is compared with a reference run of
+    `ref_scheme` (default: 'event' where the kernel has it, else 'implicit') at `ref_dt` (default:
+    the smallest dt / 4) by the relative RMS error (eq. 20) of `channel` (default: building 1's
+    top-floor displacement), sampled every max(dts) seconds, which every dt must divide. Run
+    time: the kernel's `run_time_s`, the least of `repeats` runs. Defaults: dts 8, 4, 2, 1 and
+    0.5 times the scene's dt; every scheme the kernel has. Columns: scheme, dt_s, steps,
+    run_time_s, rel_rms_pct, status, then ref_scheme, ref_dt_s, channel, duration_s.
+    """
+    from pounding_sweep.codes import SCHEMES as KERNEL_SCHEMES
+
+    dt0 = scene.integration.dt_s
+    dts = sorted((dt0 * k for k in (8, 4, 2, 1, 0.5)) if dts is None else dts, reverse=True)
+    ref_dt = ref_dt or dts[-1] / 4
+    if ref_dt >= dts[-1]:
+        raise ValueError(f"accuracy_ladder: ref_dt = {ref_dt:g} s must be below the smallest dt {dts[-1]:g} s")
+    exc = scene.excitation
+    if duration_s is not None:
+        exc = dataclasses.replace(exc, duration_s=float(duration_s))
+    base = dataclasses.replace(scene, experiment=None, calibrate=None, sweep=(), excitation=exc)
+    validate(base)
+    floors = scene.floors
+    channel = channel or f"disp_b1f{floors[0]}"
+    sample = dts[0]
+
+    def run(dt: float, scheme: str, repeats: int = 1):
+        k = kernel_run(base, dt, scheme, repeats, channels=[channel], sample_dt=sample, **params)
+        return k["top"][:, 0], k["metrics"]
+
+    schemes = list(KERNEL_SCHEMES) if schemes is None else list(schemes)
+    ref_scheme = ref_scheme or ("event" if "event" in KERNEL_SCHEMES else "implicit")
+    ref, _ = run(ref_dt, ref_scheme)
+    rows = []
+    for scheme in schemes:
+        for dt in dts:
+            x, m = run(dt, scheme, repeats)
+            n = min(x.size, ref.size)
+            err = float(relative_rms_error_pct(x[:n], ref[:n])) if np.all(np.isfinite(x[:n])) else np.nan
+            rows.append(
+                {
+                    "scheme": scheme,
+                    "dt_s": dt,
+                    "steps": int(m["steps"]),
+                    "run_time_s": m["run_time_s"],
+                    "rel_rms_pct": err,
+                    "status": m["status"],
+                }
+            )
+    out = pd.DataFrame(rows)
+    out["ref_scheme"], out["ref_dt_s"], out["channel"] = ref_scheme, ref_dt, channel
+    out["duration_s"] = duration_s if duration_s is not None else np.nan
+    return out

@@ -6,8 +6,8 @@
 - `history_figures`: the best run re-simulated from the scene stored in the file's metadata:
   its displacement over the experiment's, whole and zoomed (Figs. 13, 21), its pounding force
   (Fig. 19) and numerical-against-experimental plots (the paper's sub-space plots, SSP);
-- `accuracy_ladder`, `error_vs_runtime_figure`: error against run time over a ladder of time
-  steps per integration scheme.
+- `error_vs_runtime_figure`: error against run time over a ladder of time steps per integration
+  scheme (the ladder itself: accuracy.py `accuracy_ladder`).
 
 Figures are `matplotlib.figure.Figure`s made without pyplot: `plot_results` saves them as PNG
 (no GUI backend, no global figure state), a notebook displays them inline.
@@ -15,7 +15,6 @@ Figures are `matplotlib.figure.Figure`s made without pyplot: `plot_results` save
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 import stat
@@ -25,10 +24,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from pounding_sweep.accuracy import accuracy_ladder  # the dt-ladder study; figures() draws a small one
 from pounding_sweep.errors import ResultError
-from pounding_sweep.scene import scene_from_dict, validate
+from pounding_sweep.scene import scene_from_dict
 from pounding_sweep.scene.axes import STRUCTURE_AXES
 from pounding_sweep.scene.channels import ACC_PREFIX
+from pounding_sweep.scene.parameters import PARAMETERS, is_log
 from pounding_sweep.scene.validate import FITTABLE
 from pounding_sweep.sweep.results import META_KEY, part_files, read_metadata, read_schema, sidecar_path
 
@@ -178,17 +179,9 @@ def read_best(results: str | Path, md: dict | None = None) -> pd.DataFrame | Non
     return best
 
 
-#: how each sweep axis is labelled, and the factor its values are shown with
-AXES = {
-    "ks_ratio": ("contact stiffness ratio $k_s/k$ [-]", "k_s/k", 1.0),
-    "ks_N_per_m": ("contact stiffness $k_s$ [N/m]", "k_s [N/m]", 1.0),
-    "r": ("coefficient of restitution r [-]", "r", 1.0),
-    "gap_m": ("gap d [mm]", "gap [mm]", 1e3),
-    "amplitude_m": ("table amplitude [mm]", "amplitude [mm]", 1e3),
-    "frequency_Hz": ("table frequency [Hz]", "f [Hz]", 1.0),
-    "scale": ("record scale [-]", "scale", 1.0),
-    "record": ("record", "record", None),
-}
+#: how each sweep axis is labelled (axis label, short label), and the factor its values are shown with: the
+#: parameters that have labels (scene/parameters.py)
+AXES = {p.name: (p.label, p.short, p.factor) for p in PARAMETERS if p.label is not None}
 
 
 def swept_axes(df: pd.DataFrame, md: dict) -> list[str]:
@@ -795,84 +788,6 @@ def history_column(code: str) -> str:
 # ----------------------------------------------------------------------------- error against run time
 
 
-def accuracy_ladder(
-    scene,
-    dts=None,
-    schemes=None,
-    ref_dt: float | None = None,
-    ref_scheme: str | None = None,
-    duration_s: float | None = 2.0,
-    channel: str | None = None,
-    repeats: int = 3,
-    **params,
-) -> pd.DataFrame:
-    """Error against run time over a ladder of time steps, per integration scheme.
-
-    Each (scheme, dt) run of `scene` (its base point with `params`, e.g. ks_ratio=5, r=0.4; no
-    sweep, no experiment; the first `duration_s` seconds) is compared with a reference run of
-    `ref_scheme` (default: 'event' where the kernel has it, else 'implicit') at `ref_dt` (default:
-    the smallest dt / 4) by the relative RMS error (eq. 20) of `channel` (default: building 1's
-    top-floor displacement), sampled every max(dts) seconds, which every dt must divide. Run
-    time: the kernel's `run_time_s`, the least of `repeats` runs. Defaults: dts 8, 4, 2, 1 and
-    0.5 times the scene's dt; every scheme the kernel has. Columns: scheme, dt_s, steps,
-    run_time_s, rel_rms_pct, status, then ref_scheme, ref_dt_s, channel, duration_s.
-    """
-    from pounding_sweep.codes import SCHEMES
-    from pounding_sweep.engine.score import relative_rms_error_pct
-    from pounding_sweep.sweep.simulate import simulate
-
-    dt0 = scene.integration.dt_s
-    dts = sorted((dt0 * k for k in (8, 4, 2, 1, 0.5)) if dts is None else dts, reverse=True)
-    ref_dt = ref_dt or dts[-1] / 4
-    if ref_dt >= dts[-1]:
-        raise ValueError(f"accuracy_ladder: ref_dt = {ref_dt:g} s must be below the smallest dt {dts[-1]:g} s")
-    exc = scene.excitation
-    if duration_s is not None:
-        exc = dataclasses.replace(exc, duration_s=float(duration_s))
-    base = dataclasses.replace(scene, experiment=None, calibrate=None, sweep=(), excitation=exc)
-    validate(base)
-    floors = scene.floors
-    channel = channel or f"disp_b1f{floors[0]}"
-    sample = dts[0]
-
-    def run(dt: float, scheme: str):
-        n = sample / dt
-        if abs(n - round(n)) > 1e-6 * n:
-            raise ValueError(
-                f"accuracy_ladder: dt = {dt:g} s does not divide the sampling step {sample:g} s "
-                "(the largest dt): use dts that are whole fractions of it"
-            )
-        hist, m = simulate(base, channels=[channel], decimate=int(round(n)), dt_s=dt, scheme=scheme, **params)
-        return hist.iloc[:, 1].to_numpy(), m
-
-    schemes = list(SCHEMES) if schemes is None else list(schemes)
-    ref_scheme = ref_scheme or ("event" if "event" in SCHEMES else "implicit")
-    ref, _ = run(ref_dt, ref_scheme)
-    rows = []
-    for scheme in schemes:
-        for dt in dts:
-            times = []
-            for _ in range(max(1, repeats)):
-                x, m = run(dt, scheme)
-                times.append(m["run_time_s"])
-            n = min(x.size, ref.size)
-            err = float(relative_rms_error_pct(x[:n], ref[:n])) if np.all(np.isfinite(x[:n])) else np.nan
-            rows.append(
-                {
-                    "scheme": scheme,
-                    "dt_s": dt,
-                    "steps": int(m["steps"]),
-                    "run_time_s": min(times),
-                    "rel_rms_pct": err,
-                    "status": m["status"],
-                }
-            )
-    out = pd.DataFrame(rows)
-    out["ref_scheme"], out["ref_dt_s"], out["channel"] = ref_scheme, ref_dt, channel
-    out["duration_s"] = duration_s if duration_s is not None else np.nan
-    return out
-
-
 def read_accuracy_table(path: str | Path) -> pd.DataFrame:
     """An error-against-run-time table (CSV or Parquet) with at least the ACCURACY_COLUMNS."""
     path = Path(path)
@@ -1019,7 +934,7 @@ def calibration_profile_figure(best_path: str | Path):
                 ax.axvspan(f.profile_low.iloc[0], f.profile_high.iloc[0], color=line.get_color(), alpha=0.12)
         ax.axhline(CHI2_1_95, color="k", lw=0.8, ls="--", label="95 % (3.84)")
         ax.set_yscale("log")
-        if name in ("ks_ratio", "ks_N_per_m", "kh_N_per_m1_5"):
+        if is_log(name):
             ax.set_xscale("log")
         ax.set_xlabel(name)
         ax.set_ylabel("delta chi^2 (others refitted)")

@@ -22,22 +22,23 @@ from pounding_sweep.sweep.simulate import simulate, with_overrides
 
 
 def perturbed(scene: Scene, stiffness_factor: tuple, damping_factor: tuple[float, float]) -> Scene:
-    """The scene with each building's story stiffnesses and damping ratio scaled (model error). A building's
-    stiffness factor is one number (every story) or one per story (floor 1 first): a frame whose stories differ
-    where the model's are uniform."""
+    """The scene with each building's story stiffnesses and damping ratio (or its modal damping ratios) scaled
+    (model error). A building's stiffness factor is one number (every story) or one per story (floor 1 first): a
+    frame whose stories differ where the model's are uniform; its damping factor one number, or with modal damping
+    one per mode."""
     out = {}
     for name, kf, zf in zip(("building1", "building2"), stiffness_factor, damping_factor):
         b = getattr(scene, name)
-        if b.story_stiffness_N_per_m is None or b.damping_ratio is None:
-            raise ValueError(f"[{name}]: perturbation needs story_stiffness_N_per_m and damping_ratio")
+        if b.story_stiffness_N_per_m is None or (b.damping_ratio is None and b.modal_damping_ratios is None):
+            raise ValueError(f"[{name}]: perturbation needs story_stiffness_N_per_m and a damping ratio")
         n = len(b.masses_kg)
         ks = b.story_stiffness_N_per_m * (n if len(b.story_stiffness_N_per_m) == 1 else 1)
         kf = tuple(float(x) for x in np.broadcast_to(np.asarray(kf, float), (n,)))
-        out[name] = dataclasses.replace(
-            b,
-            story_stiffness_N_per_m=tuple(k * f for k, f in zip(ks, kf)),
-            damping_ratio=b.damping_ratio * zf,
-        )
+        damping = {"damping_ratio": b.damping_ratio * zf} if b.modal_damping_ratios is None else {}
+        if b.modal_damping_ratios is not None:
+            zf = np.broadcast_to(np.asarray(zf, float), (n,))
+            damping["modal_damping_ratios"] = tuple(float(z * f) for z, f in zip(b.modal_damping_ratios, zf))
+        out[name] = dataclasses.replace(b, story_stiffness_N_per_m=tuple(k * f for k, f in zip(ks, kf)), **damping)
     return dataclasses.replace(scene, **out)
 
 
@@ -224,7 +225,7 @@ def make_ivp_experiment(
         "hidden_parameters": hidden,
         "structure_perturbation": {
             "story_stiffness_factor": [np.asarray(f, float).tolist() for f in stiffness_factor],
-            "damping_ratio_factor": list(damping_factor),
+            "damping_ratio_factor": [np.asarray(f, float).tolist() for f in damping_factor],
             "softening_drift_scale_m": drift_scale_m,
         },
         "noise_mm_rms": noise_mm,

@@ -74,6 +74,10 @@ SLOW = {
         "test_the_95_percent_intervals_cover_the_truth_over_50_noise_seeds",
         "test_the_shipped_calibration_scene_runs_end_to_end",
     ),
+    "tests/sweep/test_frame_fits.py": (
+        "test_a_frame_whose_stories_differ_is_recovered_story_by_story",
+        "test_mode_ratios_made_by_the_reference_are_recovered",
+    ),
     "tests/sweep/test_executors.py": (
         "test_a_worker_killed_mid_sweep_loses_and_duplicates_nothing",
         "test_cli_killed_with_sigkill_resumes_without_recomputing",

@@ -74,6 +74,14 @@ def first_mode(masses_kg, story_stiffness_N_per_m, rayleigh_a0, rayleigh_a1) -> 
     return w, rayleigh_a0 / (2.0 * w) + rayleigh_a1 * w / 2.0
 
 
+def frame_first_mode(frame) -> tuple[float, float]:
+    """first_mode of a model.structure.ShearFrame: from its Rayleigh coefficients, or with modal damping its
+    mode 1's ratio as given."""
+    if frame.modal_damping_ratios is not None:
+        return float(frame.modes().omega_rad_s[0]), float(frame.modal_damping_ratios[0])
+    return first_mode(frame.masses_kg, frame.story_stiffness_N_per_m, frame.rayleigh_a0_per_s, frame.rayleigh_a1_s)
+
+
 def floor_heights_m(story_heights) -> np.ndarray:
     """Heights of the floors above the ground [m] from the story heights, floor 1 first."""
     return np.cumsum(np.asarray(story_heights, dtype=float))

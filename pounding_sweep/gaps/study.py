@@ -24,8 +24,8 @@ from pounding_sweep.gaps.rules import (
     RULES,
     combined_gap,
     cqc_correlation,
-    first_mode,
     floor_heights_m,
+    frame_first_mode,
     tbec2018_minimum_gap_m,
 )
 from pounding_sweep.model.coupled import CoupledModel
@@ -109,12 +109,8 @@ def required_gaps(scene: Scene, length_scale: float | None = None, threads: int 
 
     model = CoupledModel.from_scene(scene)
     lam = float(length_scale if length_scale is not None else scene.excitation.length_scale)
-    w1, z1 = first_mode(
-        model.b1.masses_kg, model.b1.story_stiffness_N_per_m, model.b1.rayleigh_a0_per_s, model.b1.rayleigh_a1_s
-    )
-    w2, z2 = first_mode(
-        model.b2.masses_kg, model.b2.story_stiffness_N_per_m, model.b2.rayleigh_a0_per_s, model.b2.rayleigh_a1_s
-    )
+    w1, z1 = frame_first_mode(model.b1)
+    w2, z2 = frame_first_mode(model.b2)
     rho = cqc_correlation(w1, w2, z1, z2)
     h = scene.building1.story_height_m
     heights = floor_heights_m(h * model.b1.n_floors if len(h or ()) == 1 else h) if h else None

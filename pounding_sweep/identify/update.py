@@ -104,7 +104,7 @@ def update_building(
     if damping_ratio is not None:
         if cfg.rayleigh_a0_per_s is not None or cfg.rayleigh_a1_s is not None:
             new = dataclasses.replace(new, rayleigh_a0_per_s=None, rayleigh_a1_s=None)
-        new = dataclasses.replace(new, damping_ratio=float(damping_ratio))
+        new = dataclasses.replace(new, damping_ratio=float(damping_ratio), modal_damping_ratios=None)
     return StiffnessUpdate(section, cfg, new, f1, float(f1_target_Hz), c)
 
 

@@ -14,7 +14,7 @@ from pounding_sweep.scene import BuildingConfig, Scene
 
 def building_from_config(cfg: BuildingConfig, default_name: str) -> ShearFrame:
     """Resolve a [buildingN] table: story stiffness directly or from columns (k = n 12 EI / h^3), times the
-    building's stiffness_scale; masses times its mass_scale."""
+    building's stiffness_scale and each story's own factor (story_stiffness_scales); masses times its mass_scale."""
     n = len(cfg.masses_kg)
 
     def per_story(vals):
@@ -28,11 +28,12 @@ def building_from_config(cfg: BuildingConfig, default_name: str) -> ShearFrame:
     return build_shear_frame(
         cfg.name or default_name,
         [m * cfg.mass_scale for m in cfg.masses_kg],
-        [x * cfg.stiffness_scale for x in k],
+        [x * cfg.stiffness_scale * s for x, s in zip(k, cfg.story_stiffness_scales or (1.0,) * n)],
         damping_ratio=cfg.damping_ratio,
         damping_modes=tuple(cfg.damping_modes[:2]) if n > 1 else (1, 1),
         rayleigh_a0_per_s=cfg.rayleigh_a0_per_s,
         rayleigh_a1_s=cfg.rayleigh_a1_s,
+        modal_damping_ratios=cfg.modal_damping_ratios,
     )
 
 

@@ -1,6 +1,6 @@
 """Tracked experimental displacement and measured acceleration: read and check the table (the sweep layer
-turns it into the samples the kernel scores each run against: sweep/scoring.py); the acceleration
-channels' low-pass filter, and each channel's noise floor.
+turns it into the samples the kernel scores each run against, filtered and weighted: sweep/scoring.py), and
+each channel's noise floor.
 
 Table format (CSV or Parquet, written by the video tracker too): a time column in seconds
 (default `t_s`), strictly increasing, and one column per channel: the displacement of one floor
@@ -42,6 +42,7 @@ class Experiment:
     kinds: dict[str, int] = field(default_factory=dict)  # channel code -> codes.H_DISP or codes.H_ABS_ACC
     noise: dict[str, float] = field(default_factory=dict)  # channel code -> noise standard deviation, SI, where known
     noise_source: dict[str, str] = field(default_factory=dict)  # channel code -> how it was known
+    dofs: dict[str, int] = field(default_factory=dict)  # channel code -> the model's degree of freedom it measures
 
     @property
     def dt_sample(self) -> float:
@@ -107,15 +108,6 @@ def read_table(path: str | Path) -> tuple[pd.DataFrame, dict]:
             raise ExperimentError(f"{path}: cannot read the experiment table ({type(e).__name__}: {e})") from None
 
 
-def load_experiment(cfg: ExperimentConfig, floors: tuple[int, int]) -> Experiment:
-    """The experiment of an [experiment] section whose `table` names a file (a video is tracked by the
-    sweep layer: sweep/scoring.py), read and checked (experiment_from_table)."""
-    if cfg.video is not None:
-        raise ValueError("an [experiment.video] section is tracked by pounding_sweep.sweep.scoring.load_experiment")
-    df, md = read_table(cfg.table)
-    return experiment_from_table(df, md, cfg.table, cfg, floors)
-
-
 def experiment_from_table(
     df: pd.DataFrame, md: dict, where: str, cfg: ExperimentConfig, floors: tuple[int, int]
 ) -> Experiment:
@@ -148,13 +140,13 @@ def experiment_from_table(
             f"{where}: column '{cfg.time_column}' is not uniformly sampled: step {float(d[k - 1]):.6g} s at row {k + 1} "
             f"against the median {float(np.median(d)):.6g} s (resample the table to a uniform step first)"
         )
-    chans, cols, kinds = {}, {}, {}
+    chans, cols, kinds, dofs = {}, {}, {}, {}
     for col, code in cfg.channels.items():
         if col not in df.columns:
             raise ExperimentError(
                 f"{where}: no column '{col}' (mapped to floor {code}); columns: {', '.join(map(str, df.columns))}"
             )
-        kinds[code], _ = experiment_channel(code, floors, f"[experiment] channels.{col}")
+        kinds[code], dofs[code] = experiment_channel(code, floors, f"[experiment] channels.{col}")
     for col, code in cfg.channels.items():
         x = _numeric(df[col], where, col)
         acc = kinds[code] == codes.H_ABS_ACC
@@ -172,7 +164,7 @@ def experiment_from_table(
         chans[code] = x * UNIT_FACTORS[units]
         cols[code] = col
     noise, how = channel_noise(t, chans, cols, kinds, cfg, where)
-    exp = Experiment(str(where), t, chans, cols, md, kinds, noise, how)
+    exp = Experiment(str(where), t, chans, cols, md, kinds, noise, how, dofs)
     for kind, msg in experiment_problems(exp):
         warn(kind, msg)
     return exp
@@ -281,28 +273,6 @@ def _numeric(series: pd.Series, where: str, col: str) -> np.ndarray:
         v = v.item() if hasattr(v, "item") else v
         raise ExperimentError(f"{where}: column '{col}' row {k + 1}: value {v!r} is not a finite number")
     return x
-
-
-def lowpass_sections(cfg: ExperimentConfig, exp: Experiment) -> np.ndarray:
-    """The acceleration channels' low-pass filter: a Butterworth filter (maximally flat pass band:
-    S. Butterworth, "On the theory of filter amplifiers", Wireless Engineer 7, 1930) of order
-    cfg.lowpass_order and cut-off cfg.lowpass_Hz at the table's sample rate, designed by the bilinear
-    transform with the cut-off pre-warped (scipy.signal.butter), as second-order sections [b0, b1, b2, 1, a1,
-    a2]; (0, 6) when the scene asks for none. The cut-off must lie below the Nyquist frequency 1 / (2 dt)."""
-    if cfg.lowpass_Hz is None:
-        return np.zeros((0, 6))
-    fs = 1.0 / exp.dt_sample
-    if not cfg.lowpass_Hz < fs / 2:
-        raise ExperimentError(
-            f"[experiment] lowpass_Hz = {cfg.lowpass_Hz!r}: at or above the Nyquist frequency {fs / 2:.6g} Hz of "
-            f"{Path(exp.path).name} (a sample every {exp.dt_sample:.6g} s); a digital low-pass filter needs a "
-            "cut-off below it"
-        )
-    from scipy.signal import butter
-
-    sos = np.ascontiguousarray(butter(cfg.lowpass_order, cfg.lowpass_Hz, btype="low", output="sos", fs=fs))
-    assert np.all(sos[:, 3] == 1.0)  # normalised sections: the kernel's sos_filter takes a0 = 1
-    return sos
 
 
 #: the difference orders noise_floor tries

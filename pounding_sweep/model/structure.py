@@ -1,7 +1,8 @@
-"""Lumped-mass shear frames: mass, stiffness and Rayleigh damping matrices, modes.
+"""Lumped-mass shear frames: mass, stiffness and damping matrices (Rayleigh, or one ratio per mode), modes.
 
 Matrices follow the paper's eqs. (3)-(4) (Sekerci & Damci), generalised to any number
-of stories; Rayleigh damping as in Chopra, *Dynamics of Structures*, sec. 11.4.
+of stories; Rayleigh damping as in Chopra, *Dynamics of Structures*, sec. 11.4; the damping matrix
+from modal damping ratios as in its sec. 11.5 (superposition of modal damping matrices).
 """
 
 from __future__ import annotations
@@ -38,15 +39,29 @@ def rayleigh_from_ratio(omega_i: float, omega_j: float, zeta_i: float, zeta_j: f
     return float(a0), float(a1)
 
 
+def modal_damping_matrix(M: np.ndarray, K: np.ndarray, zeta) -> np.ndarray:
+    """The damping matrix with damping ratio zeta[n] in mode n and no coupling between modes:
+    C = M (sum_n 2 zeta_n omega_n / M_n phi_n phi_n^T) M (Chopra, Dynamics of Structures, sec. 11.5), here with
+    mass-normalised shapes (M_n = phi_n^T M phi_n = 1): C = (M Phi) diag(2 zeta omega) (M Phi)^T, so that
+    Phi^T C Phi = diag(2 zeta_n omega_n). One ratio per mode (every mode damped as stated)."""
+    w2, phi = mass_normalised_modes(M, K)
+    omega = np.sqrt(np.clip(w2, 0.0, None))
+    mp = M @ phi
+    C = (mp * (2.0 * np.asarray(zeta, dtype=float) * omega)) @ mp.T
+    return 0.5 * (C + C.T)
+
+
 @dataclass(frozen=True)
 class ShearFrame:
-    """One building: floor masses [kg] and story stiffnesses [N/m], floor 1 first, with Rayleigh damping."""
+    """One building: floor masses [kg] and story stiffnesses [N/m], floor 1 first, with Rayleigh damping, or
+    with one damping ratio per mode (modal_damping_ratios: then the Rayleigh coefficients are 0)."""
 
     name: str
     masses_kg: tuple[float, ...]
     story_stiffness_N_per_m: tuple[float, ...]
     rayleigh_a0_per_s: float
     rayleigh_a1_s: float
+    modal_damping_ratios: tuple[float, ...] | None = None
 
     @property
     def n_floors(self) -> int:
@@ -62,7 +77,9 @@ class ShearFrame:
 
     @property
     def C(self) -> np.ndarray:
-        """C = a0 M + a1 K, eqs. (3)-(4)."""
+        """C = a0 M + a1 K, eqs. (3)-(4); with modal damping ratios, modal_damping_matrix."""
+        if self.modal_damping_ratios is not None:
+            return modal_damping_matrix(self.M, self.K, self.modal_damping_ratios)
         return self.rayleigh_a0_per_s * self.M + self.rayleigh_a1_s * self.K
 
     def modes(self) -> Modes:
@@ -115,13 +132,17 @@ def build_shear_frame(
     damping_modes: tuple[int, int] = (1, 2),
     rayleigh_a0_per_s: float | None = None,
     rayleigh_a1_s: float | None = None,
+    modal_damping_ratios=None,
 ) -> ShearFrame:
-    """Make a ShearFrame, with Rayleigh damping from a ratio matched at two modes or explicit a0, a1.
+    """Make a ShearFrame, with Rayleigh damping from a ratio matched at two modes or explicit a0, a1, or with
+    one damping ratio per mode (modal_damping_ratios, mode 1 first).
 
     With one story only mode 1 exists: the ratio is then met by stiffness-proportional damping alone.
     """
     m = tuple(float(x) for x in masses_kg)
     k = tuple(float(x) for x in story_stiffness_N_per_m)
+    if modal_damping_ratios is not None:
+        return ShearFrame(name, m, k, 0.0, 0.0, tuple(float(z) for z in modal_damping_ratios))
     if rayleigh_a0_per_s is not None or rayleigh_a1_s is not None:
         return ShearFrame(name, m, k, float(rayleigh_a0_per_s or 0.0), float(rayleigh_a1_s or 0.0))
     zeta = 0.0 if damping_ratio is None else float(damping_ratio)

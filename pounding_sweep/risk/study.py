@@ -26,7 +26,7 @@ import numpy as np
 import pounding_sweep.risk.analysis as A
 from pounding_sweep import __version__
 from pounding_sweep.errors import ConfigError, OutputError
-from pounding_sweep.gaps.rules import cqc_correlation, first_mode, floor_heights_m
+from pounding_sweep.gaps.rules import cqc_correlation, floor_heights_m, frame_first_mode
 from pounding_sweep.gaps.study import SEPARATED_GAP_M
 from pounding_sweep.model.coupled import CoupledModel
 from pounding_sweep.model.excitation import intensity_period
@@ -251,12 +251,8 @@ def _with_motion(df, sub: Scene):
 def model_facts(scene: Scene) -> dict:
     """The buildings' first modes, the DDC correlation, the top facing floor's height, the intensity measure."""
     model = CoupledModel.from_scene(scene)
-    w1, z1 = first_mode(
-        model.b1.masses_kg, model.b1.story_stiffness_N_per_m, model.b1.rayleigh_a0_per_s, model.b1.rayleigh_a1_s
-    )
-    w2, z2 = first_mode(
-        model.b2.masses_kg, model.b2.story_stiffness_N_per_m, model.b2.rayleigh_a0_per_s, model.b2.rayleigh_a1_s
-    )
+    w1, z1 = frame_first_mode(model.b1)
+    w2, z2 = frame_first_mode(model.b2)
     h = scene.building1.story_height_m
     lam = float(scene.excitation.length_scale)
     top = None

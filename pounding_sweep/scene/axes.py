@@ -1,4 +1,4 @@
-"""Sweep axes: which scene parameters a [sweep] may vary, and the one rule for the contact stiffness
+"""Sweep axes: which scene parameters a [sweep] may vary (a view of scene/parameters.py), and the one rule for the contact stiffness
 (given as k_s / k_ref or as k_s in N/m, never both: setting one form makes the other derived)."""
 
 from __future__ import annotations
@@ -6,40 +6,14 @@ from __future__ import annotations
 import math
 
 from pounding_sweep.errors import ConfigError
+from pounding_sweep.scene.parameters import PARAMETERS, STRUCTURE, SWEEP, names
 
-SWEEPABLE = {
-    "ks_ratio": ("contact", "ks_ratio"),
-    "ks_N_per_m": ("contact", "ks_N_per_m"),
-    "r": ("contact", "r"),
-    "law": ("contact", "law"),
-    "kh_N_per_m1_5": ("contact", "kh_N_per_m1_5"),
-    "gap_m": ("contact", "gap_m"),
-    "amplitude_m": ("excitation", "amplitude_m"),
-    "frequency_Hz": ("excitation", "frequency_Hz"),
-    "scale": ("excitation", "scale"),
-    "record": ("excitation", "record"),
-    "seed": ("stochastic", "seed"),  # a stochastic motion's realisation (scene/stochastic.py)
-    # the structure and the experiment's clock: model error, swept or fitted (sweep/calibrate.py)
-    "stiffness_scale_b1": ("building1", "stiffness_scale"),
-    "stiffness_scale_b2": ("building2", "stiffness_scale"),
-    "mass_scale_b1": ("building1", "mass_scale"),
-    "mass_scale_b2": ("building2", "mass_scale"),
-    "damping_ratio_b1": ("building1", "damping_ratio"),
-    "damping_ratio_b2": ("building2", "damping_ratio"),
-    "time_offset_s": ("experiment", "time_offset_s"),
-}
+#: name -> (section, key) of every parameter a [sweep] may vary (scene/parameters.py holds them all)
+SWEEPABLE = {p.name: (p.section, p.key) for p in PARAMETERS if p.has(SWEEP)}
 
 #: the axes that change the structure's matrices or the experiment's sampling: a grid over them runs each
 #: distinct combination as its own group of runs (sweep/prepare.py Prepared.run)
-STRUCTURE_AXES = (
-    "stiffness_scale_b1",
-    "stiffness_scale_b2",
-    "mass_scale_b1",
-    "mass_scale_b2",
-    "damping_ratio_b1",
-    "damping_ratio_b2",
-    "time_offset_s",
-)
+STRUCTURE_AXES = names(STRUCTURE)
 
 #: the two forms of the contact stiffness
 KS_FORMS = ("ks_ratio", "ks_N_per_m")

@@ -34,6 +34,8 @@ ADDED_EXPERIMENT_KEYS = {
 #: motions), left out at the values they had before they existed, like ADDED_EXPERIMENT_KEYS
 ADDED_EXCITATION_KEYS = {"intensity": "none", "scaling": "factor", "intensity_period_s": None}
 ADDED_SECTIONS = ("stochastic",)
+#: [buildingN] keys added later (per-story stiffness factors, per-mode damping), left out at the values they had before they existed
+ADDED_BUILDING_KEYS = {"story_stiffness_scales": None, "modal_damping_ratios": None}
 
 
 def canonical(scene) -> dict:
@@ -52,6 +54,10 @@ def canonical(scene) -> dict:
     for section in ADDED_SECTIONS:
         if d.get(section, 0) is None:
             del d[section]
+    for building in ("building1", "building2"):
+        for key, before in ADDED_BUILDING_KEYS.items():
+            if d.get(building) is not None and d[building].get(key, before) == before:
+                d[building].pop(key, None)
     d["output"].pop("path")
     digests: dict[str, dict] = {}
 

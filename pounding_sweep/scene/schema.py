@@ -97,6 +97,18 @@ class BuildingConfig:
         1.0,
     )
     mass_scale: float = _f("multiplies every floor mass (a [sweep] axis or fitted as mass_scale_b1/_b2)", 1.0)
+    modal_damping_ratios: tuple[float, ...] | None = _f(
+        "damping ratio of each mode, mode 1 first, one per mode: C = M Phi diag(2 zeta_n omega_n / M_n) Phi^T M "
+        "(Chopra, Dynamics of Structures, sec. 11.5); each fitted as modal_damping_ratio_b1_m1, _m2, ...",
+        None,
+        when="optional, instead of damping_ratio or rayleigh_a0_per_s/rayleigh_a1_s",
+    )
+    story_stiffness_scales: tuple[float, ...] | None = _f(
+        "a factor on each story's stiffness, story 1 first, on top of stiffness_scale (a frame whose stories differ "
+        "from the model's: each fitted as story_stiffness_scale_b1_s1, _s2, ...)",
+        None,
+        when="optional; one value per story",
+    )
 
 
 @dataclass(frozen=True)

@@ -16,8 +16,18 @@ from pounding_sweep.codes import (
     is_nonlinear,
 )
 from pounding_sweep.errors import ConfigError, shown
-from pounding_sweep.scene.axes import STRUCTURE_AXES, SWEEPABLE, check_ks
+from pounding_sweep.scene.axes import check_ks
 from pounding_sweep.scene.channels import experiment_channel, parse_channel
+from pounding_sweep.scene.parameters import (
+    FAMILIES,
+    STIFFNESS_FORMS,
+    bounds_out_of_range,
+    member,
+    names,
+    out_of_range,
+    parameter,
+)
+from pounding_sweep.scene.parameters import FITTABLE as ROLE_FITTABLE
 from pounding_sweep.scene.schema import (
     ACC_UNITS,
     EXECUTORS,
@@ -90,6 +100,7 @@ def validate(s: Scene) -> None:
         if b.n_columns is not None:
             _positive(b.n_columns, f"[{bname}] n_columns")
         _check_story_stiffness(b, bname, n)
+        _check_story_scales(b, bname, n)
         explicit = b.rayleigh_a0_per_s is not None or b.rayleigh_a1_s is not None
         if explicit and b.damping_ratio is not None:
             raise ConfigError(f"[{bname}]: give damping_ratio or rayleigh_a0_per_s/rayleigh_a1_s, not both")
@@ -113,8 +124,7 @@ def validate(s: Scene) -> None:
     if s.contact is not None:
         _check_contact(s, axes)
     for k in ("amplitude_m", "frequency_Hz", "scale"):
-        for v in axes.get(k, ()):
-            _positive(v, f"[sweep] {k}")
+        _check_axis(axes, k)
     _validate_rest(s, axes)
 
 
@@ -135,7 +145,8 @@ def _check_single_building(s: Scene, axes: dict) -> None:
     named = [(f"[sweep] {n}", n) for n in axes]
     named += [(f"[calibrate] parameters.{n}", n) for n in (s.calibrate.parameters if s.calibrate else ())]
     for key, name in named:
-        section = SWEEPABLE.get(name, ("",))[0]
+        entry = parameter(name)  # a [sweep] axis, or a per-story or per-mode member
+        section = entry.section if entry is not None else ""
         if section in ("contact", "building2"):
             raise ConfigError(
                 f"{key}: a single-building scene (no [building2]) has no {'contact' if section == 'contact' else 'building 2'}"
@@ -146,22 +157,17 @@ def _check_single_building(s: Scene, axes: dict) -> None:
 def _check_contact(s: Scene, axes: dict) -> None:
     """[contact] and the contact axes: r, the laws, one form of k_s, positive stiffnesses, gaps >= 0."""
     c = s.contact
-    _check_r(c.r, "[contact] r")
-    for v in axes.get("r", ()):
-        _check_r(v, "[sweep] r")
+    _in_range("r", c.r, "[contact] r")
+    _check_axis(axes, "r")
     _check_laws(c, axes)
     check_ks(c, axes)
-    _positive(c.ks_ratio, "[contact] ks_ratio")
-    _positive(c.ks_N_per_m, "[contact] ks_N_per_m")
+    _in_range("ks_ratio", c.ks_ratio, "[contact] ks_ratio")
+    _in_range("ks_N_per_m", c.ks_N_per_m, "[contact] ks_N_per_m")
     _positive(c.k_ref_N_per_m, "[contact] k_ref_N_per_m")
     for k in ("ks_ratio", "ks_N_per_m"):
-        for v in axes.get(k, ()):
-            _positive(v, f"[sweep] {k}")
-    if c.gap_m < 0:
-        raise ConfigError(f"[contact] gap_m = {c.gap_m!r}: must be >= 0")
-    for v in axes.get("gap_m", ()):
-        if v < 0:
-            raise ConfigError(f"[sweep] gap_m = {v!r}: must be >= 0")
+        _check_axis(axes, k)
+    _in_range("gap_m", c.gap_m, "[contact] gap_m")
+    _check_axis(axes, "gap_m")
 
 
 def _validate_rest(s: Scene, axes: dict) -> None:
@@ -327,7 +333,7 @@ def _validate_experiment(s: Scene) -> None:
 def _validate_acceleration(x, kinds: dict) -> None:
     """[experiment]'s acceleration keys (acc_units, lowpass_Hz, lowpass_order) and the combination (use,
     weights), given each channel's kind. The filter's cut-off against the table's Nyquist frequency is checked
-    where the table is read (model/experiment.py lowpass_sections)."""
+    where the table is read (sweep/scoring.py lowpass_sections)."""
     acc = [c for c, k in kinds.items() if k == codes.H_ABS_ACC]
     if x.acc_units not in ACC_UNITS:
         raise ConfigError(f"[experiment] acc_units = {shown(x.acc_units)}: expected one of {list(ACC_UNITS)}")
@@ -440,9 +446,8 @@ def _check_laws(c, axes: dict) -> None:
         )
     _positive(c.reference_penetration_m, "[contact] reference_penetration_m")
     _positive(c.min_impact_speed_m_s, "[contact] min_impact_speed_m_s")
-    _positive(c.kh_N_per_m1_5, "[contact] kh_N_per_m1_5")
-    for v in axes.get("kh_N_per_m1_5", ()):
-        _positive(v, "[sweep] kh_N_per_m1_5")
+    _in_range("kh_N_per_m1_5", c.kh_N_per_m1_5, "[contact] kh_N_per_m1_5")
+    _check_axis(axes, "kh_N_per_m1_5")
     laws = set(axes.get("law", (c.law,)))
     hertz = {x for x in laws if is_nonlinear(CONTACT_LAWS[x])}
     has_kh = c.kh_N_per_m1_5 is not None or "kh_N_per_m1_5" in axes
@@ -466,16 +471,7 @@ def _check_laws(c, axes: dict) -> None:
 
 
 #: what [calibrate] may fit: the numeric sweep parameters (names and laws are chosen, not fitted)
-FITTABLE = (
-    "ks_ratio",
-    "ks_N_per_m",
-    "kh_N_per_m1_5",
-    "r",
-    "gap_m",
-    "amplitude_m",
-    "scale",
-    *STRUCTURE_AXES,
-)
+FITTABLE = names(ROLE_FITTABLE)
 
 
 def _check_calibrate(s: Scene) -> None:
@@ -495,21 +491,18 @@ def _check_calibrate(s: Scene) -> None:
         raise ConfigError("[calibrate] parameters = {}: name at least one parameter to fit, with its bounds")
     for name, bounds in cal.parameters.items():
         key = f"[calibrate] parameters.{name}"
-        if name not in FITTABLE:
-            raise ConfigError(f"{key}: not a parameter the calibration can fit (one of {', '.join(FITTABLE)})")
+        if name not in FITTABLE and member(name) is None:
+            per_story = ", ".join(f"{f.name}_s<story>" for f in FAMILIES)
+            raise ConfigError(
+                f"{key}: not a parameter the calibration can fit (one of {', '.join(FITTABLE)}; per story: {per_story})"
+            )
+        _check_member(s, name, key)
         if len(bounds) != 2 or not bounds[0] < bounds[1]:
             raise ConfigError(f"{key} = {shown(bounds)}: expected bounds [low, high] with low < high")
-        lo, hi = float(bounds[0]), float(bounds[1])
-        if name == "r" and not (0.0 <= lo and hi <= 1.0):
-            raise ConfigError(f"{key} = [{lo}, {hi}]: a coefficient of restitution lies in [0, 1]")
-        if name.startswith("damping_ratio_b") and not (0.0 <= lo and hi < 1.0):
-            raise ConfigError(f"{key} = [{lo}, {hi}]: a damping ratio lies in [0, 1)")
-        if name in ("gap_m", "time_offset_s"):
-            if name == "gap_m" and lo < 0:
-                raise ConfigError(f"{key} = [{lo}, {hi}]: a gap is >= 0")
-        elif not name.startswith("damping_ratio_b") and name != "r" and lo <= 0:
-            raise ConfigError(f"{key} = [{lo}, {hi}]: must be > 0")
-    forms = [n for n in ("ks_ratio", "ks_N_per_m", "kh_N_per_m1_5") if n in cal.parameters]
+        outside = bounds_out_of_range(name, float(bounds[0]), float(bounds[1]), key)
+        if outside:
+            raise ConfigError(outside)
+    forms = [n for n in STIFFNESS_FORMS if n in cal.parameters]
     if len(forms) > 1:
         raise ConfigError(f"[calibrate] parameters: fit one form of the contact stiffness, not {' and '.join(forms)}")
     for name in cal.parameters:
@@ -538,6 +531,49 @@ def _check_calibrate(s: Scene) -> None:
         )
     _positive(cal.misfit_factor, "[calibrate] misfit_factor")
     _check_calibrate_effect(s, cal)
+
+
+def _check_member(s: Scene, name: str, key: str) -> None:
+    """A per-story name (story_stiffness_scale_b1_s2) names a story the building has."""
+    found = member(name)
+    if found is None:
+        return
+    fam, index = found
+    part = getattr(s, fam.section)
+    n = len(part.masses_kg)
+    what, many = ("story", "stories") if fam.per == "s" else ("mode", "modes")
+    if index > n:
+        raise ConfigError(f"{key}: [{fam.section}] has {n} {what if n == 1 else many}, no {what} {index}")
+    if fam.neutral is None and getattr(part, fam.key) is None:
+        raise ConfigError(f"{key}: [{fam.section}] gives no {fam.key} to fit (give one value per {what})")
+
+
+def _check_story_scales(b: BuildingConfig, bname: str, n: int) -> None:
+    """story_stiffness_scales: one factor > 0 per story; modal_damping_ratios: one ratio in [0, 1) per mode, and
+    the only form of damping given."""
+    scales = b.story_stiffness_scales
+    if scales is not None:
+        if len(scales) != n:
+            raise ConfigError(
+                f"[{bname}] story_stiffness_scales = {shown(list(scales))}: one factor per story, {n} here "
+                "(story 1 first)"
+            )
+        for v in scales:
+            _positive(v, f"[{bname}] story_stiffness_scales")
+    zeta = b.modal_damping_ratios
+    if zeta is None:
+        return
+    if b.damping_ratio is not None or b.rayleigh_a0_per_s is not None or b.rayleigh_a1_s is not None:
+        raise ConfigError(
+            f"[{bname}]: give modal_damping_ratios, damping_ratio or rayleigh_a0_per_s/rayleigh_a1_s, one form of "
+            "damping"
+        )
+    if len(zeta) != n:
+        raise ConfigError(
+            f"[{bname}] modal_damping_ratios = {shown(list(zeta))}: one ratio per mode, {n} here (mode 1 first)"
+        )
+    for v in zeta:
+        _in_range(f"modal_damping_ratio_b{bname[-1]}_m1", v, f"[{bname}] modal_damping_ratios")
 
 
 def _check_calibrate_effect(s: Scene, cal) -> None:
@@ -595,10 +631,9 @@ def _check_structure_axes(s: Scene, axes: dict) -> None:
             continue
         _positive(b.stiffness_scale, f"[{bname}] stiffness_scale")
         _positive(b.mass_scale, f"[{bname}] mass_scale")
-    for name, values in axes.items():
+    for name in axes:
         if name.startswith(("stiffness_scale_b", "mass_scale_b")):
-            for v in values:
-                _positive(v, f"[sweep] {name}")
+            _check_axis(axes, name)
         elif name.startswith("damping_ratio_b"):
             b = getattr(s, f"building{name[-1]}")
             if b.rayleigh_a0_per_s is not None or b.rayleigh_a1_s is not None:
@@ -606,16 +641,22 @@ def _check_structure_axes(s: Scene, axes: dict) -> None:
                     f"[sweep] {name}: [building{name[-1]}] is damped by explicit Rayleigh coefficients; "
                     "sweep its damping_ratio only where the scene gives one"
                 )
-            for v in values:
-                if not 0 <= v < 1:
-                    raise ConfigError(f"[sweep] {name} = {v!r}: must lie in [0, 1)")
+            _check_axis(axes, name)
         elif name == "time_offset_s" and s.experiment is None:
             raise ConfigError("[sweep] time_offset_s: shifts an experiment's clock, and the scene has no [experiment]")
 
 
-def _check_r(r, key):
-    if not 0.0 <= r <= 1.0:
-        raise ConfigError(f"{key} = {r!r}: the coefficient of restitution must lie in [0, 1]")
+def _in_range(name: str, value, key: str) -> None:
+    """A value of parameter `name` (scene/parameters.py) inside its range; None (not given) passes."""
+    outside = out_of_range(name, value, key)
+    if outside:
+        raise ConfigError(outside)
+
+
+def _check_axis(axes: dict, name: str) -> None:
+    """Every value of the [sweep] axis `name` (where swept) inside the parameter's range."""
+    for v in axes.get(name, ()):
+        _in_range(name, v, f"[sweep] {name}")
 
 
 def check_workers(value: int, key: str) -> None:

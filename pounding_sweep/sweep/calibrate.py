@@ -65,8 +65,9 @@ from pounding_sweep import codes as C
 from pounding_sweep.model.experiment import noise_floor
 from pounding_sweep.scene import Scene
 from pounding_sweep.scene.channels import channel_unit, shown_value
+from pounding_sweep.scene.parameters import default_profiled, is_log
 from pounding_sweep.sweep.fitchecks import reversed_channel_warnings
-from pounding_sweep.sweep.fitstats import LOG_SCALE, gauss_newton, interval, local_fit, misfit_of
+from pounding_sweep.sweep.fitstats import gauss_newton, interval, local_fit, misfit_of
 from pounding_sweep.sweep.globalsearch import find_basin
 from pounding_sweep.sweep.lawcompare import compare_laws as compare_on_one_basis
 from pounding_sweep.sweep.lawcompare import information_criteria
@@ -74,8 +75,6 @@ from pounding_sweep.sweep.prepare import Prepared, history_spec, prepare, struct
 from pounding_sweep.sweep.uncertainty import model_error_intervals
 from pounding_sweep.warn import warn
 
-#: the contact parameters profiled by default
-CONTACT = ("ks_ratio", "ks_N_per_m", "kh_N_per_m1_5", "r")
 CHI2_1_95 = 3.841458820694124  # chi^2 quantile, 1 degree of freedom, 0.95
 BOUND_FRACTION = 1e-3  # a fitted value this close to a bound (fraction of the fit-coordinate range) is on it
 #: forward-difference step of the Jacobian, as a share of each fit coordinate's range (Problem.jac). Its error is
@@ -252,10 +251,10 @@ class Problem:
 
     # ------------------------------------------------------------------ coordinates
     def to_z(self, theta: np.ndarray) -> np.ndarray:
-        return np.array([math.log(v) if n in LOG_SCALE else v for n, v in zip(self.names, theta)])
+        return np.array([math.log(v) if is_log(n) else v for n, v in zip(self.names, theta)])
 
     def to_theta(self, z: np.ndarray) -> np.ndarray:
-        return np.array([math.exp(v) if n in LOG_SCALE else v for n, v in zip(self.names, z)])
+        return np.array([math.exp(v) if is_log(n) else v for n, v in zip(self.names, z)])
 
     @property
     def z_bounds(self) -> tuple[np.ndarray, np.ndarray]:
@@ -412,7 +411,7 @@ def _calibrate_one(scene: Scene, names: list[str], threads: int, best_cell: dict
     estimate, std_error, ci = {}, {}, {}
     for j, n in enumerate(names):
         estimate[n] = float(theta[j])
-        std_error[n] = float(theta[j] * gn.se_z[j]) if n in LOG_SCALE else float(gn.se_z[j])  # delta method
+        std_error[n] = float(theta[j] * gn.se_z[j]) if is_log(n) else float(gn.se_z[j])  # delta method
         ci[n] = interval(prob, j, z_opt[j] - gn.tq * gn.se_z[j], z_opt[j] + gn.tq * gn.se_z[j])
 
     # per channel
@@ -457,7 +456,7 @@ def _calibrate_one(scene: Scene, names: list[str], threads: int, best_cell: dict
         if progress is not None:
             progress(f"calibration ({law_label(scene)}): model-error intervals from {len(fit.windows)} windows")
     # profiles
-    profiled = (list(cal.profile) or [n for n in CONTACT if n in names]) if cal.profile_points > 0 else []
+    profiled = (list(cal.profile) or default_profiled(names)) if cal.profile_points > 0 else []
     for n in profiled:
         j = names.index(n)
         fit.profiles[n] = _profile(prob, n, z_opt, lo, hi, cal, gn.s2 * N / gn.n_eff, rss, gn.se_z[j])
@@ -503,7 +502,7 @@ def _identify(fit: Fit) -> None:
     """Per profiled parameter: the range the data cannot exclude, and whether that identifies it (judged in the
     fit's coordinate: log for stiffnesses)."""
     for name, rows in fit.profiles.items():
-        fwd, back = (math.log, math.exp) if name in LOG_SCALE else (float, float)
+        fwd, back = (math.log, math.exp) if is_log(name) else (float, float)
         rows = sorted(rows, key=lambda r: r["value"])
         x = np.array([fwd(r["value"]) for r in rows])
         y = np.array([r["delta_chi2"] for r in rows])

@@ -14,10 +14,11 @@ import math
 
 import numpy as np
 
+from pounding_sweep.scene.parameters import CONTACT, STIFFNESS, names
 from pounding_sweep.warn import warn
 
 #: sweep axes that are contact parameters: sweeping one says the scene studies pounding
-CONTACT_AXES = ("gap_m", "ks_ratio", "ks_N_per_m", "r")
+CONTACT_AXES = names(CONTACT)
 
 
 def round_down_125(x: float) -> float:
@@ -30,7 +31,7 @@ def round_down_125(x: float) -> float:
 
 
 #: the sweep axes that set a run's contact stiffness (and so its contact period)
-STIFFNESS_AXES = ("law", "ks_ratio", "ks_N_per_m", "kh_N_per_m1_5")
+STIFFNESS_AXES = names(STIFFNESS)
 
 
 def contact_stiffness_grid(grid):
@@ -192,7 +193,7 @@ def check_calibration(prep) -> None:
     for key, offset in offsets:
         moved = dataclasses.replace(scene.experiment, time_offset_s=offset)
         try:
-            score_spec(exp, moved, prep.model.floors, prep.excitation.max_duration_s, prep.dt)
+            score_spec(exp, moved, prep.excitation.max_duration_s, prep.dt)
         except ExperimentError as e:
             raise ConfigError(f"{key}: at {offset:g} s, {e}") from None
     if cal is None:

@@ -10,8 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: parameters fitted on a log scale (positive, spanning decades)
-LOG_SCALE = ("ks_ratio", "ks_N_per_m", "kh_N_per_m1_5")
+from pounding_sweep.scene.parameters import is_log
 
 
 def local_fit(prob, z0: np.ndarray, max_nfev: int, free=None, cols=None):
@@ -95,7 +94,7 @@ def interval(prob, j: int, z_a: float, z_b: float) -> tuple[float, float]:
     """[z_a, z_b] in fit coordinate j, clipped to the bounds and mapped back (through exp where log-scaled)."""
     lo, hi = prob.z_bounds
     za, zb = max(z_a, lo[j]), min(z_b, hi[j])
-    if prob.names[j] in LOG_SCALE:
+    if is_log(prob.names[j]):
         return (float(math.exp(za)), float(math.exp(zb)))
     return (float(za), float(zb))
 

@@ -31,7 +31,7 @@ from pounding_sweep.model.laws import hertz_stiffness, law_arrays
 from pounding_sweep.scene import SWEEPABLE, ContactConfig, Scene, contact_stiffness
 from pounding_sweep.scene.axes import STRUCTURE_AXES
 from pounding_sweep.scene.channels import parse_channel
-from pounding_sweep.warn import warn
+from pounding_sweep.scene.parameters import member
 
 LAW_NAMES = {code: name for name, code in CONTACT_LAWS.items()}
 
@@ -99,18 +99,19 @@ class Prepared:
         return merge_rows(params["run_id"].size, parts)
 
     def variant(self, values: tuple) -> Prepared:
-        """This scene with the structure values (STRUCTURE_AXES order) of a group of runs: its own model,
-        matrices and experiment samples; the excitation, histories and kernel shared (cached per values)."""
+        """This scene with the structure values ((name, value) pairs: structure_groups) of a group of runs: its
+        own model, matrices and experiment samples; the excitation, histories and kernel shared (cached per
+        values)."""
         if values not in self.variants:
-            scene = with_structure(self.scene, dict(zip(STRUCTURE_AXES, values)))
+            scene = with_structure(self.scene, dict(values))
             model = CoupledModel.from_scene(scene)
             score = self.score
             if scene.experiment is not None and scene.experiment.time_offset_s != self.scene.experiment.time_offset_s:
                 from pounding_sweep.sweep.scoring import score_spec
 
-                score = score_spec(
-                    self.experiment, scene.experiment, model.floors, self.excitation.max_duration_s, self.dt
-                )[0]  # the same channels and weights: only the samples' clock moved
+                score = score_spec(self.experiment, scene.experiment, self.excitation.max_duration_s, self.dt)[
+                    0
+                ]  # the same channels and weights: only the samples' clock moved
             self.variants[values] = dataclasses.replace(
                 self, scene=scene, model=model, sysarr=model.system_arrays(self.dt), score=score, variants={}
             )
@@ -163,13 +164,10 @@ def prepare(scene: Scene, kernel: str = "auto", groups: int = L.GROUPS_ALL) -> P
     hspec, hcols = history_spec(scene, model.floors)
     score, codes, comb, sensor = ScoreSpec.none(), [], None, None
     if scene.experiment is not None:
-        from pounding_sweep.sweep.scoring import load_experiment, score_spec, sensor_warnings
+        from pounding_sweep.sweep.scoring import ready_experiment
 
-        exp = load_experiment(scene.experiment, model.floors)
-        for kind, message in sensor_warnings(exp, scene.experiment, model, exc):
-            warn(kind, message)
-        score, comb = score_spec(exp, scene.experiment, model.floors, exc.max_duration_s, dt)
-        codes = list(exp.channels)
+        ready = ready_experiment(scene.experiment, model, exc, dt)
+        exp, score, comb, codes = ready.experiment, ready.score, ready.combination, ready.codes
         if (score.kind == H_ABS_ACC).any():
             from pounding_sweep.sweep.sensor import sensor_model
 
@@ -200,22 +198,40 @@ def prepare(scene: Scene, kernel: str = "auto", groups: int = L.GROUPS_ALL) -> P
     )
 
 
-def structure_values(scene: Scene) -> tuple:
-    """The scene's own values of STRUCTURE_AXES (NaN where unset: no damping_ratio, no experiment)."""
-    out = []
-    for name in STRUCTURE_AXES:
-        section, key = SWEEPABLE[name]
-        part = getattr(scene, section)
-        v = None if part is None else getattr(part, key)
-        out.append(np.nan if v is None else float(v))
-    return tuple(out)
+def structure_names(params: dict) -> tuple[str, ...]:
+    """The structure parameters of runs: STRUCTURE_AXES, then the per-story ones `params` holds (a calibration
+    fitting story_stiffness_scale_b1_s2, say: scene/parameters.py FAMILIES)."""
+    return STRUCTURE_AXES + tuple(sorted(k for k in params if member(k) is not None))
+
+
+def structure_value(scene: Scene, name: str) -> float:
+    """The scene's own value of a structure parameter (NaN where unset: no damping_ratio, no experiment; a
+    family member where the scene gives no list: the family's neutral value, a story factor's 1)."""
+    found = member(name)
+    if found is not None:
+        fam, index = found
+        values = getattr(getattr(scene, fam.section), fam.key)
+        if values is None:
+            return np.nan if fam.neutral is None else fam.neutral
+        return float(values[index - 1])
+    section, key = SWEEPABLE[name]
+    part = getattr(scene, section)
+    v = None if part is None else getattr(part, key)
+    return np.nan if v is None else float(v)
+
+
+def structure_values(scene: Scene, names: tuple[str, ...] = STRUCTURE_AXES) -> tuple:
+    """The scene's own values of the structure parameters `names` (structure_value)."""
+    return tuple(structure_value(scene, n) for n in names)
 
 
 def structure_groups(scene: Scene, params: dict[str, np.ndarray]):
-    """[(structure values, run indices)] of the runs in `params` grouped by their STRUCTURE_AXES values, or
-    None when every run has the scene's own structure (the common case: one group, no work)."""
-    base = np.array(structure_values(scene))
-    cols = np.column_stack([np.asarray(params[name], float) for name in STRUCTURE_AXES]) if params else None
+    """[(((name, value), ...), run indices)] of the runs in `params` grouped by their structure values
+    (structure_names), or None when every run has the scene's own structure (the common case: one group, no
+    work)."""
+    names = structure_names(params) if params else STRUCTURE_AXES
+    base = np.array(structure_values(scene, names))
+    cols = np.column_stack([np.asarray(params[name], float) for name in names]) if params else None
     if cols is None or not cols.size:
         return None
     same = (cols == base) | (np.isnan(cols) & np.isnan(base))
@@ -223,17 +239,30 @@ def structure_groups(scene: Scene, params: dict[str, np.ndarray]):
         return None
     keys, inverse = np.unique(np.where(np.isnan(cols), np.inf, cols), axis=0, return_inverse=True)
     keys = np.where(np.isinf(keys), np.nan, keys)
-    return [(tuple(float(x) for x in keys[g]), np.flatnonzero(inverse.ravel() == g)) for g in range(keys.shape[0])]
+    return [
+        (tuple(zip(names, (float(x) for x in keys[g]))), np.flatnonzero(inverse.ravel() == g))
+        for g in range(keys.shape[0])
+    ]
 
 
 def with_structure(scene: Scene, values: dict) -> Scene:
-    """The scene with STRUCTURE_AXES values set (NaN: left as the scene has it)."""
+    """The scene with structure parameters set (NaN: left as the scene has it); a per-story or per-mode one sets
+    its entry of the building's list."""
     sections: dict = {}
     for name, v in values.items():
         if v is None or (isinstance(v, float) and np.isnan(v)):
             continue
-        section, key = SWEEPABLE[name]
-        sections.setdefault(section, {})[key] = float(v)
+        found = member(name)
+        if found is None:
+            section, key = SWEEPABLE[name]
+            sections.setdefault(section, {})[key] = float(v)
+            continue
+        fam, index = found  # validate: a family without a neutral value is fitted only where the scene lists it
+        part = getattr(scene, fam.section)
+        kv = sections.setdefault(fam.section, {})
+        values = list(kv.get(fam.key) or getattr(part, fam.key) or (fam.neutral,) * len(part.masses_kg))
+        values[index - 1] = float(v)
+        kv[fam.key] = tuple(values)
     new = {s: dataclasses.replace(getattr(scene, s), **kv) for s, kv in sections.items()}
     return dataclasses.replace(scene, **new)
 

@@ -11,27 +11,16 @@ import numpy as np
 import pyarrow as pa
 
 from pounding_sweep.engine.score import ACC_SCORE_NAMES, S_REL_RMS_PCT, SCORE_NAMES
-from pounding_sweep.scene.axes import STRUCTURE_AXES
 from pounding_sweep.scene.channels import ACC_PREFIX
+from pounding_sweep.scene.parameters import BEST, is_log, names
 
 if TYPE_CHECKING:  # pandas costs 0.3 s to import: only where a table is built
     import pandas as pd
 
     from pounding_sweep.sweep.scoring import Combination
 
-PARAM_COLUMNS = (
-    "run_id",
-    "contact_law",
-    "ks_ratio",
-    "ks_N_per_m",
-    "r",
-    "gap_m",
-    "amplitude_m",
-    "frequency_Hz",
-    "record",
-    "scale",
-    *STRUCTURE_AXES,  # where swept: the structure of the best cell
-)
+#: the columns of a best-runs row: the run, its law and the parameters that describe it (scene/parameters.py)
+PARAM_COLUMNS = ("run_id", "contact_law", *names(BEST))
 
 
 def score_names(code: str) -> tuple[tuple[str, str], ...]:
@@ -130,7 +119,7 @@ def refine(
     from scipy.optimize import minimize
 
     names = list(bounds)
-    log = {n: n == "ks_ratio" for n in names}
+    log = {n: is_log(n) for n in names}
 
     def to_x(p):
         return np.array([np.log10(p[n]) if log[n] else p[n] for n in names])

@@ -22,32 +22,20 @@ import pyarrow.parquet as pq
 from pounding_sweep import __version__
 from pounding_sweep.engine import layout as L
 from pounding_sweep.errors import OutputError
+from pounding_sweep.scene.parameters import PARAMETERS
 
 META_KEY = b"pounding_sweep"
 
 #: what the non-obvious columns mean (stored in the metadata as well)
 COLUMN_DOCS = {
     "run_id": "index of the run in the grid (last sweep axis fastest)",
-    "ks_ratio": "contact stiffness k_s / k_ref [-]",
-    "ks_N_per_m": "contact stiffness k_s [N/m]",
-    "r": "coefficient of restitution [-]",
-    "gap_m": "gap d between facing floors at rest [m]",
-    "seed": "stochastic excitation: the seed of the run's ground-motion realisation [-]",
+    **{p.name: p.doc for p in PARAMETERS if p.name != "law"},  # the parameters' own (scene/parameters.py)
     "intensity_g": "the run's ground-motion intensity ([excitation] intensity: PGA or Sa(T, 5 %), metadata "
     "'intensity'), as run [g]",
-    "scale": "factor on the motion's acceleration; with [excitation] scaling = 'intensity': its intensity [g]",
     "contact_law": "the run's pounding law: classic, no_tension (eq. 8), hertz, hertzdamp, jankowski",
-    "kh_N_per_m1_5": "Hertz-type laws: k_h [N/m^1.5] (given, or k_s / sqrt(reference_penetration_m))",
     "contact_damping_ratio": "xi from r by the law's relation: eq. 10 (classic, no_tension), Jankowski 2006 [-]",
     "hertzdamp_a": "hertzdamp: normalised damping a (F = k_h delta^1.5 (1 + a delta_dot / v0)) from r [-]",
     "r_single_impact": "restitution a single free impact returns with this law and damping (r's meaning) [-]",
-    "stiffness_scale_b1": "factor on every story stiffness of building 1 (swept) [-]",
-    "stiffness_scale_b2": "factor on every story stiffness of building 2 (swept) [-]",
-    "mass_scale_b1": "factor on every floor mass of building 1 (swept) [-]",
-    "mass_scale_b2": "factor on every floor mass of building 2 (swept) [-]",
-    "damping_ratio_b1": "Rayleigh damping ratio of building 1 at its damping_modes (swept) [-]",
-    "damping_ratio_b2": "Rayleigh damping ratio of building 2 at its damping_modes (swept) [-]",
-    "time_offset_s": "experiment time minus simulation time (swept) [s]",
     "steps_per_contact_period": "min over pairs of 2 pi sqrt(m_eff/k) / dt, k = k_s or 1.5 k_h sqrt(delta_ref) [-]",
     "dt_s": "dt = 'auto': the time step chosen for this run [s]",
     "dt_error_estimate": "dt = 'auto': Richardson estimate of the run's relative error at that dt [-]",

@@ -1,6 +1,7 @@
-"""The experiment a sweep scores against: its table read (or its video tracked, once per process) and
-turned into the kernel's ScoreSpec, the samples inside the scored window on the simulation clock (the
-acceleration channels low-pass filtered), and the weights that combine the channels' errors."""
+"""The experiment a sweep scores against, made ready in one place (ready_experiment): its table read (or its
+video tracked, once per process) and checked against the model's modes and the record, turned into the kernel's
+ScoreSpec (the samples inside the scored window on the simulation clock, the acceleration channels low-pass
+filtered) and the weights that combine the channels' errors (with each channel's noise floor)."""
 
 from __future__ import annotations
 
@@ -15,13 +16,38 @@ from pounding_sweep.errors import ExperimentError, VideoError
 from pounding_sweep.model.experiment import (
     Experiment,
     experiment_from_table,
-    lowpass_sections,
     noise_floor,
     read_table,
 )
 from pounding_sweep.scene import ExperimentConfig
-from pounding_sweep.scene.channels import channel_unit, experiment_channel
+from pounding_sweep.scene.channels import channel_unit
 from pounding_sweep.scene.schema import USES
+from pounding_sweep.warn import warn
+
+
+@dataclass(frozen=True)
+class ReadyExperiment:
+    """An [experiment] ready to score runs against: the table as read (channels, kinds, noise), the kernel's
+    samples and filter (ScoreSpec) and how the channels' errors combine (weights, noise floors)."""
+
+    experiment: Experiment
+    score: ScoreSpec
+    combination: Combination
+
+    @property
+    def codes(self) -> list[str]:
+        """The scored channels ('b1f3', 'abs_acc_b2f1', ...), in the table's order."""
+        return list(self.experiment.channels)
+
+
+def ready_experiment(cfg: ExperimentConfig, model, excitation, dt: float) -> ReadyExperiment:
+    """The experiment of a scene, read, checked against the model and the record (warnings), and turned into the
+    kernel's samples and the channels' combination at time step dt (sweep/prepare.py calls it)."""
+    exp = load_experiment(cfg, model.floors)
+    for kind, message in sensor_warnings(exp, cfg, model, excitation):
+        warn(kind, message)
+    score, comb = score_spec(exp, cfg, excitation.max_duration_s, dt)
+    return ReadyExperiment(exp, score, comb)
 
 
 def load_experiment(cfg: ExperimentConfig, floors: tuple[int, int]) -> Experiment:
@@ -60,7 +86,7 @@ def _tracked(spec) -> tuple:
 
 
 def score_spec(
-    exp: Experiment, cfg: ExperimentConfig, floors: tuple[int, int], sim_duration_s: float, dt: float
+    exp: Experiment, cfg: ExperimentConfig, sim_duration_s: float, dt: float
 ) -> tuple[ScoreSpec, Combination]:
     """The samples inside the scored window, on the simulation clock, as kernel arrays, and how the
     channels' errors combine (combination).
@@ -100,9 +126,8 @@ def score_spec(
         )
     codes_ = list(exp.channels)
     raw = np.ascontiguousarray(np.stack([exp.channels[c][keep] for c in codes_]))
-    kd = [experiment_channel(c, floors, "channel") for c in codes_]
-    kind = np.array([k for k, _ in kd], dtype=np.int64)
-    dof = np.array([q for _, q in kd], dtype=np.int64)
+    kind = np.array([exp.kinds[c] for c in codes_], dtype=np.int64)
+    dof = np.array([exp.dofs[c] for c in codes_], dtype=np.int64)
     sos = lowpass_sections(cfg, exp)
     x = raw.copy()
     if sos.shape[0]:
@@ -113,6 +138,28 @@ def score_spec(
     max_lag = int(min(round(cfg.max_lag_s / exp.dt_sample), keep.sum() - 2))  # at most the window
     spec = ScoreSpec(np.ascontiguousarray(ts[keep]), x, dof, max_lag, exp.dt_sample, kind, sos)
     return spec, combination(exp, cfg, spec, raw)
+
+
+def lowpass_sections(cfg: ExperimentConfig, exp: Experiment) -> np.ndarray:
+    """The acceleration channels' low-pass filter: a Butterworth filter (maximally flat pass band:
+    S. Butterworth, "On the theory of filter amplifiers", Wireless Engineer 7, 1930) of order
+    cfg.lowpass_order and cut-off cfg.lowpass_Hz at the table's sample rate, designed by the bilinear
+    transform with the cut-off pre-warped (scipy.signal.butter), as second-order sections [b0, b1, b2, 1, a1,
+    a2]; (0, 6) when the scene asks for none. The cut-off must lie below the Nyquist frequency 1 / (2 dt)."""
+    if cfg.lowpass_Hz is None:
+        return np.zeros((0, 6))
+    fs = 1.0 / exp.dt_sample
+    if not cfg.lowpass_Hz < fs / 2:
+        raise ExperimentError(
+            f"[experiment] lowpass_Hz = {cfg.lowpass_Hz!r}: at or above the Nyquist frequency {fs / 2:.6g} Hz of "
+            f"{Path(exp.path).name} (a sample every {exp.dt_sample:.6g} s); a digital low-pass filter needs a "
+            "cut-off below it"
+        )
+    from scipy.signal import butter
+
+    sos = np.ascontiguousarray(butter(cfg.lowpass_order, cfg.lowpass_Hz, btype="low", output="sos", fs=fs))
+    assert np.all(sos[:, 3] == 1.0)  # normalised sections: the kernel's sos_filter takes a0 = 1
+    return sos
 
 
 @dataclass(frozen=True)

@@ -36,7 +36,8 @@ import math
 
 import numpy as np
 
-from pounding_sweep.sweep.fitstats import LOG_SCALE, gauss_newton, interval, local_fit, misfit_of
+from pounding_sweep.scene.parameters import is_log
+from pounding_sweep.sweep.fitstats import gauss_newton, interval, local_fit, misfit_of
 
 WINDOWS = 4  # windows of the split (the prediction interval's t quantile grows fast below 4)
 IDENTIFIED = 0.25  # a window identifies a parameter when its 95 % half-width is at most this share of the range
@@ -54,7 +55,7 @@ def fit_window(prob, z0: np.ndarray, window: tuple[float, float], max_nfev: int)
     ok = gn.tq * gn.se_z <= IDENTIFIED * (hi - lo)
     theta = prob.to_theta(res.z)
     prob.evaluations += sub.evaluations
-    se = [float(t * s) if n in LOG_SCALE else float(s) for n, t, s in zip(prob.names, theta, gn.se_z)]
+    se = [float(t * s) if is_log(n) else float(s) for n, t, s in zip(prob.names, theta, gn.se_z)]
     return {
         "start_s": float(window[0]),
         "end_s": float(window[1]),
@@ -88,7 +89,7 @@ def model_error_intervals(fit, prob, max_nfev: int, windows: int = WINDOWS) -> N
             continue
         k = zk.size
         h = float(student_t.ppf(0.975, k - 1)) * float(np.std(zk, ddof=1)) * math.sqrt(1.0 + 1.0 / k)
-        noise = [math.log(v) if n in LOG_SCALE else v for v in fit.ci95[n]]
+        noise = [math.log(v) if is_log(n) else v for v in fit.ci95[n]]
         za = min(fit.z_opt[j] - h, float(zk.min()), noise[0])
         zb = max(fit.z_opt[j] + h, float(zk.max()), noise[1])
         fit.ci95_model[n] = interval(prob, j, za, zb)

@@ -252,8 +252,16 @@ def test_scene_strings_are_never_executed_and_files_never_unpickled(tmp_path):
 ALLOWED_READERS = {
     "pd.read_csv": {"model/experiment.py", "model/sensors/formats.py", "plots.py"},  # sensor exports: dtype=float
     "pd.read_parquet": {"plots.py"},  # result files the sweep wrote
-    # tables; our own parts (read back, and rewritten to store warnings); the track cache
-    "pq.read_table": {"model/experiment.py", "sweep/run.py", "sweep/results.py", "video/tracker.py", "risk/study.py"},
+    # tables; our own parts (read back, and rewritten to store warnings); our best table (a stored refinement or
+    # calibration reused); the track cache
+    "pq.read_table": {
+        "model/experiment.py",
+        "sweep/run.py",
+        "sweep/best.py",
+        "sweep/results.py",
+        "video/tracker.py",
+        "risk/study.py",
+    },
     "pq.read_schema": {"model/experiment.py", "sweep/results.py"},  # a table's column names; our own parts
     # footers: parts, the best-runs file, a tracked table (track --out) and a gap study's table (gaps --out), as ours
     "pq.read_metadata": {"sweep/results.py", "sweep/resume.py", "cli/track.py", "cli/gaps.py"},

@@ -27,8 +27,9 @@ from pounding_sweep.cli.run import main
 from pounding_sweep.errors import OutputError
 from pounding_sweep.scene import Axis, load_scene
 from pounding_sweep.scene.schema import CalibrateConfig
+from pounding_sweep.sweep.best import calibration_key
 from pounding_sweep.sweep.results import part_files, read_metadata
-from pounding_sweep.sweep.run import calibration_key, run_scene
+from pounding_sweep.sweep.run import run_scene
 
 
 def scored_scene(tmp_path, calibrate: bool = True, name: str = "s.toml"):

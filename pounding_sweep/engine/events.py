@@ -184,7 +184,7 @@ def bracket_crossing(herm, h, law, sign, f_lo, f_hi):
     return hi
 
 
-def event_functions(ops: EventOps, inline: bool = False):
+def event_functions(ops: EventOps, inline: bool = False):  # noqa: C901 (39: the closures it makes count into it)
     """The event step compiled with a kernel's pieces: (event_step, contradicts); with `inline`, each of its
     functions inlined into its caller (the lane kernel: its state record is wide, and a call passes it whole).
 

@@ -449,9 +449,8 @@ def _calibrate_one(scene: Scene, names: list[str], threads: int, best_cell: dict
         search=search.stages,
         problem=prob,
     )
-    if misfit > cal.misfit_factor:  # a sign fault the fit bent around is named (sweep/fitchecks.py)
-        fit.warnings += reversed_channel_warnings(fit)
-    if misfit > cal.misfit_factor:  # the model cannot explain the data: intervals that include its error
+    if misfit > cal.misfit_factor:  # the model cannot explain the data: a sign fault the fit bent around is
+        fit.warnings += reversed_channel_warnings(fit)  # named (sweep/fitchecks.py); intervals with its error
         model_error_intervals(fit, prob, cal.max_evals)
         if progress is not None:
             progress(f"calibration ({law_label(scene)}): model-error intervals from {len(fit.windows)} windows")

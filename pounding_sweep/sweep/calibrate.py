@@ -62,10 +62,11 @@ import numpy as np
 from scipy.signal import sosfilt
 
 from pounding_sweep import codes as C
+from pounding_sweep.errors import ConfigError
 from pounding_sweep.model.experiment import noise_floor
 from pounding_sweep.scene import Scene
 from pounding_sweep.scene.channels import channel_unit, shown_value
-from pounding_sweep.scene.parameters import default_profiled, is_log
+from pounding_sweep.scene.parameters import channel_offset, default_profiled, is_log
 from pounding_sweep.sweep.fitchecks import reversed_channel_warnings
 from pounding_sweep.sweep.fitstats import gauss_newton, interval, local_fit, misfit_of
 from pounding_sweep.sweep.globalsearch import find_basin
@@ -152,7 +153,7 @@ class Problem:
         sigma: np.ndarray | None = None,
     ):
         """`window` (simulation time [s]): fit only the samples inside it, and simulate only as far as they
-        need (its end, plus the largest clock shift the fitted time_offset_s may make); `sigma`: the channels'
+        need (its end, plus the largest clock shift the fitted clocks may make: _simulated); `sigma`: the channels'
         noise floors (a window of a record keeps the whole record's)."""
         self.names = list(names)
         self.bounds = {n: (float(bounds[n][0]), float(bounds[n][1])) for n in self.names}
@@ -160,18 +161,7 @@ class Problem:
         self.evaluations = 0
         self.scene, self.noise_m = scene, noise_m
         floors = scene.floors
-        fixed = dataclasses.replace(scene, sweep=())
-        if window is not None:
-            shift = 0.0
-            if "time_offset_s" in self.bounds:
-                shift = max(abs(b - scene.experiment.time_offset_s) for b in self.bounds["time_offset_s"])
-            end = window[1] + shift + 2.0 * scene.integration.dt_s
-            if scene.excitation.duration_s is None or end < scene.excitation.duration_s:
-                fixed = dataclasses.replace(fixed, excitation=dataclasses.replace(fixed.excitation, duration_s=end))
-            if scene.experiment.window_s is not None:  # the scored window inside the shortened simulation
-                w0, w1 = scene.experiment.window_s
-                w = (max(w0, window[0]), max(min(w1, window[1]), max(w0, window[0])))
-                fixed = dataclasses.replace(fixed, experiment=dataclasses.replace(fixed.experiment, window_s=w))
+        fixed, whole = _simulated(scene, self.bounds, window)
         probe = prepare(fixed)
         exp = probe.experiment
         weights = probe.combination.weights if probe.combination is not None else None
@@ -190,7 +180,7 @@ class Problem:
         self.prep: Prepared = dataclasses.replace(probe, scene=kept, hist=hspec, hist_columns=hcols, sensor=None)
         self.base = self.prep.grid.chunk(0, 1)
         cfg = scene.experiment
-        duration = self.prep.excitation.max_duration_s
+        duration = self.prep.excitation.max_duration_s if whole is None else whole
         lo, hi = (0.0, duration) if cfg.window_s is None else cfg.window_s
         if window is not None:
             lo, hi = max(lo, window[0]), min(hi, window[1])
@@ -235,6 +225,10 @@ class Problem:
                     )
             sig.append(s0 * (gain if a else 1.0))
         self.target = Target(codes, acc, times, values, np.asarray(sig), sos)
+        #: (fit coordinate, channel index) of each per-channel clock offset fitted
+        self.channel_offsets = _channel_slots(self.names, codes)
+        if window is None and self.channel_offsets:
+            check_channel_offsets(self.prep, self.bounds)
         self.dt = self.prep.dt
         self._last: tuple[bytes, np.ndarray] | None = None  # the last residual vector fun() gave (its z)
 
@@ -269,6 +263,8 @@ class Problem:
         p = {k: np.repeat(v, n) for k, v in self.base.items()}
         p["run_id"] = np.arange(n)
         for j, name in enumerate(self.names):
+            if channel_offset(name):  # a channel's clock: read by residuals(), no run changes
+                continue
             p[name] = thetas[:, j].astype(float)
             if name == "ks_ratio":
                 p["ks_N_per_m"] = np.full(n, np.nan)
@@ -288,10 +284,13 @@ class Problem:
         T = self.target
         out = np.empty((thetas.shape[0], T.n))
         offsets = params["time_offset_s"] if "time_offset_s" in self.names else np.full(thetas.shape[0], self.offset0)
+        own = np.zeros((thetas.shape[0], len(self.slots)))  # each channel's clock on top of the table's
+        for j, c in self.channel_offsets:
+            own[:, c] = thetas[:, j]
         for i in range(thetas.shape[0]):
             parts = []
             for c, slot in enumerate(self.slots):
-                ts = T.time_exp[c] - offsets[i]
+                ts = T.time_exp[c] - offsets[i] - own[i, c]
                 if T.acc[c]:
                     a = hist[i, slot[0]]
                     if self.sensor is not None:
@@ -353,6 +352,71 @@ class Problem:
         h = Z[np.arange(free.size), free] - z[free]  # the step as represented
         R = self.residuals(np.array([self.to_theta(zz) for zz in Z]))
         return ((R - f0[None, :]) / h[:, None]).T
+
+
+def _simulated(scene: Scene, bounds: dict, window: tuple[float, float] | None) -> tuple[Scene, float | None]:
+    """The scene a Problem simulates, and the scored window's end when the simulation runs past it (else None).
+    Its duration covers every sample's simulation time under the fitted clocks: within `window`, its end plus the
+    largest shift they may make (time_offset_s from the scene's, plus the largest per-channel offset on top); on
+    the whole record, with per-channel offsets, the record's duration plus that shift (a record's acceleration is
+    0 past its end: model/records.py resample), the samples scored being those of the unshifted end."""
+    fixed = dataclasses.replace(scene, sweep=())
+    own = [b for n, bb in bounds.items() if channel_offset(n) for b in bb]
+    shift = max((abs(b - scene.experiment.time_offset_s) for b in bounds.get("time_offset_s", ())), default=0.0)
+    shift += max((abs(b) for b in own), default=0.0)
+    if window is None:
+        if not own:
+            return fixed, None
+        whole = prepare(fixed).excitation.max_duration_s
+        end = whole + shift + 2.0 * scene.integration.dt_s
+        return dataclasses.replace(fixed, excitation=dataclasses.replace(fixed.excitation, duration_s=end)), whole
+    end = window[1] + shift + 2.0 * scene.integration.dt_s
+    if scene.excitation.duration_s is None or end < scene.excitation.duration_s:
+        fixed = dataclasses.replace(fixed, excitation=dataclasses.replace(fixed.excitation, duration_s=end))
+    if scene.experiment.window_s is not None:  # the scored window inside the shortened simulation
+        w0, w1 = scene.experiment.window_s
+        w = (max(w0, window[0]), max(min(w1, window[1]), max(w0, window[0])))
+        fixed = dataclasses.replace(fixed, experiment=dataclasses.replace(fixed.experiment, window_s=w))
+    return fixed, None
+
+
+def _channel_slots(names: list[str], codes: list[str]) -> list[tuple[int, int]]:
+    """(fit coordinate, channel index among `codes`) of each per-channel clock offset among `names`."""
+    out = []
+    for j, n in enumerate(names):
+        code = channel_offset(n)
+        if code is None:
+            continue
+        if code not in codes:  # mapped, but weighed 0 ([experiment] weights): nothing to shift
+            raise ConfigError(f"[calibrate] parameters.{n}: channel {code!r} is not fitted ([experiment] weights 0)")
+        out.append((j, codes.index(code)))
+    return out
+
+
+def check_channel_offsets(prep: Prepared, bounds: dict) -> None:
+    """ConfigError naming the key when a per-channel clock offset's bounds (time_offset_s_<channel>) reach beyond
+    half the first (longest) period of the channel's building, its nominal structure.
+
+    Why that bound: a floor's response is dominated by its first mode, nearly periodic; shifting one channel by a
+    whole period T1 puts that mode back in phase, so the misfit over the shift has a minimum near every multiple
+    of T1 and a fit with wider bounds can lock one or more periods off (issue 27 saw three). Within +/- T1 / 2 the
+    first mode's phase has one best shift; the higher modes' side minima inside it are the global stage's to
+    step over (its Sobol design spans the bounds). A larger lag is a clock to align before the fit (the import's
+    cross-correlation: docs/how-to/import-real-sensor-data.md)."""
+    buildings = prep.model.buildings
+    for name, (lo, hi) in bounds.items():
+        code = channel_offset(name)
+        if code is None:
+            continue
+        b = int(code.removeprefix("abs_acc_")[1:].split("f")[0])
+        half = 0.5 * float(buildings[b - 1].modes().period_s.max())
+        if lo < -half or hi > half:
+            raise ConfigError(
+                f"[calibrate] parameters.{name} = [{lo:g}, {hi:g}]: reaches beyond half the first period of "
+                f"building {b} ({half:.4g} s; first mode {0.5 / half:.4g} Hz): a shift of a whole period fits that "
+                f"mode again, so the fit can lock a period off; bound it inside [-{half:.4g}, {half:.4g}] s, and "
+                "align a larger lag before the fit (python -m pounding_sweep import)"
+            )
 
 
 def _hermite(u: np.ndarray, v: np.ndarray, dt: float, t: np.ndarray) -> np.ndarray:

@@ -2345,6 +2345,35 @@ CASES += [
         files={"exp.csv": table_csv()},
     ),
     _c(
+        "calibrate_offset_of_an_unmapped_channel",
+        "calibrate",
+        "[calibrate] time_offset_s_b1f2 where [experiment] channels maps b1f3 and b2f3 only",
+        [S, "[calibrate] parameters.time_offset_s_b1f2"],
+        "maps no channel 'b1f2'",
+        _calibrated("time_offset_s_b1f2 = [-0.01, 0.01]"),
+        files={"exp.csv": table_csv()},
+    ),
+    _c(
+        "calibrate_offset_of_every_channel_and_the_table",
+        "calibrate",
+        "[calibrate] time_offset_s with time_offset_s_b1f3 and time_offset_s_b2f3 (every channel): one shift twice",
+        [S, "[calibrate] parameters.time_offset_s_b1f3"],
+        "asks the data for one number twice",
+        _calibrated(
+            "time_offset_s = [-0.01, 0.01], time_offset_s_b1f3 = [-0.01, 0.01], time_offset_s_b2f3 = [-0.01, 0.01]"
+        ),
+        files={"exp.csv": table_csv()},
+    ),
+    _c(
+        "calibrate_offset_beyond_half_a_period",
+        "calibrate",
+        "[calibrate] time_offset_s_b1f3 = [-0.5, 0.5] (building 1's first period is 0.235 s: the fit could lock a period off)",
+        [S, "[calibrate] parameters.time_offset_s_b1f3"],
+        "[-0.5, 0.5]: reaches beyond half the first period of building 1",
+        _calibrated("time_offset_s_b1f3 = [-0.5, 0.5]"),
+        files={"exp.csv": table_csv()},
+    ),
+    _c(
         "calibrate_global_points_1e9",
         "calibrate",
         "[calibrate] global_points = 1000000000",

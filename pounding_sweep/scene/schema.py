@@ -389,6 +389,15 @@ class CalibrateConfig:
         when="optional; by default estimated from the data",
     )
     misfit_factor: float = _f("warn when the best fit's residual exceeds this many times the noise floor", 3.0)
+    start_from: str | None = _f(
+        "a modes file of identify (python -m pounding_sweep identify TABLE --modes-out FILE): a start of the fit "
+        "from its values: modal_damping_ratio_b<b>_m<j> mode j's identified damping, damping_ratio_b<b> mode 1's, "
+        "stiffness_scale_b<b> and story_stiffness_scale_b<b>_s<k> the factor that puts the model's first mode at the "
+        "identified one (each clipped into its bounds; the other fitted values the grid's best cell's, else the "
+        "scene's)",
+        None,
+        when="optional; a path relative to the scene file",
+    )
 
 
 @dataclass(frozen=True)

@@ -533,7 +533,25 @@ def _check_calibrate(s: Scene) -> None:
             f"[{NOISE_M_RANGE[0]:g}, {NOISE_M_RANGE[1]:g}] (1e-9 m: a nanometre)"
         )
     _positive(cal.misfit_factor, "[calibrate] misfit_factor")
+    _check_start_from(s, cal)
     _check_calibrate_effect(s, cal)
+
+
+def _check_start_from(s: Scene, cal) -> None:
+    """[calibrate] start_from: identify's modes file, readable (scene/starts.py), holding the modes of a building
+    whose structure is fitted."""
+    if cal.start_from is None:
+        return
+    from pounding_sweep.scene.starts import read_modes
+
+    modes = read_modes(cal.start_from)
+    fitted = {p.section for n in cal.parameters if (p := parameter(n)) is not None and p.section.startswith("building")}
+    if not fitted & {f"building{b}" for b in modes}:
+        raise ConfigError(
+            f"[calibrate] start_from = {cal.start_from!r}: holds the modes of building(s) "
+            f"{', '.join(str(b) for b in sorted(modes))}, and the fit names no parameter of their structure "
+            "(stiffness_scale_b<b>, damping_ratio_b<b>, story_stiffness_scale_b<b>_s<k>, modal_damping_ratio_b<b>_m<j>)"
+        )
 
 
 def _check_channel_offset(s: Scene, name: str, key: str) -> None:

@@ -66,7 +66,7 @@ from pounding_sweep.errors import ConfigError
 from pounding_sweep.model.experiment import noise_floor
 from pounding_sweep.scene import Scene
 from pounding_sweep.scene.channels import channel_unit, shown_value
-from pounding_sweep.scene.parameters import channel_offset, default_profiled, is_log
+from pounding_sweep.scene.parameters import channel_offset, default_profiled, is_log, member
 from pounding_sweep.sweep.fitchecks import reversed_channel_warnings
 from pounding_sweep.sweep.fitstats import gauss_newton, interval, local_fit, misfit_of
 from pounding_sweep.sweep.globalsearch import find_basin
@@ -135,6 +135,7 @@ class Fit:
     windows: list[dict] = field(default_factory=list)  # the window fits behind ci95_model
     quote: str = "noise"  # which interval to quote: 'noise' (ci95) or 'model_error' (ci95_model)
     search: list[dict] = field(default_factory=list)  # the global stage's horizons (globalsearch.py)
+    start: dict[str, dict] = field(default_factory=dict)  # with start_from: name -> {value, from} (_start)
     problem: Problem | None = field(default=None, repr=False)  # the residual function (not stored)
     comparison: object = field(default=None, repr=False)  # lawcompare.LawComparison, several laws calibrated
 
@@ -458,13 +459,73 @@ def calibrate(scene: Scene, threads: int = 1, best_cell: dict | None = None, pro
     return fits
 
 
+def identified_starts(scene: Scene, names: list[str]) -> dict[str, float]:
+    """Start values from [calibrate] start_from, identify's modes file (scene/starts.py), for the fitted names it
+    speaks to: modal_damping_ratio_b<b>_m<j> mode j's identified damping ratio, damping_ratio_b<b> mode 1's (a
+    NaN estimate gives none); stiffness_scale_b<b>, else every fitted story_stiffness_scale_b<b>_s<k>, the
+    scene's value times c = (f1 identified / f1 of the scene's model)^2, the factor on every story that puts the
+    model's first mode at the identified one (identify/update.py: K scaled by c scales every eigenvalue by c).
+    Each value clipped into its bounds (an identified damping below 0, unreliable, starts at the lower bound)."""
+    if scene.calibrate is None or scene.calibrate.start_from is None:
+        return {}
+    from pounding_sweep.model.coupled import CoupledModel
+    from pounding_sweep.scene.starts import read_modes
+    from pounding_sweep.sweep.prepare import structure_value
+
+    modes = read_modes(scene.calibrate.start_from)
+    frames = CoupledModel.from_scene(scene).buildings
+    out: dict[str, float] = {}
+    for b, m in modes.items():
+        if b > len(frames):
+            continue
+        c = (m.frequencies_Hz[0] / float(frames[b - 1].modes().frequency_Hz[0])) ** 2
+        scales = [f"stiffness_scale_b{b}"] if f"stiffness_scale_b{b}" in names else []
+        scales = scales or [
+            n for n in names if (f := member(n)) is not None and f[0].name == f"story_stiffness_scale_b{b}"
+        ]
+        for n in scales:
+            out[n] = structure_value(scene, n) * c
+        zeta = {f"modal_damping_ratio_b{b}_m{j}": z for j, z in enumerate(m.damping_ratios, 1)}
+        zeta[f"damping_ratio_b{b}"] = m.damping_ratios[0]
+        out |= {n: z for n, z in zeta.items() if n in names and math.isfinite(z)}
+    bounds = scene.calibrate.parameters
+    return {n: float(min(max(v, bounds[n][0]), bounds[n][1])) for n, v in out.items()}
+
+
+def _start(scene: Scene, prob: Problem, best_cell: dict | None) -> tuple[dict | None, dict]:
+    """The start point the global stage adds to its design (globalsearch.find_basin's best cell; with
+    global_points = 0 the local fits' start): [calibrate] start_from's values where it gives one
+    (identified_starts), the grid's best cell's for the rest, the scene's own values for what neither gives (a
+    channel's clock offset: 0). Without start_from, the grid's best cell as it is, a channel offset it lacks at
+    0. Returns (the point or None, {name: where its value came from})."""
+    from pounding_sweep.sweep.prepare import structure_value
+
+    ident = identified_starts(scene, prob.names)
+    cell = dict(best_cell or {})
+    cell |= {n: 0.0 for n in prob.names if channel_offset(n) and n not in cell}
+    if not ident:
+        return (cell or None), {}
+    own = {}
+    for n in prob.names:
+        if channel_offset(n):
+            own[n] = 0.0
+        elif n in prob.base:
+            own[n] = float(prob.base[n][0])
+        else:
+            own[n] = structure_value(scene, n)
+    start = {**own, **cell, **ident}
+    source = {n: "start_from" if n in ident else "grid" if n in cell else "scene" for n in prob.names}
+    return start, source
+
+
 def _calibrate_one(scene: Scene, names: list[str], threads: int, best_cell: dict | None, progress) -> Fit:
     cal = scene.calibrate
     t0 = time.perf_counter()
     prob = Problem(scene, names, cal.parameters, cal.noise_m, threads)
     lo, hi = prob.z_bounds
     p = len(names)
-    search = find_basin(prob, cal, best_cell, progress)
+    start, start_source = _start(scene, prob, best_cell)
+    search = find_basin(prob, cal, start, progress)
     z_opt = search.z
     theta = prob.to_theta(z_opt)
     r = search.result.fun
@@ -511,6 +572,7 @@ def _calibrate_one(scene: Scene, names: list[str], threads: int, best_cell: dict
         residuals=r,
         sizes=sizes,
         search=search.stages,
+        start={n: {"value": float(start[n]), "from": w} for n, w in start_source.items()} if start else {},
         problem=prob,
     )
     if misfit > cal.misfit_factor:  # the model cannot explain the data: a sign fault the fit bent around is
@@ -738,6 +800,7 @@ def calibration_metadata(fits: list[Fit]) -> dict:
                 "quote": f.quote,
                 "model_error_windows": f.windows,
                 "global_stage": f.search,
+                **({"start": f.start} if f.start else {}),
             }
             for f in fits
         },

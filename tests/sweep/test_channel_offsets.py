@@ -69,15 +69,14 @@ STRUCTURE = {"stiffness_scale_b1": [0.8, 1.2], "damping_ratio_b1": [0.001, 0.05]
 def test_the_fitted_offset_of_a_late_sensor_recovers_its_lag(delayed):
     """Without the channel's offset the fit bends the structure to the late sensor (misfit > 50 noise floors, the
     truth outside its intervals); with it the misfit is the noise's (within 1.5 of it: the residual RMS of white
-    noise over N = 2877 samples is within a few 1/sqrt(2N) of 1) and every interval covers its truth."""
+    noise over N = 2877 samples is within a few 1/sqrt(2N) of 1) and every value is its truth to its noise."""
     plain = _fit(delayed, STRUCTURE)
     assert plain.misfit_ratio > 50.0
     name = "time_offset_s_abs_acc_b1f3"
     fit = _fit(delayed, {**STRUCTURE, name: [-0.06, 0.06]})
     assert fit.misfit_ratio < 1.5
-    for n, truth in {**HIDDEN, name: LAG_S}.items():
-        lo, hi = fit.ci95[n]
-        assert lo <= truth <= hi, (n, truth, fit.ci95[n])
+    for n, truth in {**HIDDEN, name: LAG_S}.items():  # within 4 standard errors (one noise draw in 10^4 misses)
+        assert abs(fit.estimate[n] - truth) <= 4 * fit.std_error[n], (n, truth, fit.estimate[n], fit.std_error[n])
     assert not any(lo <= HIDDEN["stiffness_scale_b1"] <= hi for lo, hi in [plain.ci95["stiffness_scale_b1"]])
     row = {r["parameter"]: r for r in calibration_metadata([fit])["fits"]}[name]  # reported like any fitted value
     assert row["ci95_low"] <= row["estimate"] <= row["ci95_high"] and row["std_error"] > 0

@@ -125,3 +125,35 @@ def test_an_offset_wider_than_half_the_first_period_is_refused(delayed):
     with collecting(), pytest.raises(ConfigError, match=r"half the first period of building 1 \(0\.06\d+ s") as e:
         Problem(scene, [name], {name: (-0.1, 0.1)}, None)
     assert f"[calibrate] parameters.{name} = [-0.1, 0.1]" in str(e.value)
+
+
+def test_the_figures_show_the_fitted_frame_and_clock(delayed, tmp_path):
+    """The measured-against-model figure re-simulates the calibrated run with every fitted value: the per-story
+    factors set in the building (not run parameters) and the late channel's own clock applied, so its residuals are
+    the calibration's, up to the rounding of two interpolations (tolerances.interpolation_bound) and of two RMS
+    sums ((N + 2) u relative each)."""
+    pytest.importorskip("matplotlib")
+    from tolerances import U, interpolation_bound
+
+    from pounding_sweep import plots
+    from pounding_sweep.sweep.calibrate import NO_CONTACT, read_calibration
+    from pounding_sweep.sweep.results import read_metadata
+    from pounding_sweep.sweep.run import run_scene
+
+    fitted = {f"story_stiffness_scale_b1_s{k}": [0.8, 1.2] for k in (1, 2, 3)}
+    fitted |= {"damping_ratio_b1": [0.001, 0.05], "time_offset_s_abs_acc_b1f3": [-0.06, 0.06]}
+    cal = CalibrateConfig(parameters=fitted, global_points=16, starts=1, profile_points=0)
+    scene = dataclasses.replace(delayed, calibrate=cal)
+    out = tmp_path / "frame.parquet"
+    with collecting():
+        run_scene(scene, out_path=out)
+    best_path = out.with_name("frame.best.parquet")
+    pick, label = plots.calibrated_run(pd.read_parquet(best_path))
+    assert set(fitted) <= set(pick) and "time_offset_s_abs_acc_b1f3 = 0.04" in label
+    data = plots.measured_residuals(scene, pick, read_metadata(out))
+    stored = read_calibration(best_path)["per_law"][NO_CONTACT]["rms_residual_m_s2"]
+    for code, (t, _, xm, res) in data.items():
+        rms = float(np.sqrt(np.mean(res * res)))
+        bound = interpolation_bound(xm, t[-1], scene.integration.dt_s) + 2 * (res.size + 2) * U * rms
+        assert abs(rms - stored[code]) <= bound, (code, rms, stored[code])
+        assert rms < 2 * NOISE  # the late channel too: its clock applied

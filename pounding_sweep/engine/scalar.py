@@ -341,19 +341,16 @@ def _time_loop(run, model, opts, runs, records, histories, experiment, out, st, 
     Compiled without Numba's reference counts (it allocates nothing): on the records' arrays they cost this
     loop a third of its time. Returns (status bits, unsettled steps, most iterations or located switches in
     a step, steps done, experiment samples filled)."""
-    dt, m, C, Kinv, H, i1, i2, n1 = model.dt, model.m, model.C, model.Kinv, model.H, model.i1, model.i2, model.n1
+    dt, Kinv, H, i1, i2, n1 = model.dt, model.Kinv, model.H, model.i1, model.i2, model.n1
     scheme, max_iter = opts.scheme, opts.max_iter
     w, rhs0, u0, ustep, astep, xs, iw = wk
-    u, v, a, un, vn, an, F, pr, row = st.u, st.v, st.a, st.un, st.vn, st.an, st.F, st.pairs, st.row
+    u, v, a, F, pr, row = st.u, st.v, st.a, st.F, st.pairs, st.row
     z0, wrel, bb, ke = iw.z0, iw.wrel, iw.bb, iw.ke
     channels = (experiment.t, experiment.dof, experiment.kind)
     has_acc = bk.any_acceleration(experiment.kind)  # then keep the step's starting acceleration too
     hist = out.hist
     keep_hist = hist.shape[0] > 0
-    n = m.shape[0]
     npair = i1.shape[0]
-    a1 = 4.0 / (dt * dt)
-    a2 = 4.0 / dt
     b1 = 2.0 / dt
     hmin = EVENT_MIN_FRACTION * dt
     d, k_s, c = st.gap, pr.k_s, pr.c
@@ -377,24 +374,8 @@ def _time_loop(run, model, opts, runs, records, histories, experiment, out, st, 
     for step in range(1, runs.nsteps[run] + 1):
         ag = ground_acceleration(kind, ground.amp, ground.omega, rec_flat, roff, rlen, step, dt)
         agstep = ag_prev  # the table's acceleration at the step start
-        for i in range(n):
-            ustep[i] = u[i]
-        if has_acc:
-            for i in range(n):
-                astep[i] = a[i]
-        # Newmark effective load without contact (Chopra Table 5.4.2; paper eq. 13)
-        for i in range(n):
-            w[i] = b1 * u[i] + v[i]
-        for i in range(n):
-            s = -m[i] * ag + m[i] * (a1 * u[i] + a2 * v[i] + a[i])
-            for k in range(n):
-                s += C[i, k] * w[k]
-            rhs0[i] = s
-        for i in range(n):
-            s = 0.0
-            for k in range(n):
-                s += Kinv[i, k] * rhs0[k]
-            u0[i] = s
+        floors.step_start(st, ustep, astep, has_acc)
+        floors.free_end(st, Kinv, ag, dt, w, rhs0, u0)
         for j in range(npair):
             z0[j] = u0[i1[j]] - u0[i2[j]]
             wrel[j] = w[i1[j]] - w[i2[j]]
@@ -412,16 +393,7 @@ def _time_loop(run, model, opts, runs, records, histories, experiment, out, st, 
             # where a pair's state at the end disagrees with that set)
             idx, Asmall, rsmall = iw.small
             _contact_forces(iw.S, z0, bb, ke, pr.active, idx, Asmall, rsmall, F)
-        # end-of-step state u = u0 - H F, then Newmark velocity and acceleration (eqs. 15-16)
-        for i in range(n):
-            s = u0[i]
-            for j in range(npair):
-                s -= H[i, j] * F[j]
-            un[i] = s
-        for i in range(n):
-            du = un[i] - u[i]
-            vn[i] = b1 * du - v[i]
-            an[i] = a1 * du - a2 * v[i] - a[i]
+        floors.end_state(st, u0, H, dt)
         if locate or (scheme == SCHEME_EVENT and _contradicts(st)):
             finite, n_ev, uns = _event_step(st, ground, (step - 1) * dt, dt, ag_prev, ag, hmin)
             unsettled += uns

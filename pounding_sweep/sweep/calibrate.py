@@ -7,7 +7,8 @@ together, and every answer says how certain it is and whether the data can decid
 
 Method.
 * Residuals: each scored channel's model value at the experiment's sample times inside the scored window
-  (simulation time = experiment time - time_offset_s) minus the measured one, divided by the channel's noise
+  (simulation time = experiment time - time_offset_s, minus the channel's own time_offset_s_<channel> where that
+  is fitted: sensors whose clocks are not synchronised; check_channel_offsets bounds it) minus the measured one, divided by the channel's noise
   floor sigma_c, so channels weigh by their noise. Displacement: cubic Hermite interpolation of the kernel's
   displacement and velocity at dt (error ~ dt^4 |u^(4)| / 384, far below any tracking noise). Absolute
   acceleration ([experiment] acceleration channels): linear interpolation between steps, as the kernel's
@@ -19,6 +20,8 @@ Method.
   unit, or noise_window_s: the standard deviation in a quiet window), else the [calibrate] noise_m (displacement
   channels; m), else estimated from the data by the difference method (model/experiment.py noise_floor: an upper
   bound), times the filter's noise gain for a filtered channel.
+* Start: the sweep's best cell, or with [calibrate] start_from identify's modes (identified_starts), joins the
+  global stage's design as one point (_start).
 * Global stage (sweep/globalsearch.py): incremental single shooting: a Sobol design of max(global_points, 16 p)
   points (scipy.stats.qmc, scrambled, fixed seed; log scale for stiffnesses) and the sweep's best cell on a
   leading horizon of the record, least squares from the best of them, carried over horizons doubling to the

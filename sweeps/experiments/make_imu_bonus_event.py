@@ -24,8 +24,8 @@ this, and the PROVENANCE note records both.
 
 from __future__ import annotations
 
-import os
 import shutil
+import subprocess
 import sys
 import tempfile
 from pathlib import Path
@@ -40,31 +40,31 @@ SENSORS = {"ground": "ground.csv", "b1f1": "floor2.csv", "b1f2": "floor1.csv", "
 
 
 def main() -> int:
-    from pounding_sweep.cli.identify import identify_main
-    from pounding_sweep.cli.import_ import import_main
+    import pyarrow.parquet as pq
 
     if not (REPO / TEST).is_dir():
         print(f"error: {REPO / TEST}: not found (the ../shared data set beside the repository)", file=sys.stderr)
         return 2
+
+    def command(*args: str) -> int:  # as a user types it, from the repository root (the provenance's paths)
+        return subprocess.run([sys.executable, "-m", "pounding_sweep", *args], cwd=REPO).returncode
+
     with tempfile.TemporaryDirectory() as tmp:
         full = Path(tmp) / "import"
-        args = [f"{name}={(TEST / f).as_posix()}" for name, f in SENSORS.items()] + ["--out", str(full)]
-        cwd = Path.cwd()
-        try:  # the provenance names the files as the command gave them: relative to the repository root
-            os.chdir(REPO)
-            code = import_main(args)
-        finally:
-            os.chdir(cwd)
+        code = command(
+            "import", *[f"{name}={(TEST / f).as_posix()}" for name, f in SENSORS.items()], "--out", str(full)
+        )
         if code:
             return code
         OUT.mkdir(exist_ok=True)
-        for name in ("table.parquet", "record.csv"):
-            shutil.copyfile(full / name, OUT / name)
+        shutil.copyfile(full / "record.csv", OUT / "record.csv")
+        table = pq.read_table(full / "table.parquet")  # its metadata without the temporary folder's name
+        meta = {k: v.replace(str(full).encode(), b"(a temporary folder)") for k, v in table.schema.metadata.items()}
+        pq.write_table(table.replace_schema_metadata(meta), OUT / "table.parquet")
         note = (full / "provenance.md").read_text(encoding="utf-8").replace(str(full), "(a temporary folder)")
-        (OUT / "PROVENANCE.md").write_text(provenance(note), encoding="utf-8")
-        shutil.copyfile(REPO / SOURCE / "LICENSE_mdof.txt", OUT / "LICENSE_mdof.txt")
-    modes = OUT / "modes.toml"
-    code = identify_main([str((OUT / "table.parquet").relative_to(REPO)), "--modes-out", str(modes)])
+    (OUT / "PROVENANCE.md").write_text(provenance(note), encoding="utf-8")
+    shutil.copyfile(REPO / SOURCE / "LICENSE_mdof.txt", OUT / "LICENSE_mdof.txt")
+    code = command("identify", str((OUT / "table.parquet").relative_to(REPO)), "--modes-out", str(OUT / "modes.toml"))
     if code:
         return code
     print(f"wrote {OUT}: table.parquet, record.csv, PROVENANCE.md, modes.toml")
@@ -88,11 +88,11 @@ def provenance(note: str) -> str:
         "against 45.9 times the sensors' noise). The source's folders and the device tags (secondfloor, thirdfloor) "
         "say the files are as filed; the motion says otherwise. sweeps/experiments/make_imu_bonus_event.py gives "
         "the numbers.\n\n"
-        "**Files.** `table.parquet`: `t_s` (s) and each sensor's absolute acceleration along the shaking axis "
-        "(`ground_acc_m_s2` the table, `b1f1..3_acc_m_s2` the floors, m/s^2); its metadata holds everything below. "
-        "`record.csv`: the table's column as a record (`t_s,acc_m_s2`). `modes.toml`: what `python -m pounding_sweep "
-        "identify table.parquet --modes-out modes.toml` found (the scene's start values). Regenerate all with "
-        "`python sweeps/experiments/make_imu_bonus_event.py` (needs ../shared).\n\n"
+        "**Files** (as imu_northridge/ holds them): `table.parquet`, the sensors' absolute accelerations along the "
+        "shaking axis in m/s^2 with everything below in its metadata; `record.csv`, the table's column as a record; "
+        "`modes.toml`, the modes `python -m pounding_sweep identify table.parquet --modes-out modes.toml` finds (a "
+        "calibration's start values: [calibrate] start_from). `python sweeps/experiments/make_imu_bonus_event.py` "
+        "regenerates them (it needs ../shared).\n\n"
         "What the import found and did:\n\n" + note.replace("# Imported by", "### Imported by", 1)
     )
 

@@ -499,14 +499,17 @@ def _start(scene: Scene, prob: Problem, best_cell: dict | None) -> tuple[dict | 
     """The start point the global stage adds to its design (globalsearch.find_basin's best cell; with
     global_points = 0 the local fits' start): [calibrate] start_from's values where it gives one
     (identified_starts), the grid's best cell's for the rest, the scene's own values for what neither gives (a
-    channel's clock offset: 0). Without start_from, the grid's best cell as it is, a channel offset it lacks at
-    0. Returns (the point or None, {name: where its value came from})."""
+    channel's clock offset: 0). Without start_from, the grid's best cell as it is (a channel offset it lacks at 0:
+    the design ignores a cell that lacks a fitted name), but completed so with global_points = 0, where it is the
+    one start (the grid has no column of a story's, a mode's or a channel's value). Returns (the point or None,
+    {name: where its value came from}: empty for the grid's cell as it is)."""
     from pounding_sweep.sweep.prepare import structure_value
 
     ident = identified_starts(scene, prob.names)
     cell = dict(best_cell or {})
     cell |= {n: 0.0 for n in prob.names if channel_offset(n) and n not in cell}
-    if not ident:
+    complete = all(n in cell for n in prob.names)
+    if not ident and (complete or scene.calibrate.global_points > 0):
         return (cell or None), {}
     own = {}
     for n in prob.names:

@@ -193,3 +193,23 @@ def test_a_real_sensor_delayed_is_found_by_its_clock(tmp_path):
     diff = moved.estimate[name] - clean.estimate[name]
     assert abs(diff - delay) <= 4 * math.hypot(clean.std_error[name], moved.std_error[name])
     assert moved.misfit_ratio <= 1.05 * clean.misfit_ratio
+
+
+def test_with_no_global_stage_the_scene_is_the_start(delayed):
+    """global_points = 0 and no grid cell: the one local start is the scene's own values, a story factor's 1 and a
+    channel's clock 0 among them (the grid's parameters hold neither: the start was looked up there and failed)."""
+    cal = CalibrateConfig(
+        parameters={"story_stiffness_scale_b1_s2": [0.8, 1.2], "time_offset_s_abs_acc_b1f3": [-0.06, 0.06]},
+        global_points=0,
+        starts=1,
+        max_evals=20,
+        profile_points=0,
+    )
+    scene = dataclasses.replace(delayed, calibrate=cal)
+    validate(scene)
+    with collecting():
+        fit = calibrate(scene, 2)[0]
+    assert fit.start == {
+        "story_stiffness_scale_b1_s2": {"value": 1.0, "from": "scene"},
+        "time_offset_s_abs_acc_b1f3": {"value": 0.0, "from": "scene"},
+    }

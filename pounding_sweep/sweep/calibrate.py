@@ -520,7 +520,8 @@ def _start(scene: Scene, prob: Problem, best_cell: dict | None) -> tuple[dict | 
         else:
             own[n] = structure_value(scene, n)
     start = {**own, **cell, **ident}
-    source = {n: "start_from" if n in ident else "grid" if n in cell else "scene" for n in prob.names}
+    grid = best_cell or {}
+    source = {n: "start_from" if n in ident else "grid" if n in grid else "scene" for n in prob.names}
     return start, source
 
 

@@ -8,8 +8,8 @@ together, and every answer says how certain it is and whether the data can decid
 Method.
 * Residuals: each scored channel's model value at the experiment's sample times inside the scored window
   (simulation time = experiment time - time_offset_s, minus the channel's own time_offset_s_<channel> where that
-  is fitted: sensors whose clocks are not synchronised; check_channel_offsets bounds it) minus the measured one, divided by the channel's noise
-  floor sigma_c, so channels weigh by their noise. Displacement: cubic Hermite interpolation of the kernel's
+  is fitted: sensors whose clocks are not synchronised; check_channel_offsets bounds it) minus the measured one,
+  divided by the channel's noise floor sigma_c, so channels weigh by their noise. Displacement: cubic Hermite interpolation of the kernel's
   displacement and velocity at dt (error ~ dt^4 |u^(4)| / 384, far below any tracking noise). Absolute
   acceleration ([experiment] acceleration channels): linear interpolation between steps, as the kernel's
   scoring samples it, or with [experiment] sensor_filter the sensor's own filter run on the acceleration at

@@ -75,6 +75,8 @@ def test_the_fitted_offset_of_a_late_sensor_recovers_its_lag(delayed):
     assert plain.misfit_ratio > 50.0
     name = "time_offset_s_abs_acc_b1f3"
     fit = _fit(delayed, {**STRUCTURE, name: [-0.06, 0.06]})
+    for f in (plain, fit):
+        print(f"\n{f.estimate}, intervals {f.ci95}, misfit {f.misfit_ratio:.3f}, rel RMS {f.error_pct:.2f} %")
     assert fit.misfit_ratio < 1.5
     for n, truth in {**HIDDEN, name: LAG_S}.items():  # within 4 standard errors (one noise draw in 10^4 misses)
         assert abs(fit.estimate[n] - truth) <= 4 * fit.std_error[n], (n, truth, fit.estimate[n], fit.std_error[n])

@@ -202,7 +202,8 @@ def newmark_reference(scene, noise: float = 0.0, seed: int = 0, **overrides) -> 
 
     Returns t (steps+1,), u, v, a (steps+1, n_dof), F (steps+1, n_pairs), active (bool, like F),
     ag (steps+1,), impacts (per pair: steps where a pair enters the active set), unsettled (steps
-    whose contact switches chattered) and the resolved Problem. Overrides are those of
+    whose contact switches chattered), located (implicit scheme: steps whose active set cycled, taken by
+    the event step) and the resolved Problem. Overrides are those of
     `pounding_sweep.simulate.with_overrides` (ks_ratio, r, gap_m, dt_s, scheme, law, ...).
 
     Each step (Chopra Table 5.4.2 in total rather than incremental form; paper eqs. 11-16):
@@ -247,6 +248,7 @@ def newmark_reference(scene, noise: float = 0.0, seed: int = 0, **overrides) -> 
     A[0] = -ag[0] * ones  # eq. (11): a0 = M^-1 (p0 - C v0 - K u0) with u0 = v0 = 0, p0 = -M 1 ag(0)
     active = np.zeros(p, dtype=bool)
     unsettled = 0
+    located = 0  # implicit scheme: steps whose active set cycled, taken by the event step
     # event scheme: entries, contact time and force extremes over every sub-step and switch
     stats = dict(impacts=np.zeros(p, dtype=int), contact_time=np.zeros(p), peak_force=np.zeros(p))
 
@@ -272,6 +274,7 @@ def newmark_reference(scene, noise: float = 0.0, seed: int = 0, **overrides) -> 
                 active = want
             if not settled:
                 # no set agrees with its end state: the step as the event scheme takes it, from the start's set
+                located += 1
                 u, v, a, F, active, n_unsettled = _event_step(P, k, u_n, v_n, a_n, start, ag, stats)
                 unsettled += n_unsettled
                 U[k + 1], V[k + 1], A[k + 1] = u, v, a
@@ -327,6 +330,7 @@ def newmark_reference(scene, noise: float = 0.0, seed: int = 0, **overrides) -> 
         contact_time=contact_time,
         peak_force=peak,
         unsettled=unsettled,
+        located=located,
         problem=P,
     )
 

@@ -230,7 +230,11 @@ def run_chunk_lanes(
     nt, n1t = size_tuples(sys)
     n_groups = -(-n // LANES)
     ma = ma if ma is not None else modal_arrays(sys, building_split(sys))
-    model = LaneModel(float(sys.dt), nt, n1t, ma.phi, ma.psi, ma.om2, ma.dmp, ma.gam, ma.W, coefficient_table(ma))
+    # every metric group (the default) as a compile-time constant, so the vector steps carry no test for a
+    # group (as runtime flags they cost the lane kernel 6-12 %: benchmarks/compare_checkouts.py); a caller
+    # leaving groups out gets the one other compiled variant, whose steps test opts.groups at run time
+    gt = (0,) if opts.groups & L.GROUPS_ALL == L.GROUPS_ALL else ()
+    model = LaneModel(float(sys.dt), nt, n1t, gt, ma.phi, ma.psi, ma.om2, ma.dmp, ma.gam, ma.W, coefficient_table(ma))
     excitation = LaneExcitation(coef, pid, prof)
     stats_g = np.zeros((n_groups, ST_N), dtype=np.int64)  # one row per group: no thread shares one
 

@@ -160,6 +160,7 @@ class LaneModel(NamedTuple):
     dt: float  # time step [s]
     nt: tuple  # a tuple of N zeros: the floor count N, fixed at compile time
     n1t: tuple  # a tuple of N1 zeros: building 1's floor count
+    gt: tuple  # (0,): every metric group, fixed at compile time; (): the groups in KernelOptions.groups, at run time
     phi: np.ndarray  # (N, N) mode shapes, mass-normalised, block-diagonal (a mode moves one building)
     psi: np.ndarray  # (N, P) Phi^T G: the modes' share of each pair's relative displacement
     om2: np.ndarray  # (N,) w_k^2 [1/s^2]

@@ -419,7 +419,7 @@ def _integrate_groups(order, groups, model, opts, runs, excitation, out, gw):
             last = next_end if next_end <= max_nst else max_nst
             if n_act == 0:
                 step, nevt, nbad = _quiet(
-                    W, step + 1, last, dt, scheme, law, nt, n1t, Cv, prof, pid, uniform, pid0, opts.groups
+                    W, step + 1, last, dt, scheme, law, nt, n1t, Cv, prof, pid, uniform, pid0, (model.gt, opts.groups)
                 )
                 nend = 0
             else:
@@ -428,7 +428,21 @@ def _integrate_groups(order, groups, model, opts, runs, excitation, out, gw):
                     if gw.act_pair[j] > 0:
                         pon |= 1 << j
                 step, nevt, nbad, nend = _contact(
-                    W, step + 1, last, dt, scheme, law, nt, n1t, Cv, pon, prof, pid, uniform, pid0, opts.groups
+                    W,
+                    step + 1,
+                    last,
+                    dt,
+                    scheme,
+                    law,
+                    nt,
+                    n1t,
+                    Cv,
+                    pon,
+                    prof,
+                    pid,
+                    uniform,
+                    pid0,
+                    (model.gt, opts.groups),
                 )
             stats[ST_CALLS] += 1
             stats[ST_VSTEPS] += step - step_before

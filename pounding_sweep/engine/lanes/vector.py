@@ -314,11 +314,21 @@ def _fill_ag(W, r_s, prof, pid_lane, step, uniform, pid0):
             W[(r_s + S_AGE) * LANES + l] = cf * prof[pid_lane[l], step]
 
 
+@inline
+def _groups(mg):
+    """The metric groups of mg = (LaneModel.gt, KernelOptions.groups): every group as a compile-time constant
+    when gt is (0,) (its tests fold away), else the run-time mask."""
+    gt, rt = mg
+    return ML.GROUPS_ALL if len(gt) > 0 else rt
+
+
 @njit_step
-def _quiet(W, step0, step1, dt, scheme, law, nt, n1t, Cv, prof, pid_lane, uniform, pid0, groups):
+def _quiet(W, step0, step1, dt, scheme, law, nt, n1t, Cv, prof, pid_lane, uniform, pid0, mg):
     """Steps step0..step1 with no lane in contact at their start: the free step of every lane. Returns
     at the first step with an event or a divergence: (that step, lanes with an event, lanes diverged);
-    event lanes are left for their scalar step (only their dst rows were written)."""
+    event lanes are left for their scalar step (only their dst rows were written). mg = (LaneModel.gt,
+    KernelOptions.groups): the metric groups (_groups)."""
+    groups = _groups(mg)
     N = len(nt)
     N1 = len(n1t)
     P = min(N1, N - N1)
@@ -368,12 +378,13 @@ def _quiet_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, lay, groups
 
 
 @njit_step
-def _contact(W, step0, step1, dt, scheme, law, nt, n1t, Cv, pon, prof, pid_lane, uniform, pid0, groups):
+def _contact(W, step0, step1, dt, scheme, law, nt, n1t, Cv, pon, prof, pid_lane, uniform, pid0, mg):
     """Steps step0..step1 with some lane in contact: the step with each lane's contact set (forces from
     its R), contact metrics and energies. Pairs in contact in no lane (bit j of pon clear) have zero
     force in every lane. Returns at the first step with an event, a divergence or the end of a
     compressive phase: (that step, lanes with an event, lanes diverged, lanes whose phase ended).
     Its loop is _quiet's: one function for both cost the quiet step 6-14 %."""
+    groups = _groups(mg)
     N = len(nt)
     N1 = len(n1t)
     P = min(N1, N - N1)

@@ -245,6 +245,26 @@ class OutputConfig:
         "history channels: disp_b1f3, vel_b2f1, abs_acc_b1f3, force_f3, ground_acc (none: metrics only)", ()
     )
     history_decimate: int = _f("keep every n-th step of the histories", 1)
+    metrics: tuple[str, ...] | None = _f(
+        "the metric groups each run computes: energy (the energy balance, energy_residual flag), drift (peak story "
+        "drifts), closest (closest approach), phases (compression time, phases, median phase, median_truncated "
+        "flag), or 'all' / 'none'; a group left out is NaN in its columns and costs no work in the lane kernel. "
+        "What a study reads is computed whatever this says",
+        None,
+        when="default: all; a risk study's runs: only the groups the study reads",
+    )
+
+
+#: [output] metrics: the metric groups, in engine/layout.py GROUPS order (the scene layer cannot import the engine;
+#: tests/sweep/test_metric_groups.py checks that the two agree)
+METRIC_GROUPS = ("energy", "drift", "closest", "phases")
+
+
+def metric_group_names(metrics: tuple[str, ...] | None) -> tuple[str, ...]:
+    """The groups [output] metrics names ('all' and None: every one; 'none': none), in METRIC_GROUPS order."""
+    if metrics is None or "all" in metrics:
+        return METRIC_GROUPS
+    return tuple(g for g in METRIC_GROUPS if g in metrics)
 
 
 @dataclass(frozen=True)

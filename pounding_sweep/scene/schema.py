@@ -234,7 +234,7 @@ class IntegrationConfig:
 
 @dataclass(frozen=True)
 class OutputConfig:
-    """Where results go and which time histories to keep."""
+    """Where results go, which time histories to keep and which metric groups to compute."""
 
     path: str = _f(
         "Parquet dataset folder of one row per run (relative to the scene file)",
@@ -248,7 +248,7 @@ class OutputConfig:
     metrics: tuple[str, ...] | None = _f(
         "the metric groups each run computes: energy (the energy balance, energy_residual flag), drift (peak story "
         "drifts), closest (closest approach), phases (compression time, phases, median phase, median_truncated "
-        "flag), or 'all' / 'none'; a group left out is NaN in its columns and costs no work in the lane kernel. "
+        "flag), or 'all' / 'none'; a group left out is NaN in its columns and skipped by the lane kernel's steps. "
         "What a study reads is computed whatever this says",
         None,
         when="default: all; a risk study's runs: only the groups the study reads",

@@ -13,6 +13,8 @@ import hashlib
 import json
 from pathlib import Path
 
+from pounding_sweep.scene.groups import metric_group_names
+
 #: [experiment] keys added after scenes were first hashed (acceleration channels), with the values they had
 #: before they existed: at these values they are left out of the canonical form, so a scene that does not
 #: use them keeps its hash (and its results resume). Written out, not read from the schema: were a default
@@ -88,8 +90,6 @@ def _output(out: dict) -> dict:
     """[output] as hashed: no path (where results go changes none of them); metrics, added later, absent at its
     default (every group) as before it existed, else the groups it names in one order (another order computes
     the same)."""
-    from pounding_sweep.scene.schema import metric_group_names
-
     out = {k: v for k, v in out.items() if k != "path"}
     metrics = out.pop("metrics", None)
     if metrics is not None:

@@ -255,18 +255,6 @@ class OutputConfig:
     )
 
 
-#: [output] metrics: the metric groups, in engine/layout.py GROUPS order (the scene layer cannot import the engine;
-#: tests/sweep/test_metric_groups.py checks that the two agree)
-METRIC_GROUPS = ("energy", "drift", "closest", "phases")
-
-
-def metric_group_names(metrics: tuple[str, ...] | None) -> tuple[str, ...]:
-    """The groups [output] metrics names ('all' and None: every one; 'none': none), in METRIC_GROUPS order."""
-    if metrics is None or "all" in metrics:
-        return METRIC_GROUPS
-    return tuple(g for g in METRIC_GROUPS if g in metrics)
-
-
 @dataclass(frozen=True)
 class ExecutionConfig:
     """How the grid is run on this machine."""

@@ -18,6 +18,7 @@ from pounding_sweep.codes import (
 from pounding_sweep.errors import ConfigError, shown
 from pounding_sweep.scene.axes import check_ks
 from pounding_sweep.scene.channels import experiment_channel, parse_channel
+from pounding_sweep.scene.groups import METRIC_GROUPS
 from pounding_sweep.scene.parameters import (
     FAMILIES,
     STIFFNESS_FORMS,
@@ -37,7 +38,6 @@ from pounding_sweep.scene.schema import (
     MAX_LOWPASS_ORDER,
     MAX_STEPS,
     MAX_THREADS,
-    METRIC_GROUPS,
     NOISE_M_RANGE,
     SENSOR_FILTERS,
     USES,

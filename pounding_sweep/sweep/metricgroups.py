@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from pounding_sweep.engine import layout as L
 from pounding_sweep.scene import Scene
-from pounding_sweep.scene.schema import METRIC_GROUPS
+from pounding_sweep.scene.groups import METRIC_GROUPS
 
 #: reader -> (the groups it needs, why). A study asks for its readers' groups (study_metrics); the sweep then
 #: computes them however its [output] metrics reads.

@@ -22,7 +22,7 @@ from test_best_table import scored_scene
 from pounding_sweep.engine import layout as L
 from pounding_sweep.errors import ConfigError
 from pounding_sweep.scene import load_scene, validate
-from pounding_sweep.scene.schema import METRIC_GROUPS
+from pounding_sweep.scene.groups import METRIC_GROUPS
 from pounding_sweep.sweep.metricgroups import left_out_columns
 from pounding_sweep.sweep.results import COLUMN_DOCS, GROUP_FLAGS, read_metadata
 from pounding_sweep.sweep.run import run_scene

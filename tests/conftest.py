@@ -42,6 +42,7 @@ SLOW = {
     ),
     "tests/engine/test_scalar.py": (
         "test_free_vibration_decays_as_the_modal_solution",
+        "test_implicit_steps_whose_active_set_cycles_are_located_and_settle",
         "test_ivp_reference_is_converged_in_its_tolerance",
         "test_kernel_close_to_ivp_reference",
         "test_kernel_counts_equal_newmark_reference",

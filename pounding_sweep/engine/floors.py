@@ -86,3 +86,61 @@ def finite(st):
         if not (abs(st.un[i]) < L.DIVERGED_M) or not (abs(st.an[i]) < 1e300):
             ok = False
     return ok
+
+
+# The time loop's per-step pieces both kernels take alike (engine/scalar.py and engine/nonlinear.py
+# _time_loop): where a step starts, its end without contact, and its end with the contact forces.
+
+
+@njit_inner
+def step_start(st, ustep, astep, has_acc):
+    """Keep the step's start displacement (and, where a channel records acceleration, its relative
+    acceleration) for the experiment samples that fall inside the step."""
+    for i in range(st.u.shape[0]):
+        ustep[i] = st.u[i]
+    if has_acc:
+        for i in range(st.u.shape[0]):
+            astep[i] = st.a[i]
+
+
+@njit_inner
+def free_end(st, Kinv, ag, dt, w, rhs0, u0):
+    """The step's end without contact forces, Newmark average acceleration (Chopra Table 5.4.2 in total
+    form; the paper's eqs. 12-13): w = 2/dt u + v, p_hat = -M 1 ag + M (4/dt^2 u + 4/dt v + a) + C w
+    (ag at the step's end), u0 = Keff^-1 p_hat with Kinv = Keff^-1."""
+    m, C, u, v, a = st.m, st.C, st.u, st.v, st.a
+    n = m.shape[0]
+    a1 = 4.0 / (dt * dt)
+    a2 = 4.0 / dt
+    b1 = 2.0 / dt
+    for i in range(n):
+        w[i] = b1 * u[i] + v[i]
+    for i in range(n):
+        s = -m[i] * ag + m[i] * (a1 * u[i] + a2 * v[i] + a[i])
+        for k in range(n):
+            s += C[i, k] * w[k]
+        rhs0[i] = s
+    for i in range(n):
+        s = 0.0
+        for k in range(n):
+            s += Kinv[i, k] * rhs0[k]
+        u0[i] = s
+
+
+@njit_inner
+def end_state(st, u0, H, dt):
+    """The step's end with the contact forces st.F: u_n+1 = u0 - H F (H = Keff^-1 G), then Newmark's
+    velocity and acceleration (the paper's eqs. 15-16) into st.un, st.vn, st.an."""
+    u, v, a, un, vn, an, F = st.u, st.v, st.a, st.un, st.vn, st.an, st.F
+    a1 = 4.0 / (dt * dt)
+    a2 = 4.0 / dt
+    b1 = 2.0 / dt
+    for i in range(u.shape[0]):
+        s = u0[i]
+        for j in range(F.shape[0]):
+            s -= H[i, j] * F[j]
+        un[i] = s
+    for i in range(u.shape[0]):
+        du = un[i] - u[i]
+        vn[i] = b1 * du - v[i]
+        an[i] = a1 * du - a2 * v[i] - a[i]

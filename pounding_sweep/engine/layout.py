@@ -33,7 +33,7 @@ PER_RUN = 12
 
 # status bits (the writer turns them into words)
 STATUS_NONFINITE = 1  # NaN/inf or |u| > DIVERGED_M: integration stopped
-STATUS_UNSETTLED = 2  # the contact solve did not settle in at least one step (active set cycled, Newton stalled)
+STATUS_UNSETTLED = 2  # the contact solve did not settle in at least one step (events chattered, Newton stalled)
 STATUS_UNDERRESOLVED = 4  # dt too coarse for the contact period (set before the run)
 STATUS_MEDIAN_TRUNCATED = 8  # more compressive phases than the median buffer holds
 STATUS_ENERGY = 16  # |energy residual| > ENERGY_TOL of the input work: contact switching made or lost energy

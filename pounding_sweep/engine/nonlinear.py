@@ -386,6 +386,7 @@ class StepWork(NamedTuple):
 
     u0: np.ndarray  # (N,) the contact-free end state
     rhs0: np.ndarray  # (N,) Newmark's effective load without contact
+    w: np.ndarray  # (N,) 2/dt u + v
     ustep: np.ndarray  # (N,) displacement at the step start (experiment sampling)
     astep: np.ndarray  # (N,) relative acceleration at the step start (acceleration channels)
     use: np.ndarray  # (P,) bool: the pairs carrying the law in the step's contact solve
@@ -399,30 +400,17 @@ def _time_loop(run, model, opts, runs, records, histories, experiment, out, st, 
     separations), the per-step metrics, experiment samples and histories. Without Numba's reference counts
     (it allocates nothing). Returns (status bits, unsettled steps, most Newton iterations or located switches
     in a step, steps done, experiment samples filled)."""
-    dt, m, C, Kinv, H, S, i1, i2, n1 = (
-        model.dt,
-        model.m,
-        model.C,
-        model.Kinv,
-        model.H,
-        model.S,
-        model.i1,
-        model.i2,
-        model.n1,
-    )
+    dt, Kinv, H, S, i1, i2, n1 = model.dt, model.Kinv, model.H, model.S, model.i1, model.i2, model.n1
     scheme = opts.scheme
-    u0, rhs0, ustep, astep, use, xs = wk
-    u, v, a, un, vn, an, F, pr, row = st.u, st.v, st.a, st.un, st.vn, st.an, st.F, st.pairs, st.row
+    u0, rhs0, w, ustep, astep, use, xs = wk
+    u, v, a, F, pr, row = st.u, st.v, st.a, st.F, st.pairs, st.row
     touching, coef, alpha, law, k, d = pr.active, pr.c, st.alpha, st.law, st.k, st.gap
     z0, wrel, zz, W = st.work[3], st.work[4], st.work[5], st.work[6]
     channels = (experiment.t, experiment.dof, experiment.kind)
     has_acc = bk.any_acceleration(experiment.kind)  # then keep the step's starting acceleration too
     hist = out.hist
     keep_hist = hist.shape[0] > 0
-    n = m.shape[0]
     P = i1.shape[0]
-    a1 = 4.0 / (dt * dt)
-    a2 = 4.0 / dt
     b1 = 2.0 / dt
     hmin = EVENT_MIN_FRACTION * dt
     kind = runs.exc_kind[run]
@@ -443,22 +431,8 @@ def _time_loop(run, model, opts, runs, records, histories, experiment, out, st, 
     for step in range(1, runs.nsteps[run] + 1):
         ag = ground_acceleration(kind, ground.amp, ground.omega, rec_flat, roff, rlen, step, dt)
         agstep = ag_prev  # the table's acceleration at the step start
-        for i in range(n):
-            ustep[i] = u[i]
-        if has_acc:
-            for i in range(n):
-                astep[i] = a[i]
-        # the contact-free end state (as engine/scalar.py: Newmark's effective load, Keff^-1)
-        for i in range(n):
-            s = -m[i] * ag + m[i] * (a1 * u[i] + a2 * v[i] + a[i])
-            for kk in range(n):
-                s += C[i, kk] * (b1 * u[kk] + v[kk])
-            rhs0[i] = s
-        for i in range(n):
-            s = 0.0
-            for kk in range(n):
-                s += Kinv[i, kk] * rhs0[kk]
-            u0[i] = s
+        floors.step_start(st, ustep, astep, has_acc)
+        floors.free_end(st, Kinv, ag, dt, w, rhs0, u0)
         for j in range(P):
             p, q = i1[j], i2[j]
             z0[j] = u0[p] - u0[q]
@@ -476,14 +450,7 @@ def _time_loop(run, model, opts, runs, records, histories, experiment, out, st, 
                 it = -it
             if it > max_it_seen and scheme != SCHEME_EVENT:
                 max_it_seen = it
-        for i in range(n):
-            s = u0[i]
-            for j in range(P):
-                s -= H[i, j] * F[j]
-            un[i] = s
-            du = un[i] - u[i]
-            vn[i] = b1 * du - v[i]
-            an[i] = a1 * du - a2 * v[i] - a[i]
+        floors.end_state(st, u0, H, dt)
         if scheme == SCHEME_EVENT and _contradicts(st):
             finite, n_ev, uns = _event_step(st, ground, (step - 1) * dt, dt, ag_prev, ag, hmin)
             unsettled += uns
@@ -538,7 +505,7 @@ def integrate_nonlinear(start, stop, model, opts, runs, records, histories, expe
     en = np.zeros(EN_N)
     Cdu = np.empty(n)
     xs = np.empty((experiment.dof.size, experiment.t.size))
-    wk = StepWork(np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.ones(P, dtype=np.bool_), xs)
+    wk = StepWork(np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.ones(P, dtype=np.bool_), xs)
     pbase = L.PER_DOF * n
     rbase = pbase + L.PER_PAIR * P
     for run in range(start, stop):

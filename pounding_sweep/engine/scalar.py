@@ -15,6 +15,8 @@ iteration). With Keff0 = K + 2/dt C + 4/dt^2 M and u0 the end-of-step state with
 the end state with active set A is u = u0 - H_A F_A, H = Keff0^-1 G, and F_A solves the small
 system (S_AA + diag(1/ke_A)) F_A = z0_A - b_A / ke_A with S = G^T H, z0 = G^T u0,
 ke = k_s + 2 c / dt, b = k_s d + c (2/dt g.u_n + g.v_n) (from F = k_s(g.u - d) + c g.v_{n+1}).
+When no set agrees with its end state (the iteration cycles: an impact inside the step under the
+classic law), the step is taken as the event scheme below takes it, from the start's set.
 
 Scheme "paper" (section 2 of the paper): a trial step with F = 0; where a pair penetrates, F from
 eq. (8) on the trial displacement and velocity is applied as a load and the step repeated once.
@@ -256,22 +258,22 @@ class ImplicitWork(NamedTuple):
     bb: np.ndarray  # (P,) k_s d + c wrel
     ke: np.ndarray  # (P,) k_s + 2 c / dt
     want: np.ndarray  # (P,) bool: the set the end state asks for
-    prev: np.ndarray  # (P,) bool: the set before the last change
     seen: np.ndarray  # (max_iter + 1,) masks of the sets tried
     small: tuple  # (idx, Asmall, rsmall): _contact_forces' work
 
 
 @inline_kernel
-def _implicit_forces(iw, pr, F, max_iter, d):
+def _implicit_forces(iw, pr, F, max_iter, d, start):
     """The implicit scheme's end-of-step forces: the active-set iteration from the start set (a set
-    already tried means it cycles: stop early); returns (iterations, 1 if the set did not settle: every
-    pair the last two sets disagree on is then kept in contact and solved once more)."""
-    S, z0, bb, ke, want, prev = iw.S, iw.z0, iw.bb, iw.ke, iw.want, iw.prev
+    already tried means it cycles: stop early); returns (iterations, True if a set agrees with its end
+    state). When none does (the iteration cycles: an impact inside the step under the classic law, the
+    pair penetrating without contact and thrown clear by the dashpot with it), the start's set `start` is
+    restored with its forces, the trial the event step (engine/events.py) continues from."""
+    S, z0, bb, ke, want = iw.S, iw.z0, iw.bb, iw.ke, iw.want
     active = pr.active
     npair = active.size
     idx, Asmall, rsmall = iw.small
     it = 0
-    settled = False
     cycled = False
     while it < max_iter and not cycled:
         iw.seen[it] = _mask(active)
@@ -290,23 +292,17 @@ def _implicit_forces(iw, pr, F, max_iter, d):
             if w != active[j]:
                 changed = True
         if not changed:
-            settled = True
-            break
+            return it, True
         for j in range(npair):
-            prev[j] = active[j]
             active[j] = want[j]
         mk = _mask(active)
         for q in range(it):
             if iw.seen[q] == mk and npair <= 62:
                 cycled = True
-    if settled:
-        return it, 0
-    # the active set cycles (an impact inside the step under the classic law): keep every pair the
-    # last two sets disagree on in contact, solve once more, count it
     for j in range(npair):
-        active[j] = prev[j] or want[j]
+        active[j] = start[j]
     _contact_forces(S, z0, bb, ke, active, idx, Asmall, rsmall, F)
-    return it, 1
+    return it, False
 
 
 @inline_kernel
@@ -345,19 +341,16 @@ def _time_loop(run, model, opts, runs, records, histories, experiment, out, st, 
     Compiled without Numba's reference counts (it allocates nothing): on the records' arrays they cost this
     loop a third of its time. Returns (status bits, unsettled steps, most iterations or located switches in
     a step, steps done, experiment samples filled)."""
-    dt, m, C, Kinv, H, i1, i2, n1 = model.dt, model.m, model.C, model.Kinv, model.H, model.i1, model.i2, model.n1
+    dt, Kinv, H, i1, i2, n1 = model.dt, model.Kinv, model.H, model.i1, model.i2, model.n1
     scheme, max_iter = opts.scheme, opts.max_iter
     w, rhs0, u0, ustep, astep, xs, iw = wk
-    u, v, a, un, vn, an, F, pr, row = st.u, st.v, st.a, st.un, st.vn, st.an, st.F, st.pairs, st.row
+    u, v, a, F, pr, row = st.u, st.v, st.a, st.F, st.pairs, st.row
     z0, wrel, bb, ke = iw.z0, iw.wrel, iw.bb, iw.ke
     channels = (experiment.t, experiment.dof, experiment.kind)
     has_acc = bk.any_acceleration(experiment.kind)  # then keep the step's starting acceleration too
     hist = out.hist
     keep_hist = hist.shape[0] > 0
-    n = m.shape[0]
     npair = i1.shape[0]
-    a1 = 4.0 / (dt * dt)
-    a2 = 4.0 / dt
     b1 = 2.0 / dt
     hmin = EVENT_MIN_FRACTION * dt
     d, k_s, c = st.gap, pr.k_s, pr.c
@@ -381,31 +374,16 @@ def _time_loop(run, model, opts, runs, records, histories, experiment, out, st, 
     for step in range(1, runs.nsteps[run] + 1):
         ag = ground_acceleration(kind, ground.amp, ground.omega, rec_flat, roff, rlen, step, dt)
         agstep = ag_prev  # the table's acceleration at the step start
-        for i in range(n):
-            ustep[i] = u[i]
-        if has_acc:
-            for i in range(n):
-                astep[i] = a[i]
-        # Newmark effective load without contact (Chopra Table 5.4.2; paper eq. 13)
-        for i in range(n):
-            w[i] = b1 * u[i] + v[i]
-        for i in range(n):
-            s = -m[i] * ag + m[i] * (a1 * u[i] + a2 * v[i] + a[i])
-            for k in range(n):
-                s += C[i, k] * w[k]
-            rhs0[i] = s
-        for i in range(n):
-            s = 0.0
-            for k in range(n):
-                s += Kinv[i, k] * rhs0[k]
-            u0[i] = s
+        floors.step_start(st, ustep, astep, has_acc)
+        floors.free_end(st, Kinv, ag, dt, w, rhs0, u0)
         for j in range(npair):
             z0[j] = u0[i1[j]] - u0[i2[j]]
             wrel[j] = w[i1[j]] - w[i2[j]]
             bb[j] = k_s * d + c[j] * wrel[j]
+        locate = False  # the implicit scheme found no consistent set: the event step takes the step
         if scheme == SCHEME_IMPLICIT:
-            it, uns = _implicit_forces(iw, pr, F, max_iter, d)
-            unsettled += uns
+            it, settled = _implicit_forces(iw, pr, F, max_iter, d, st.was_active)
+            locate = not settled
             if it > max_it_seen:
                 max_it_seen = it
         elif scheme == SCHEME_PAPER:
@@ -415,17 +393,8 @@ def _time_loop(run, model, opts, runs, records, histories, experiment, out, st, 
             # where a pair's state at the end disagrees with that set)
             idx, Asmall, rsmall = iw.small
             _contact_forces(iw.S, z0, bb, ke, pr.active, idx, Asmall, rsmall, F)
-        # end-of-step state u = u0 - H F, then Newmark velocity and acceleration (eqs. 15-16)
-        for i in range(n):
-            s = u0[i]
-            for j in range(npair):
-                s -= H[i, j] * F[j]
-            un[i] = s
-        for i in range(n):
-            du = un[i] - u[i]
-            vn[i] = b1 * du - v[i]
-            an[i] = a1 * du - a2 * v[i] - a[i]
-        if scheme == SCHEME_EVENT and _contradicts(st):
+        floors.end_state(st, u0, H, dt)
+        if locate or (scheme == SCHEME_EVENT and _contradicts(st)):
             finite, n_ev, uns = _event_step(st, ground, (step - 1) * dt, dt, ag_prev, ag, hmin)
             unsettled += uns
             if n_ev > max_it_seen:
@@ -471,7 +440,6 @@ def integrate_batch(start, stop, model, opts, runs, records, histories, experime
         np.empty(npair),
         np.empty(npair),
         np.empty(npair),
-        np.zeros(npair, dtype=np.bool_),
         np.zeros(npair, dtype=np.bool_),
         np.zeros(opts.max_iter + 1, dtype=np.int64),
         (np.empty(npair, dtype=np.int64), np.empty((npair, npair)), np.empty(npair)),

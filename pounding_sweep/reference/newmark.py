@@ -197,12 +197,13 @@ def _wanted_set(P: Problem, u, ke, b) -> np.ndarray:
     return want
 
 
-def newmark_reference(scene, cycle_fallback: str = "union", noise: float = 0.0, seed: int = 0, **overrides) -> dict:
+def newmark_reference(scene, noise: float = 0.0, seed: int = 0, **overrides) -> dict:
     """Newmark average acceleration on the full coupled system, plain NumPy, one solve at a time.
 
     Returns t (steps+1,), u, v, a (steps+1, n_dof), F (steps+1, n_pairs), active (bool, like F),
     ag (steps+1,), impacts (per pair: steps where a pair enters the active set), unsettled (steps
-    whose active set cycled) and the resolved Problem. Overrides are those of
+    whose contact switches chattered), located (implicit scheme: steps whose active set cycled, taken by
+    the event step) and the resolved Problem. Overrides are those of
     `pounding_sweep.simulate.with_overrides` (ks_ratio, r, gap_m, dt_s, scheme, law, ...).
 
     Each step (Chopra Table 5.4.2 in total rather than incremental form; paper eqs. 11-16):
@@ -216,9 +217,9 @@ def newmark_reference(scene, cycle_fallback: str = "union", noise: float = 0.0, 
     an active set that agrees with the end state. Starting from the previous step's set, solve,
     read off the set the solution asks for, and repeat until it stops changing. If a set comes
     back (the iteration cycles, e.g. an impact inside the step under the classic law: with the
-    pair in, the dashpot throws it out; with it out, it penetrates) or max_iter solves pass, the
-    step takes the union of the last two sets and counts as unsettled. (cycle_fallback="last" takes
-    the last set asked for instead; a diagnostic for comparing with the kernel, not the spec.)
+    pair in, the dashpot throws it out; with it out, it penetrates) or max_iter solves pass, no
+    set agrees with the step's end: the step is taken as the event scheme takes it (_event_step,
+    from the start's set, its switches located).
 
     scheme "paper" (section 2): a trial step with F = 0; F from eq. (8) on the trial displacement
     and velocity (no_tension: clipped at 0) is applied as a load and the step repeated once.
@@ -247,6 +248,7 @@ def newmark_reference(scene, cycle_fallback: str = "union", noise: float = 0.0, 
     A[0] = -ag[0] * ones  # eq. (11): a0 = M^-1 (p0 - C v0 - K u0) with u0 = v0 = 0, p0 = -M 1 ag(0)
     active = np.zeros(p, dtype=bool)
     unsettled = 0
+    located = 0  # implicit scheme: steps whose active set cycled, taken by the event step
     # event scheme: entries, contact time and force extremes over every sub-step and switch
     stats = dict(impacts=np.zeros(p, dtype=int), contact_time=np.zeros(p), peak_force=np.zeros(p))
 
@@ -256,6 +258,7 @@ def newmark_reference(scene, cycle_fallback: str = "union", noise: float = 0.0, 
         p_hat = p_next + P.M @ (4.0 / dt**2 * u_n + 4.0 / dt * v_n + a_n) + P.C @ (2.0 / dt * u_n + v_n)
 
         if P.scheme == "implicit":
+            start = active.copy()
             tried = []
             settled = False
             for _ in range(P.max_iter):
@@ -270,14 +273,17 @@ def newmark_reference(scene, cycle_fallback: str = "union", noise: float = 0.0, 
                     break  # cycles
                 active = want
             if not settled:
-                unsettled += 1
-                if cycle_fallback == "union":
-                    active = solved | want  # union of the last set solved and the set it asked for
-                elif cycle_fallback == "last":
-                    active = want  # diagnostic only: the set the last solve asked for (not consistent)
-                else:
-                    raise ValueError(f"cycle_fallback must be 'union' or 'last', got {cycle_fallback!r}")
-                u, F, _, _ = _solve_with_contact(P, Keff, p_hat, u_n, v_n, active)
+                # no set agrees with its end state: the step as the event scheme takes it, from the start's set
+                located += 1
+                u, v, a, F, active, n_unsettled = _event_step(P, k, u_n, v_n, a_n, start, ag, stats)
+                unsettled += n_unsettled
+                U[k + 1], V[k + 1], A[k + 1] = u, v, a
+                F_hist[k + 1] = F
+                act_hist[k + 1] = active
+                continue
+            stats["impacts"] += active & ~start
+            stats["contact_time"] += np.where(active, dt, 0.0)
+            stats["peak_force"] = np.maximum(stats["peak_force"], np.where(active, F, 0.0))
         elif P.scheme == "event":
             u, v, a, F, active, n_unsettled = _event_step(P, k, u_n, v_n, a_n, active, ag, stats)
             unsettled += n_unsettled
@@ -307,7 +313,7 @@ def newmark_reference(scene, cycle_fallback: str = "union", noise: float = 0.0, 
         act_hist[k + 1] = active
 
     entered = act_hist[1:] & ~act_hist[:-1]
-    if P.scheme == "event":
+    if P.scheme in ("event", "implicit"):
         impacts, contact_time, peak = stats["impacts"], stats["contact_time"], stats["peak_force"]
     else:
         impacts, contact_time = entered.sum(axis=0), dt * act_hist[1:].sum(axis=0)
@@ -324,6 +330,7 @@ def newmark_reference(scene, cycle_fallback: str = "union", noise: float = 0.0, 
         contact_time=contact_time,
         peak_force=peak,
         unsettled=unsettled,
+        located=located,
         problem=P,
     )
 

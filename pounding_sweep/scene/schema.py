@@ -219,7 +219,11 @@ class IntegrationConfig:
         "or 'paper' (trial force as load, sec. 2)",
         "event",
     )
-    max_contact_iterations: int = _f("active-set iterations per step before a step counts as unsettled", 16)
+    max_contact_iterations: int = _f(
+        "implicit scheme: active-set iterations per step before the step is taken as the event scheme takes it "
+        "(its contact switches located)",
+        16,
+    )
     min_steps_per_contact_period: float = _f("flag runs with fewer steps per contact period 2 pi sqrt(m_eff/k_s)", 20.0)
 
     @property

@@ -57,7 +57,7 @@ COLUMN_DOCS = {
     "closest_approach_f*_m": "least gap - (u1 - u2) of floor pair f over the run (the gap at rest minus the largest "
     "relative displacement toward each other); < 0: the floors overlapped by that much [m]",
     "closest_approach_time_f*_s": "time of the closest approach [s]",
-    "unsettled_steps": "steps whose contact solve did not settle (active set cycled, Newton stalled, events chattered) [-]",
+    "unsettled_steps": "steps whose contact solve did not settle (Newton stalled, events chattered) [-]",
     "max_contact_iterations": "most active-set (or Newton) iterations, or event scheme: contact events, any step needed [-]",
     "steps": "time steps completed [-]",
     "status": "'ok' or '+'-joined flags: diverged, contact_unsettled, contact_underresolved, energy_residual, unscored, median_truncated, dt_tolerance_not_met, grazing_impact",

@@ -243,7 +243,7 @@ def test_harmonic_grid_rows_agree(law, scheme):
     prep, runs, rec, lanes, scalar = harmonic_grid(law, scheme)
     assert driver.kernel_for(prep.sysarr, prep.hist, prep.opts, prep.score) == "lanes"
     good = assert_rows_agree(prep, runs, rec, lanes, scalar)
-    assert good.sum() >= 80  # the flagged runs are k_s/k = 1e4 (and cycling sets under the implicit scheme)
+    assert good.sum() >= 80  # the flagged runs are k_s/k = 1e4
     # the grid exercises what the lane kernel does differently: contact in some lanes and not in
     # others, impacts, long and short compressive phases, the active-set fallback (classic law)
     impacts = col(scalar, "impacts_f3")
@@ -253,7 +253,9 @@ def test_harmonic_grid_rows_agree(law, scheme):
     assert (col(scalar, "status_code").astype(int) & L.STATUS_UNDERRESOLVED).any()
     assert (col(scalar, "max_contact_iterations") > 1).any()  # event scheme: several events in a step
     if law == "classic" and scheme == "implicit":
-        assert (col(scalar, "unsettled_steps") > 0).any()
+        # the steps whose active set cycles (this grid has them: they were flagged before the implicit
+        # scheme handed them to the event step) settle in both kernels; the dashpot still pulls
+        assert not (col(scalar, "unsettled_steps") > 0).any() and not (col(lanes, "unsettled_steps") > 0).any()
         assert (col(scalar, "min_force_f3_N") < 0).any()
 
 
@@ -284,9 +286,7 @@ def test_record_grid_with_runs_of_unequal_length_rows_agree(tmp_path, scheme):
     runs, recarr = chunk_inputs(prep)
     assert len(set(runs.nsteps.tolist())) == 2
     lanes, scalar = both(prep, runs, recarr)
-    assert (
-        assert_rows_agree(prep, runs, recarr, lanes, scalar).sum() >= 24
-    )  # of 36: r = 0 at k_s/k = 10 cycles (implicit)
+    assert assert_rows_agree(prep, runs, recarr, lanes, scalar).sum() >= 24  # of 36
     assert (col(scalar, "impacts_f3") > 0).any()
 
 

@@ -39,7 +39,6 @@ from pounding_sweep.engine.lanes.rows import (
     B_ACT,
     B_INC,
     B_JUST,
-    B_PREV,
     B_TRIAL,
     B_WAS,
     E_ABS,
@@ -442,8 +441,9 @@ def _mask(active):
 @inline
 def _implicit_step(st, step, dt, max_iter, ag_prev, ag):
     """Implicit scheme, one lane, one step: scalar._implicit_forces' active-set iteration from the start
-    set (cycle detection, the union fallback), then the accepted step. Returns (finite, iterations,
-    1 if the set cycled else 0)."""
+    set (cycle detection), then the accepted step. Returns (finite, iterations, settled); not settled (no
+    set agrees with its end state: an impact inside the step under the classic law) nothing is accepted and
+    the start's set is restored for the event step to take the step."""
     Z, B, I, psi, pr = st.Z, st.B, st.I, st.psi, st.pairs
     N, _n1, P = st.sizes
     _keff_coefs(Z, dt, N)
@@ -474,24 +474,21 @@ def _implicit_step(st, step, dt, max_iter, ag_prev, ag):
             settled = True
             break
         for j in range(P):
-            B[B_PREV, j] = pr.active[j]
             pr.active[j] = B[B_TRIAL, j]
         mk = _mask(pr.active)
         for z in range(it):
             if I[I_SEEN, z] == mk and P <= 62:
                 cycled = True
-    uns = 0
     if not settled:
-        uns = 1
         for j in range(P):
-            pr.active[j] = B[B_PREV, j] or B[B_TRIAL, j]
-        _set_forces(Z, B, I, st.A, dt, pr.k_s, psi, st.sizes)
+            pr.active[j] = B[B_WAS, j]  # the start's set (the last accepted piece's)
+        return True, it, False
     _end_state(Z, dt, psi, N, P)
     if not _finite_rows(Z, Z_FS, st.phi, psi, st.sizes):
-        return False, it, uns
+        return False, it, True
     book = (st.orow, st.dur, st.nph, st.l)
     _accept_rows(Z, B, book, (dt, (step - 1) * dt + dt, ag_prev, ag, Z_FS), pr.k_s, st.gap, psi, st.sizes)
-    return True, it, uns
+    return True, it, True
 
 
 @inline
@@ -627,12 +624,16 @@ def lane_step(W, l, bufs, run, ctx, modal, cdash, work):
     st = LaneState(Z, B, I, A, orow, dur, nph, l, phi, psi, pr, gap, (N, N1, P))
     _load(W, st, l, src, dt)
     start = _mask(pr.active)
-    if scheme == SCHEME_EVENT:
+    finite, count, uns = True, 0, 0
+    locate = scheme == SCHEME_EVENT
+    if not locate:
+        finite, count, settled = _implicit_step(st, step, dt, max_iter, ag_s, ag)
+        locate = not settled  # no consistent set: the step is taken as the event scheme takes it
+    if locate:
         _advance(st, dt, ag_s, ag, False)  # the trial: the whole step with the start's set
         ground = Ground(harmonic, amp, om)
-        finite, count, uns = _event_step(st, ground, (step - 1) * dt, dt, ag_s, ag, EVENT_MIN_FRACTION * dt)
-    else:
-        finite, count, uns = _implicit_step(st, step, dt, max_iter, ag_s, ag)
+        finite, n_ev, uns = _event_step(st, ground, (step - 1) * dt, dt, ag_s, ag, EVENT_MIN_FRACTION * dt)
+        count = max(count, n_ev)
     if count > W[(r_s + S_MIT) * LANES + l]:
         W[(r_s + S_MIT) * LANES + l] = count
     W[(r_s + S_UNS) * LANES + l] += uns

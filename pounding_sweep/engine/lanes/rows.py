@@ -77,8 +77,8 @@ def row_offsets(N, P):
     Z_GAM,
 ) = range(24)
 ZR = 24
-(B_ACT, B_WAS, B_JUST, B_TRIAL, B_PREV, B_INC) = range(6)
-BR = 6
+(B_ACT, B_WAS, B_JUST, B_TRIAL, B_INC) = range(5)
+BR = 5
 I_IDX, I_SEEN = 0, 1
 
 

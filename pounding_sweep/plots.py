@@ -29,8 +29,9 @@ from pounding_sweep.errors import ResultError
 from pounding_sweep.scene import scene_from_dict
 from pounding_sweep.scene.axes import STRUCTURE_AXES
 from pounding_sweep.scene.channels import ACC_PREFIX
-from pounding_sweep.scene.parameters import PARAMETERS, is_log
+from pounding_sweep.scene.parameters import PARAMETERS, channel_offset, is_log, member
 from pounding_sweep.scene.validate import FITTABLE
+from pounding_sweep.sweep.prepare import with_structure
 from pounding_sweep.sweep.results import META_KEY, part_files, read_metadata, read_schema, sidecar_path
 
 DPI = 120
@@ -494,13 +495,15 @@ def calibrated_run(best: pd.DataFrame | None) -> tuple[dict, str] | None:
     if rows.empty:
         return None
     row = rows.sort_values("error_pct").iloc[0]
-    pick = {k: float(row[k]) for k in FITTABLE if k in row and pd.notna(row[k])}
+    fitted = [k for k in row.index if k in FITTABLE or member(k) is not None or channel_offset(k) is not None]
+    pick = {k: float(row[k]) for k in fitted if pd.notna(row[k])}  # a per-story, per-mode or per-channel one too
     law = row.get("contact_law")
     from pounding_sweep.sweep.calibrate import NO_CONTACT
 
     if isinstance(law, str) and law != NO_CONTACT:
         pick["law"] = law
-    fitted = ", ".join(f"{k} = {v:.4g}" for k, v in pick.items() if k != "law")
+    values = [f"{k} = {v:.4g}" for k, v in pick.items() if k != "law"]
+    fitted = ",\n".join(", ".join(values[i : i + 3]) for i in range(0, len(values), 3))  # 3 a line: titles fit
     how = f"{law} law, " if "law" in pick else ""
     return pick, f"calibrated run ({how}{fitted}; relative RMS error {row.error_pct:.1f} %)"
 
@@ -573,7 +576,8 @@ def history_figures(scene, pick: dict, label: str, md: dict | None = None, skipp
     shown = tops + [c for c in disp_codes if c not in tops]
     model_of = {c: c if c.startswith(ACC_PREFIX) else f"disp_{c}" for c in codes}
     channels = list(dict.fromkeys([f"disp_{c}" for c in shown] + [model_of[c] for c in codes]))
-    hist, m = simulate(scene, channels=channels + ([f"force_f{top}"] if top else []), **pick)
+    run_scene, params = _run(scene, pick)
+    hist, m = simulate(run_scene, channels=channels + ([f"force_f{top}"] if top else []), **params)
     t = hist.t_s.to_numpy()
     te = exp.time_s - scene.experiment.time_offset_s if exp is not None else None
     zoom = zoom_window(scene, t[-1], exp, hist[f"disp_{shown[0]}_m"].to_numpy())
@@ -673,6 +677,15 @@ def history_figures(scene, pick: dict, label: str, md: dict | None = None, skipp
     return out
 
 
+def _run(scene, pick: dict) -> tuple:
+    """(the scene, the run parameters) of the run `pick`: a fitted story's or mode's value set in the scene's
+    building (prepare.with_structure: not a run parameter), a per-channel clock offset left out (it shifts that
+    channel's samples and changes no run: measured_residuals applies it)."""
+    members = {k: v for k, v in pick.items() if member(k) is not None}
+    params = {k: v for k, v in pick.items() if member(k) is None and channel_offset(k) is None}
+    return (with_structure(scene, members) if members else scene), params
+
+
 def measured_residuals(scene, pick: dict, md: dict) -> dict:
     """Every measured channel of the scene against the run `pick` over the compared window, in SI: code -> (t [s],
     measured, model, residual = measured - model). The model is sampled at the table's instants by linear
@@ -686,7 +699,8 @@ def measured_residuals(scene, pick: dict, md: dict) -> dict:
 
     exp = load_experiment(scene.experiment, scene.floors)
     codes = list(exp.channels)
-    hist, _ = simulate(scene, channels=[history_column(c).rsplit("_m", 1)[0] for c in codes], **pick)
+    run_scene, params = _run(scene, pick)
+    hist, _ = simulate(run_scene, channels=[history_column(c).rsplit("_m", 1)[0] for c in codes], **params)
     t = hist.t_s.to_numpy()
     # the samples the calibration compares (sweep/calibrate.py Problem): those inside the window at the scene's own
     # clock offset, each at its simulation time under the run's (a fitted time_offset_s)
@@ -699,7 +713,8 @@ def measured_residuals(scene, pick: dict, md: dict) -> dict:
     out = {}
     for code in codes:
         xe = exp.channels[code][keep]
-        xm = np.interp(tk, t, hist[history_column(code)].to_numpy())
+        own = pick.get(f"time_offset_s_{code}", 0.0)  # a fitted per-channel clock, on top of the table's
+        xm = np.interp(tk - own, t, hist[history_column(code)].to_numpy())
         if code.startswith(ACC_PREFIX) and sos.shape[0]:
             xe, xm = sosfilt(sos, xe), sosfilt(sos, xm)
         out[code] = (tk, xe, xm, xe - xm)
@@ -895,9 +910,10 @@ def figures(
     if scene.experiment is not None:
         noise = calibration_noise(best_file, pick) if calibrated is not None else {}
         out["measured_vs_model"] = measured_figure(scene, pick, label, md, noise)
+    ladder_scene, pick = _run(scene, pick)
     pick = {k: v for k, v in pick.items() if k != "time_offset_s"}  # the ladder runs without the experiment
     if accuracy is None:
-        table = accuracy_ladder(scene, **pick)
+        table = accuracy_ladder(ladder_scene, **pick)
     else:
         table = accuracy if isinstance(accuracy, pd.DataFrame) else read_accuracy_table(accuracy)
     swept = swept_axes(df, md)

@@ -66,6 +66,7 @@ SLOW = {
         "test_ctrl_c_before_the_calibration_is_one_line_and_leaves_the_grids_best_table",
         "test_two_result_folders_never_share_their_best_table",
     ),
+    "tests/sweep/test_channel_offsets.py": ("test_a_real_sensor_delayed_is_found_by_its_clock",),
     "tests/sweep/test_calibrate.py": (
         "test_a_bound_that_excludes_the_truth_is_said",
         "test_a_contact_only_fit_of_the_same_data_is_pulled_off_and_says_so",

@@ -66,6 +66,11 @@ def _identify_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--out", help="with --scene: write the updated [buildingN] sections to this TOML file")
     p.add_argument(
+        "--modes-out",
+        help="write the identified modes (per building: frequencies, damping ratios with their intervals and "
+        "methods) to this TOML file: a calibration's start values ([calibrate] start_from)",
+    )
+    p.add_argument(
         "--force-update",
         action="store_true",
         help="write the update even when f1 is at a forcing frequency or a stiffness changes by more than 30 %%",
@@ -127,6 +132,7 @@ def identify_main(argv: list[str]) -> int:
     args = _identify_parser().parse_args(argv)
     from pounding_sweep.errors import InputError
     from pounding_sweep.identify.safety import forcing_frequencies, method_warnings, update_problems
+    from pounding_sweep.identify.startfile import modes_toml
     from pounding_sweep.identify.table import empty_reason, identify_table, model_updates
     from pounding_sweep.model.experiment import read_table
     from pounding_sweep.scene import load_scene
@@ -139,10 +145,7 @@ def identify_main(argv: list[str]) -> int:
                 "identify reads a displacement table: track the video first",
                 "python -m pounding_sweep track VIDEO",
             )
-        if args.out and not args.scene:
-            raise Bad(args.out, "--out writes updated buildings: it needs --scene", "--out without --scene")
-        if args.out:
-            check_replaceable(Path(args.out), _written_by_identify, "identify")
+        _check_outputs(args)
         df, md = read_table(src)
         scene = load_scene(args.scene) if args.scene else None
         ident = identify_table(
@@ -182,14 +185,9 @@ def identify_main(argv: list[str]) -> int:
             print(f"warning: model update forced although {pr}", file=sys.stderr)
         text = "".join(u.toml() + "\n" for u in updates)
         if args.out:
-            out = Path(args.out)
-            tmp = hidden_temporary(out)
-            try:
-                tmp.write_text(f"{WRITTEN_BY} {src}\n" + text, encoding="utf-8")
-                os.replace(tmp, out)
-            except OSError as e:
-                tmp.unlink(missing_ok=True)
-                raise Bad(out, "cannot write", e.strerror or e) from None
+            _write(Path(args.out), f"{WRITTEN_BY} {src}\n" + text)
+        if args.modes_out:
+            _write(Path(args.modes_out), modes_toml(ident, f"{WRITTEN_BY} {src}"))
     except (Bad, InputError) as e:
         sys.stdout.flush()  # the modes printed so far come before the error
         print(f"error: {e}", file=sys.stderr)
@@ -197,4 +195,28 @@ def identify_main(argv: list[str]) -> int:
     if updates:
         print()
         print(text if not args.out else f"updated sections written to {args.out}")
+    if args.modes_out:
+        print(f"identified modes written to {args.modes_out} (a calibration's start: [calibrate] start_from)")
     return 0
+
+
+def _check_outputs(args) -> None:
+    """Before any work: --out needs --scene; each output path free or identify's own; not both one file."""
+    if args.out and not args.scene:
+        raise Bad(args.out, "--out writes updated buildings: it needs --scene", "--out without --scene")
+    for out in (args.out, args.modes_out):
+        if out:
+            check_replaceable(Path(out), _written_by_identify, "identify")
+    if args.out and args.modes_out and Path(args.out).resolve() == Path(args.modes_out).resolve():
+        raise Bad(args.modes_out, "--out and --modes-out name one file", "give each its own")
+
+
+def _write(out: Path, text: str) -> None:
+    """`text` into `out` through a hidden temporary renamed when complete (Bad when it cannot be written)."""
+    tmp = hidden_temporary(out)
+    try:
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, out)
+    except OSError as e:
+        tmp.unlink(missing_ok=True)
+        raise Bad(out, "cannot write", e.strerror or e) from None

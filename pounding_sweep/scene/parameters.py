@@ -73,7 +73,7 @@ class Parameter:
     label: str | None = None
     short: str | None = None
     factor: float | None = 1.0
-    per: str = ""  # a family (FAMILIES): 's' one value per story, 'm' one per mode
+    per: str = ""  # a family (FAMILIES): 's' one value per story, 'm' one per mode; 'c' per channel (CHANNEL_OFFSET)
     neutral: float | None = None  # a family member's value where the scene gives no list (None: it must give one)
 
     def has(self, role: str) -> bool:
@@ -297,6 +297,30 @@ def _families(b: int) -> list[Parameter]:
 FAMILIES: tuple[Parameter, ...] = (*_families(1), *_families(2))
 
 
+#: a channel's own clock, on top of the table's: experiment time minus simulation time of one [experiment] channel
+#: is time_offset_s + time_offset_s_<code> (<code> the channel's model code as [experiment] channels gives it:
+#: time_offset_s_abs_acc_b1f3, time_offset_s_b2f1), for sensors whose clocks are not synchronised. Fitted only
+#: (sweep/calibrate.py shifts that channel's samples); neutral 0; not a structure parameter (no run changes).
+CHANNEL_OFFSET = Parameter(
+    "time_offset_s",
+    "experiment",
+    "time_offset_s",
+    "s",
+    "one channel's clock offset on top of the table's time_offset_s (fitted) [s]",
+    frozenset((FITTABLE,)),
+    per="c",
+    neutral=0.0,
+)
+CHANNEL_OFFSET_PREFIX = f"{CHANNEL_OFFSET.name}_"
+
+
+def channel_offset(name: str) -> str | None:
+    """The channel code of a per-channel clock offset ('time_offset_s_abs_acc_b1f3' -> 'abs_acc_b1f3'), else None.
+    Whether the scene has that channel is the scene's check (scene/validate.py)."""
+    code = name.removeprefix(CHANNEL_OFFSET_PREFIX)
+    return code if code != name and code else None
+
+
 def member(name: str) -> tuple[Parameter, int] | None:
     """(family, index) of a per-story or per-mode name ('story_stiffness_scale_b1_s2' -> (its family, 2)), else
     None."""
@@ -311,6 +335,8 @@ def parameter(name: str) -> Parameter | None:
     """The registry entry of a name: a parameter's own, or the family of a per-story name; None if unknown."""
     if name in BY_NAME:
         return BY_NAME[name]
+    if channel_offset(name) is not None:
+        return CHANNEL_OFFSET
     found = member(name)
     return found[0] if found else None
 

@@ -162,6 +162,8 @@ def scene_from_dict(raw: dict, base_dir: Path, source: str = "<dict>", toml_text
         if not isinstance(raw["calibrate"], dict):
             raise ConfigError(f"'calibrate' must be a table [calibrate], got {shown(raw['calibrate'])}")
         calibrate = _build(CalibrateConfig, raw["calibrate"], "calibrate")
+        if calibrate.start_from is not None:  # identify's modes file, beside the scene
+            calibrate = dataclasses.replace(calibrate, start_from=str(resolve(base_dir / calibrate.start_from)))
     stochastic = _section(raw, "stochastic", StochasticConfig)
     risk = _section(raw, "risk", RiskConfig)
     if risk is not None:

@@ -385,7 +385,9 @@ class CalibrateConfig:
     parameters: dict[str, tuple[float, ...]] = _f(
         "the parameters to fit and their bounds, e.g. { ks_ratio = [0.1, 10], r = [0.05, 1], stiffness_scale_b1 = "
         "[0.95, 1.05] }: any numeric [sweep] name (contact, excitation scale, the structure's scales and damping "
-        "ratios, time_offset_s)"
+        "ratios, time_offset_s); per story or mode story_stiffness_scale_b1_s2, modal_damping_ratio_b1_m1; per "
+        "channel time_offset_s_<channel> (e.g. time_offset_s_abs_acc_b1f3: that channel's clock on top of "
+        "time_offset_s, bounded inside half its building's first period)"
     )
     global_points: int = _f("Sobol points of the global stage (scipy.stats.qmc, a power of 2)", 64)
     starts: int = _f("local least-squares starts: the best global points (and the sweep's best cell)", 3)
@@ -401,6 +403,15 @@ class CalibrateConfig:
         when="optional; by default estimated from the data",
     )
     misfit_factor: float = _f("warn when the best fit's residual exceeds this many times the noise floor", 3.0)
+    start_from: str | None = _f(
+        "a modes file of identify (python -m pounding_sweep identify TABLE --modes-out FILE): a start of the fit "
+        "from its values: modal_damping_ratio_b<b>_m<j> mode j's identified damping, damping_ratio_b<b> mode 1's, "
+        "stiffness_scale_b<b> and story_stiffness_scale_b<b>_s<k> the factor that puts the model's first mode at the "
+        "identified one (each clipped into its bounds; the other fitted values the grid's best cell's, else the "
+        "scene's)",
+        None,
+        when="optional; a path relative to the scene file",
+    )
 
 
 @dataclass(frozen=True)

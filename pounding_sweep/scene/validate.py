@@ -23,6 +23,7 @@ from pounding_sweep.scene.parameters import (
     FAMILIES,
     STIFFNESS_FORMS,
     bounds_out_of_range,
+    channel_offset,
     member,
     names,
     out_of_range,
@@ -509,12 +510,14 @@ def _check_calibrate(s: Scene) -> None:
         raise ConfigError("[calibrate] parameters = {}: name at least one parameter to fit, with its bounds")
     for name, bounds in cal.parameters.items():
         key = f"[calibrate] parameters.{name}"
-        if name not in FITTABLE and member(name) is None:
-            per_story = ", ".join(f"{f.name}_s<story>" for f in FAMILIES)
+        if name not in FITTABLE and member(name) is None and channel_offset(name) is None:
+            per_story = ", ".join(f"{f.name}_{f.per}<{'story' if f.per == 's' else 'mode'}>" for f in FAMILIES)
             raise ConfigError(
-                f"{key}: not a parameter the calibration can fit (one of {', '.join(FITTABLE)}; per story: {per_story})"
+                f"{key}: not a parameter the calibration can fit (one of {', '.join(FITTABLE)}; per story or mode: "
+                f"{per_story}; per channel: time_offset_s_<channel>)"
             )
         _check_member(s, name, key)
+        _check_channel_offset(s, name, key)
         if len(bounds) != 2 or not bounds[0] < bounds[1]:
             raise ConfigError(f"{key} = {shown(bounds)}: expected bounds [low, high] with low < high")
         outside = bounds_out_of_range(name, float(bounds[0]), float(bounds[1]), key)
@@ -548,7 +551,54 @@ def _check_calibrate(s: Scene) -> None:
             f"[{NOISE_M_RANGE[0]:g}, {NOISE_M_RANGE[1]:g}] (1e-9 m: a nanometre)"
         )
     _positive(cal.misfit_factor, "[calibrate] misfit_factor")
+    _check_start_from(s, cal)
     _check_calibrate_effect(s, cal)
+
+
+def _check_start_from(s: Scene, cal) -> None:
+    """[calibrate] start_from: identify's modes file, readable (scene/starts.py), holding the modes of a building
+    whose structure is fitted."""
+    if cal.start_from is None:
+        return
+    from pounding_sweep.scene.starts import read_modes
+
+    modes = read_modes(cal.start_from)
+    fitted = {p.section for n in cal.parameters if (p := parameter(n)) is not None and p.section.startswith("building")}
+    if not fitted & {f"building{b}" for b in modes}:
+        raise ConfigError(
+            f"[calibrate] start_from = {cal.start_from!r}: holds the modes of building(s) "
+            f"{', '.join(str(b) for b in sorted(modes))}, and the fit names no parameter of their structure "
+            "(stiffness_scale_b<b>, damping_ratio_b<b>, story_stiffness_scale_b<b>_s<k>, modal_damping_ratio_b<b>_m<j>)"
+        )
+
+
+def _check_channel_offset(s: Scene, name: str, key: str) -> None:
+    """A per-channel clock offset (time_offset_s_abs_acc_b1f3) names an [experiment] channel the fit compares
+    (one `use` keeps), and leaves at least one channel on the table's own clock when time_offset_s is fitted too
+    (else the table's offset and the channels' are one number asked for twice)."""
+    code = channel_offset(name)
+    if code is None:
+        return
+    x = s.experiment
+    mapped = list(dict.fromkeys((x.channels or {}).values()))
+    if code not in mapped:
+        raise ConfigError(
+            f"{key}: [experiment] channels maps no channel {code!r} (its channels: {', '.join(mapped) or 'none'}); "
+            "name one as time_offset_s_<channel>"
+        )
+
+    def fitted(c: str) -> bool:  # the fit compares channel c (as `use` says)
+        return x.use == "both" or USES.get(x.use) == (codes.H_ABS_ACC if c.startswith("abs_acc_") else codes.H_DISP)
+
+    if not fitted(code):
+        raise ConfigError(f"{key}: [experiment] use = {x.use!r} leaves channel {code!r} out of the fit")
+    offsets = [n for n in s.calibrate.parameters if channel_offset(n) is not None]
+    used = [c for c in mapped if fitted(c)]
+    if "time_offset_s" in s.calibrate.parameters and len(offsets) >= len(used):
+        raise ConfigError(
+            f"{key}: with time_offset_s fitted, every channel's own offset too asks the data for one number twice "
+            "(a shift of all channels is the table's offset); leave one channel on the table's clock"
+        )
 
 
 def _check_member(s: Scene, name: str, key: str) -> None:

@@ -17,7 +17,7 @@ import pyarrow.parquet as pq
 from pounding_sweep import __version__
 from pounding_sweep.model.grid import Grid
 from pounding_sweep.scene import Scene
-from pounding_sweep.scene.hashing import hash_of
+from pounding_sweep.scene.hashing import file_digest, hash_of
 from pounding_sweep.scene.parameters import default_profiled
 from pounding_sweep.sweep.checks import check_scale
 from pounding_sweep.sweep.gate import pause
@@ -99,9 +99,10 @@ def calibration_key(scene: Scene) -> str:
     """What a stored calibration must match to be reused: the scene's config hash (the grid and the experiment:
     [calibrate] is left out of it, so that the grid's parts resume when only [calibrate] changes), [calibrate]
     itself and the package version."""
-    return hash_of(
-        {"config_hash": scene.config_hash(), "calibrate": dataclasses.asdict(scene.calibrate), "version": __version__}
-    )
+    cal = dataclasses.asdict(scene.calibrate)
+    if cal.get("start_from") is not None:  # identify's modes file: by content (a rerun of identify changes it)
+        cal["start_from"] = {"file": Path(cal["start_from"]).name, "sha256": file_digest(cal["start_from"])}
+    return hash_of({"config_hash": scene.config_hash(), "calibrate": cal, "version": __version__})
 
 
 def _calibrated(scene: Scene, best, meta: dict, summary, progress, threads: int):

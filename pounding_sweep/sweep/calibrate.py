@@ -7,8 +7,9 @@ together, and every answer says how certain it is and whether the data can decid
 
 Method.
 * Residuals: each scored channel's model value at the experiment's sample times inside the scored window
-  (simulation time = experiment time - time_offset_s) minus the measured one, divided by the channel's noise
-  floor sigma_c, so channels weigh by their noise. Displacement: cubic Hermite interpolation of the kernel's
+  (simulation time = experiment time - time_offset_s, minus the channel's own time_offset_s_<channel> where that
+  is fitted: sensors whose clocks are not synchronised; check_channel_offsets bounds it) minus the measured one,
+  divided by the channel's noise floor sigma_c, so channels weigh by their noise. Displacement: cubic Hermite interpolation of the kernel's
   displacement and velocity at dt (error ~ dt^4 |u^(4)| / 384, far below any tracking noise). Absolute
   acceleration ([experiment] acceleration channels): linear interpolation between steps, as the kernel's
   scoring samples it, or with [experiment] sensor_filter the sensor's own filter run on the acceleration at
@@ -19,6 +20,8 @@ Method.
   unit, or noise_window_s: the standard deviation in a quiet window), else the [calibrate] noise_m (displacement
   channels; m), else estimated from the data by the difference method (model/experiment.py noise_floor: an upper
   bound), times the filter's noise gain for a filtered channel.
+* Start: the sweep's best cell, or with [calibrate] start_from identify's modes (identified_starts), joins the
+  global stage's design as one point (_start).
 * Global stage (sweep/globalsearch.py): incremental single shooting: a Sobol design of max(global_points, 16 p)
   points (scipy.stats.qmc, scrambled, fixed seed; log scale for stiffnesses) and the sweep's best cell on a
   leading horizon of the record, least squares from the best of them, carried over horizons doubling to the
@@ -62,10 +65,11 @@ import numpy as np
 from scipy.signal import sosfilt
 
 from pounding_sweep import codes as C
+from pounding_sweep.errors import ConfigError
 from pounding_sweep.model.experiment import noise_floor
 from pounding_sweep.scene import Scene
 from pounding_sweep.scene.channels import channel_unit, shown_value
-from pounding_sweep.scene.parameters import default_profiled, is_log
+from pounding_sweep.scene.parameters import channel_offset, default_profiled, is_log, member
 from pounding_sweep.sweep.fitchecks import reversed_channel_warnings
 from pounding_sweep.sweep.fitstats import gauss_newton, interval, local_fit, misfit_of
 from pounding_sweep.sweep.globalsearch import find_basin
@@ -134,6 +138,7 @@ class Fit:
     windows: list[dict] = field(default_factory=list)  # the window fits behind ci95_model
     quote: str = "noise"  # which interval to quote: 'noise' (ci95) or 'model_error' (ci95_model)
     search: list[dict] = field(default_factory=list)  # the global stage's horizons (globalsearch.py)
+    start: dict[str, dict] = field(default_factory=dict)  # with start_from: name -> {value, from} (_start)
     problem: Problem | None = field(default=None, repr=False)  # the residual function (not stored)
     comparison: object = field(default=None, repr=False)  # lawcompare.LawComparison, several laws calibrated
 
@@ -152,7 +157,7 @@ class Problem:
         sigma: np.ndarray | None = None,
     ):
         """`window` (simulation time [s]): fit only the samples inside it, and simulate only as far as they
-        need (its end, plus the largest clock shift the fitted time_offset_s may make); `sigma`: the channels'
+        need (its end, plus the largest clock shift the fitted clocks may make: _simulated); `sigma`: the channels'
         noise floors (a window of a record keeps the whole record's)."""
         self.names = list(names)
         self.bounds = {n: (float(bounds[n][0]), float(bounds[n][1])) for n in self.names}
@@ -160,18 +165,7 @@ class Problem:
         self.evaluations = 0
         self.scene, self.noise_m = scene, noise_m
         floors = scene.floors
-        fixed = dataclasses.replace(scene, sweep=())
-        if window is not None:
-            shift = 0.0
-            if "time_offset_s" in self.bounds:
-                shift = max(abs(b - scene.experiment.time_offset_s) for b in self.bounds["time_offset_s"])
-            end = window[1] + shift + 2.0 * scene.integration.dt_s
-            if scene.excitation.duration_s is None or end < scene.excitation.duration_s:
-                fixed = dataclasses.replace(fixed, excitation=dataclasses.replace(fixed.excitation, duration_s=end))
-            if scene.experiment.window_s is not None:  # the scored window inside the shortened simulation
-                w0, w1 = scene.experiment.window_s
-                w = (max(w0, window[0]), max(min(w1, window[1]), max(w0, window[0])))
-                fixed = dataclasses.replace(fixed, experiment=dataclasses.replace(fixed.experiment, window_s=w))
+        fixed, whole = _simulated(scene, self.bounds, window)
         probe = prepare(fixed)
         exp = probe.experiment
         weights = probe.combination.weights if probe.combination is not None else None
@@ -190,7 +184,7 @@ class Problem:
         self.prep: Prepared = dataclasses.replace(probe, scene=kept, hist=hspec, hist_columns=hcols, sensor=None)
         self.base = self.prep.grid.chunk(0, 1)
         cfg = scene.experiment
-        duration = self.prep.excitation.max_duration_s
+        duration = self.prep.excitation.max_duration_s if whole is None else whole
         lo, hi = (0.0, duration) if cfg.window_s is None else cfg.window_s
         if window is not None:
             lo, hi = max(lo, window[0]), min(hi, window[1])
@@ -235,6 +229,10 @@ class Problem:
                     )
             sig.append(s0 * (gain if a else 1.0))
         self.target = Target(codes, acc, times, values, np.asarray(sig), sos)
+        #: (fit coordinate, channel index) of each per-channel clock offset fitted
+        self.channel_offsets = _channel_slots(self.names, codes)
+        if window is None and self.channel_offsets:
+            check_channel_offsets(self.prep, self.bounds)
         self.dt = self.prep.dt
         self._last: tuple[bytes, np.ndarray] | None = None  # the last residual vector fun() gave (its z)
 
@@ -269,6 +267,8 @@ class Problem:
         p = {k: np.repeat(v, n) for k, v in self.base.items()}
         p["run_id"] = np.arange(n)
         for j, name in enumerate(self.names):
+            if channel_offset(name):  # a channel's clock: read by residuals(), no run changes
+                continue
             p[name] = thetas[:, j].astype(float)
             if name == "ks_ratio":
                 p["ks_N_per_m"] = np.full(n, np.nan)
@@ -288,10 +288,13 @@ class Problem:
         T = self.target
         out = np.empty((thetas.shape[0], T.n))
         offsets = params["time_offset_s"] if "time_offset_s" in self.names else np.full(thetas.shape[0], self.offset0)
+        own = np.zeros((thetas.shape[0], len(self.slots)))  # each channel's clock on top of the table's
+        for j, c in self.channel_offsets:
+            own[:, c] = thetas[:, j]
         for i in range(thetas.shape[0]):
             parts = []
             for c, slot in enumerate(self.slots):
-                ts = T.time_exp[c] - offsets[i]
+                ts = T.time_exp[c] - offsets[i] - own[i, c]
                 if T.acc[c]:
                     a = hist[i, slot[0]]
                     if self.sensor is not None:
@@ -355,6 +358,71 @@ class Problem:
         return ((R - f0[None, :]) / h[:, None]).T
 
 
+def _simulated(scene: Scene, bounds: dict, window: tuple[float, float] | None) -> tuple[Scene, float | None]:
+    """The scene a Problem simulates, and the scored window's end when the simulation runs past it (else None).
+    Its duration covers every sample's simulation time under the fitted clocks: within `window`, its end plus the
+    largest shift they may make (time_offset_s from the scene's, plus the largest per-channel offset on top); on
+    the whole record, with per-channel offsets, the record's duration plus that shift (a record's acceleration is
+    0 past its end: model/records.py resample), the samples scored being those of the unshifted end."""
+    fixed = dataclasses.replace(scene, sweep=())
+    own = [b for n, bb in bounds.items() if channel_offset(n) for b in bb]
+    shift = max((abs(b - scene.experiment.time_offset_s) for b in bounds.get("time_offset_s", ())), default=0.0)
+    shift += max((abs(b) for b in own), default=0.0)
+    if window is None:
+        if not own:
+            return fixed, None
+        whole = prepare(fixed).excitation.max_duration_s
+        end = whole + shift + 2.0 * scene.integration.dt_s
+        return dataclasses.replace(fixed, excitation=dataclasses.replace(fixed.excitation, duration_s=end)), whole
+    end = window[1] + shift + 2.0 * scene.integration.dt_s
+    if scene.excitation.duration_s is None or end < scene.excitation.duration_s:
+        fixed = dataclasses.replace(fixed, excitation=dataclasses.replace(fixed.excitation, duration_s=end))
+    if scene.experiment.window_s is not None:  # the scored window inside the shortened simulation
+        w0, w1 = scene.experiment.window_s
+        w = (max(w0, window[0]), max(min(w1, window[1]), max(w0, window[0])))
+        fixed = dataclasses.replace(fixed, experiment=dataclasses.replace(fixed.experiment, window_s=w))
+    return fixed, None
+
+
+def _channel_slots(names: list[str], codes: list[str]) -> list[tuple[int, int]]:
+    """(fit coordinate, channel index among `codes`) of each per-channel clock offset among `names`."""
+    out = []
+    for j, n in enumerate(names):
+        code = channel_offset(n)
+        if code is None:
+            continue
+        if code not in codes:  # mapped, but weighed 0 ([experiment] weights): nothing to shift
+            raise ConfigError(f"[calibrate] parameters.{n}: channel {code!r} is not fitted ([experiment] weights 0)")
+        out.append((j, codes.index(code)))
+    return out
+
+
+def check_channel_offsets(prep: Prepared, bounds: dict) -> None:
+    """ConfigError naming the key when a per-channel clock offset's bounds (time_offset_s_<channel>) reach beyond
+    half the first (longest) period of the channel's building, its nominal structure.
+
+    Why that bound: a floor's response is dominated by its first mode, nearly periodic; shifting one channel by a
+    whole period T1 puts that mode back in phase, so the misfit over the shift has a minimum near every multiple
+    of T1 and a fit with wider bounds can lock one or more periods off (issue 27 saw three). Within +/- T1 / 2 the
+    first mode's phase has one best shift; the higher modes' side minima inside it are the global stage's to
+    step over (its Sobol design spans the bounds). A larger lag is a clock to align before the fit (the import's
+    cross-correlation: docs/how-to/import-real-sensor-data.md)."""
+    buildings = prep.model.buildings
+    for name, (lo, hi) in bounds.items():
+        code = channel_offset(name)
+        if code is None:
+            continue
+        b = int(code.removeprefix("abs_acc_")[1:].split("f")[0])
+        half = 0.5 * float(buildings[b - 1].modes().period_s.max())
+        if lo < -half or hi > half:
+            raise ConfigError(
+                f"[calibrate] parameters.{name} = [{lo:g}, {hi:g}]: reaches beyond half the first period of "
+                f"building {b} ({half:.4g} s; first mode {0.5 / half:.4g} Hz): a shift of a whole period fits that "
+                f"mode again, so the fit can lock a period off; bound it inside [-{half:.4g}, {half:.4g}] s, and "
+                "align a larger lag before the fit (python -m pounding_sweep import)"
+            )
+
+
 def _hermite(u: np.ndarray, v: np.ndarray, dt: float, t: np.ndarray) -> np.ndarray:
     """Cubic Hermite interpolation of a displacement history u (velocity v) sampled at k dt, at times t; outside
     the history (a fitted offset moving a window sample past the run's ends): its end values."""
@@ -394,13 +462,77 @@ def calibrate(scene: Scene, threads: int = 1, best_cell: dict | None = None, pro
     return fits
 
 
+def identified_starts(scene: Scene, names: list[str]) -> dict[str, float]:
+    """Start values from [calibrate] start_from, identify's modes file (scene/starts.py), for the fitted names it
+    speaks to: modal_damping_ratio_b<b>_m<j> mode j's identified damping ratio, damping_ratio_b<b> mode 1's (a
+    NaN estimate gives none); stiffness_scale_b<b>, else every fitted story_stiffness_scale_b<b>_s<k>, the
+    scene's value times c = (f1 identified / f1 of the scene's model)^2, the factor on every story that puts the
+    model's first mode at the identified one (identify/update.py: K scaled by c scales every eigenvalue by c).
+    Each value clipped into its bounds (an identified damping below 0, unreliable, starts at the lower bound)."""
+    if scene.calibrate is None or scene.calibrate.start_from is None:
+        return {}
+    from pounding_sweep.model.coupled import CoupledModel
+    from pounding_sweep.scene.starts import read_modes
+    from pounding_sweep.sweep.prepare import structure_value
+
+    modes = read_modes(scene.calibrate.start_from)
+    frames = CoupledModel.from_scene(scene).buildings
+    out: dict[str, float] = {}
+    for b, m in modes.items():
+        if b > len(frames):
+            continue
+        c = (m.frequencies_Hz[0] / float(frames[b - 1].modes().frequency_Hz[0])) ** 2
+        scales = [f"stiffness_scale_b{b}"] if f"stiffness_scale_b{b}" in names else []
+        scales = scales or [
+            n for n in names if (f := member(n)) is not None and f[0].name == f"story_stiffness_scale_b{b}"
+        ]
+        for n in scales:
+            out[n] = structure_value(scene, n) * c
+        zeta = {f"modal_damping_ratio_b{b}_m{j}": z for j, z in enumerate(m.damping_ratios, 1)}
+        zeta[f"damping_ratio_b{b}"] = m.damping_ratios[0]
+        out |= {n: z for n, z in zeta.items() if n in names and math.isfinite(z)}
+    bounds = scene.calibrate.parameters
+    return {n: float(min(max(v, bounds[n][0]), bounds[n][1])) for n, v in out.items()}
+
+
+def _start(scene: Scene, prob: Problem, best_cell: dict | None) -> tuple[dict | None, dict]:
+    """The start point the global stage adds to its design (globalsearch.find_basin's best cell; with
+    global_points = 0 the local fits' start): [calibrate] start_from's values where it gives one
+    (identified_starts), the grid's best cell's for the rest, the scene's own values for what neither gives (a
+    channel's clock offset: 0). Without start_from, the grid's best cell as it is (a channel offset it lacks at 0:
+    the design ignores a cell that lacks a fitted name), but completed so with global_points = 0, where it is the
+    one start (the grid has no column of a story's, a mode's or a channel's value). Returns (the point or None,
+    {name: where its value came from}: empty for the grid's cell as it is)."""
+    from pounding_sweep.sweep.prepare import structure_value
+
+    ident = identified_starts(scene, prob.names)
+    cell = dict(best_cell or {})
+    cell |= {n: 0.0 for n in prob.names if channel_offset(n) and n not in cell}
+    complete = all(n in cell for n in prob.names)
+    if not ident and (complete or scene.calibrate.global_points > 0):
+        return (cell or None), {}
+    own = {}
+    for n in prob.names:
+        if channel_offset(n):
+            own[n] = 0.0
+        elif n in prob.base:
+            own[n] = float(prob.base[n][0])
+        else:
+            own[n] = structure_value(scene, n)
+    start = {**own, **cell, **ident}
+    grid = best_cell or {}
+    source = {n: "start_from" if n in ident else "grid" if n in grid else "scene" for n in prob.names}
+    return start, source
+
+
 def _calibrate_one(scene: Scene, names: list[str], threads: int, best_cell: dict | None, progress) -> Fit:
     cal = scene.calibrate
     t0 = time.perf_counter()
     prob = Problem(scene, names, cal.parameters, cal.noise_m, threads)
     lo, hi = prob.z_bounds
     p = len(names)
-    search = find_basin(prob, cal, best_cell, progress)
+    start, start_source = _start(scene, prob, best_cell)
+    search = find_basin(prob, cal, start, progress)
     z_opt = search.z
     theta = prob.to_theta(z_opt)
     r = search.result.fun
@@ -447,6 +579,7 @@ def _calibrate_one(scene: Scene, names: list[str], threads: int, best_cell: dict
         residuals=r,
         sizes=sizes,
         search=search.stages,
+        start={n: {"value": float(start[n]), "from": w} for n, w in start_source.items()} if start else {},
         problem=prob,
     )
     if misfit > cal.misfit_factor:  # the model cannot explain the data: a sign fault the fit bent around is
@@ -674,6 +807,7 @@ def calibration_metadata(fits: list[Fit]) -> dict:
                 "quote": f.quote,
                 "model_error_windows": f.windows,
                 "global_stage": f.search,
+                **({"start": f.start} if f.start else {}),
             }
             for f in fits
         },

@@ -210,6 +210,9 @@ def check_calibration(prep) -> None:
             raise ConfigError(f"{key}: at {offset:g} s, {e}") from None
     if cal is None:
         return
+    from pounding_sweep.sweep.calibrate import check_channel_offsets
+
+    check_channel_offsets(prep, cal.parameters)  # a channel's own clock bounded inside half a period
     duration = prep.excitation.max_duration_s
     lo, hi = scene.experiment.window_s or (0.0, duration)
     t_sim = exp.time_s - scene.experiment.time_offset_s

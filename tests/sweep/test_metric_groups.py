@@ -153,3 +153,14 @@ def test_scoring_and_calibration_read_no_group(tmp_path):
     pd.testing.assert_frame_equal(none[scores], every[scores], check_exact=True)
     assert "calibrated" in set(best_none.criterion) and np.isfinite(best_none.error_pct).all()
     pd.testing.assert_frame_equal(best_none, best_every, check_exact=True)  # the grid's best, refined, calibrated
+
+
+def test_one_run_in_memory_computes_every_group_whatever_the_key_says(tmp_path):
+    """simulate() is read by the figures' captions (compression phases) and the accuracy study (the energy balance
+    and its flag): it computes every group whatever [output] metrics says, as the sweep's own run does."""
+    from pounding_sweep.sweep.simulate import simulate
+
+    _, lean = simulate(six_hz(tmp_path, ("none",)), channels=["disp_b1f3"], ks_ratio=1.0, r=0.4)
+    _, every = simulate(six_hz(tmp_path, None), channels=["disp_b1f3"], ks_ratio=1.0, r=0.4)
+    for name in ("compression_phases_f3", "median_compression_phase_f3_s", "energy_residual_J", "peak_drift_b1s1_m"):
+        assert np.isfinite(lean[name]) and lean[name] == every[name], name  # the same kernel, the same run: exact

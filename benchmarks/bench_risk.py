@@ -5,6 +5,7 @@ bit for bit, and the shipped studies' tables.
     python benchmarks/bench_risk.py                      # everything (about 15-30 min on 2 shared cores)
     python benchmarks/bench_risk.py --only throughput --sizes 1000,10000
     python benchmarks/bench_risk.py --only oracles --oracle-runs 20000
+    python benchmarks/bench_risk.py --only groups --rounds 3   # the study's metric groups against all
 
 Runs go through run_scene (the lane kernel, Parquet parts) into --work (default a temporary folder, removed
 afterwards). Timings are wall times on this machine with its load at the time (printed: the machine is shared),
@@ -284,6 +285,95 @@ def _generation_time(scene, motions: int) -> float:
     return (time.perf_counter() - t0) / motions
 
 
+# ------------------------------------------------------------------------------------------------- metric groups
+
+
+def section_groups(work: Path, rounds: int, motions: int, scheme: str | None = None) -> None:
+    """The shipped stochastic study's runs (contact-free and contact) computing only the metric groups the study
+    reads (its default: sweep/metricgroups.py) against every group ([output] metrics = 'all', what every sweep
+    computed before the key), in turn, `rounds` times; CPU seconds of the whole process over each sweep
+    (time.process_time: every thread's), and the ratios within each round; `scheme`: another integration scheme."""
+    from pounding_sweep.risk.study import contact_scene, free_scene, resized
+    from pounding_sweep.sweep.run import run_scene
+
+    base = load_scene(SWEEPS / "risk_stochastic.toml")
+    if motions:
+        base = resized(base, motions)
+    if scheme:
+        base = dataclasses.replace(base, integration=dataclasses.replace(base.integration, scheme=scheme))
+    print(f"\n== 5. Metric groups: the stochastic study ({len(base.axis_values('seed'))} motions) computing what it "
+          f"reads against every group, {base.integration.scheme} scheme, CPU seconds of this process, 2 threads "
+          f"({load()})")  # fmt: skip
+    variants = {}
+    for name, metrics in (("study's", None), ("all", ("all",))):
+        s = dataclasses.replace(
+            base,
+            output=dataclasses.replace(base.output, metrics=metrics),
+            risk=dataclasses.replace(base.risk, path=str(work / f"groups_{name}")),
+            execution=dataclasses.replace(base.execution, max_runs=10_000_000),
+        )
+        variants[name] = {"free": free_scene(s), "contact": contact_scene(s)}
+    for kind, sub in variants["study's"].items():
+        print(f"  {kind} runs: {sub.output.metrics} against {variants['all'][kind].output.metrics}")
+    warm = run_scene(variants["all"]["free"], threads=2, overwrite=True, confirmed=True)  # compile or load
+    print(f"  (warm-up: {warm.runs:,} runs)")
+    print(f"{'round':>5} {'kind':>8} {'runs':>6} {'CPU s, study':>13} {'CPU s, all':>11} {'ratio':>7} "
+          f"{'kernel wall-s ratio':>20}")  # fmt: skip
+    lean = "study's"
+    ratios: dict = {"free": [], "contact": []}
+    for r in range(rounds):
+        for kind in ("free", "contact"):
+            cpu, kern = {}, {}
+            for name in (lean, "all") if r % 2 == 0 else ("all", lean):  # alternate which goes first
+                scene = variants[name][kind]
+                shutil.rmtree(scene.output.path, ignore_errors=True)
+                t0 = time.process_time()
+                summary = run_scene(scene, threads=2, overwrite=True, confirmed=True)
+                cpu[name], kern[name] = time.process_time() - t0, summary.kernel_s
+            ratios[kind].append(cpu[lean] / cpu["all"])
+            print(f"{r + 1:>5} {kind:>8} {summary.runs:>6,} {cpu[lean]:>13.2f} {cpu['all']:>11.2f} "
+                  f"{cpu[lean] / cpu['all']:>7.3f} {kern[lean] / kern['all']:>20.3f}")  # fmt: skip
+    _median_ratios(ratios)
+    print(f"({load()})")
+    _groups_kernel_alone(variants, rounds)
+
+
+def _groups_kernel_alone(variants: dict, rounds: int) -> None:
+    """The lane kernel alone on the same inputs (the motions generated once, before the clock), the study's groups
+    against every group, in turn: CPU seconds of this process (2 threads) per call, and their ratio."""
+    from pounding_sweep.engine.driver import run_chunk
+    from pounding_sweep.sweep.metricgroups import sweep_groups
+
+    print("\nthe lane kernel alone (same inputs; motions generated before the clock), CPU s per call")
+    print(f"{'round':>5} {'kind':>8} {'runs':>6} {'CPU s, study':>13} {'CPU s, all':>11} {'ratio':>7}")
+    inputs = {}
+    for kind, scene in variants["study's"].items():
+        prep = prepare(scene)
+        n = min(prep.grid.size, 4400)
+        runs, rec, _ = prep.kernel_inputs(prep.grid.chunk(0, n), 2)
+        inputs[kind] = (prep, runs, rec, {"study's": sweep_groups(scene), "all": L.GROUPS_ALL})
+    ratios: dict = {kind: [] for kind in inputs}
+    for r in range(rounds):
+        for kind, (prep, runs, rec, masks) in inputs.items():
+            cpu = {}
+            for name in ("study's", "all") if r % 2 == 0 else ("all", "study's"):
+                opts = prep.opts._replace(groups=masks[name])
+                t0 = time.process_time()
+                run_chunk(prep.sysarr, runs, rec, prep.hist, opts, 2, 0, prep.score, prep.kernel)
+                cpu[name] = time.process_time() - t0
+            lean, full = cpu["study's"], cpu["all"]
+            ratios[kind].append(lean / full)
+            print(f"{r + 1:>5} {kind:>8} {runs.n:>6,} {lean:>13.3f} {full:>11.3f} {lean / full:>7.3f}")
+    _median_ratios(ratios)
+    print(f"({load()})")
+
+
+def _median_ratios(ratios: dict) -> None:
+    """The CPU-time ratios' median and range per kind of run (each ratio from one round: the same load)."""
+    for kind, r in ratios.items():
+        print(f"  {kind}: ratio median {np.median(r):.3f} (range {min(r):.3f}-{max(r):.3f}, {len(r)} rounds)")
+
+
 # ------------------------------------------------------------------------------------------------- shipped
 
 
@@ -317,14 +407,17 @@ def section_shipped(work: Path) -> None:
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--only", choices=["oracles", "fragility", "throughput", "shipped"], action="append")
+    p.add_argument("--only", choices=["oracles", "fragility", "throughput", "groups", "shipped"], action="append")
+    p.add_argument("--rounds", type=int, default=3, help="rounds of the metric groups' comparison")
+    p.add_argument("--motions", type=int, default=0, help="motions of the groups' comparison (0: the shipped 1000)")
+    p.add_argument("--scheme", help="integration scheme of the groups' comparison (default: the study's)")
     p.add_argument("--sizes", default="1000,10000,100000,1000000", help="ensemble sizes in runs")
     p.add_argument("--oracle-runs", type=int, default=20000, help="runs of the first-passage comparison")
     p.add_argument("--history-runs", type=int, default=4000, help="runs with histories (variance, crossings)")
     p.add_argument("--no-dask", action="store_true")
     p.add_argument("--work", help="folder for the runs (default: a temporary one, removed afterwards)")
     args = p.parse_args()
-    only = set(args.only or ["oracles", "fragility", "throughput", "shipped"])
+    only = set(args.only or ["oracles", "fragility", "throughput", "groups", "shipped"])
     work = Path(args.work) if args.work else Path(tempfile.mkdtemp(prefix="bench_risk_"))
     print(f"bench_risk: {os.cpu_count()} cores, {load()}, work folder {work}")
     try:
@@ -334,6 +427,8 @@ def main() -> None:
             section_fragility()
         if "throughput" in only:
             section_throughput([int(float(x)) for x in args.sizes.split(",")], work, not args.no_dask)
+        if "groups" in only:
+            section_groups(work, args.rounds, args.motions, args.scheme)
         if "shipped" in only:
             section_shipped(work)
     finally:

@@ -31,6 +31,7 @@ from pounding_sweep.gaps.study import SEPARATED_GAP_M
 from pounding_sweep.model.coupled import CoupledModel
 from pounding_sweep.model.excitation import intensity_period
 from pounding_sweep.scene import Axis, Scene, validate
+from pounding_sweep.sweep.metricgroups import study_metrics
 
 #: the study folder's manifest, written after its runs: a folder holding it is a risk study's (its tables and
 #: figures may be replaced)
@@ -100,8 +101,22 @@ def _levels(scene: Scene) -> tuple:
     return scene.axis_values("scale") or (scene.excitation.scale,)
 
 
+def readers(scene: Scene, kind: str) -> tuple[str, ...]:
+    """What reads the study's `kind` runs (sweep/metricgroups.py READERS): the demand table reads the contact-free
+    runs; the consequence table, with contact gaps, both kinds."""
+    consequences = ("risk_consequences",) if scene.risk.contact_gaps_m else ()
+    return (("risk_demand",) if kind == "free" else ()) + consequences
+
+
 def _derived(scene: Scene, kind: str, axes: tuple, **changes) -> Scene:
-    """The scene of the study's `kind` runs ('free', 'contact'): its axes, its folder, nothing else of the study."""
+    """The scene of the study's `kind` runs ('free', 'contact'): its axes, its folder, the metric groups the
+    study reads of them (and any more the scene's [output] metrics names), nothing else of the study."""
+    output = dataclasses.replace(
+        scene.output,
+        path=str(study_folder(scene) / f"runs_{kind}.parquet"),
+        histories=(),
+        metrics=study_metrics(scene, *readers(scene, kind)),
+    )
     out = dataclasses.replace(
         scene,
         name=f"{scene.name}.{kind}",
@@ -109,7 +124,7 @@ def _derived(scene: Scene, kind: str, axes: tuple, **changes) -> Scene:
         calibrate=None,
         risk=None,
         sweep=axes,
-        output=dataclasses.replace(scene.output, path=str(study_folder(scene) / f"runs_{kind}.parquet"), histories=()),
+        output=output,
         **changes,
     )
     validate(out)

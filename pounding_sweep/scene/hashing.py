@@ -13,6 +13,8 @@ import hashlib
 import json
 from pathlib import Path
 
+from pounding_sweep.scene.groups import metric_group_names
+
 #: [experiment] keys added after scenes were first hashed (acceleration channels), with the values they had
 #: before they existed: at these values they are left out of the canonical form, so a scene that does not
 #: use them keeps its hash (and its results resume). Written out, not read from the schema: were a default
@@ -58,7 +60,7 @@ def canonical(scene) -> dict:
         for key, before in ADDED_BUILDING_KEYS.items():
             if d.get(building) is not None and d[building].get(key, before) == before:
                 d[building].pop(key, None)
-    d["output"].pop("path")
+    d["output"] = _output(d["output"])
     digests: dict[str, dict] = {}
 
     def file(path):
@@ -82,6 +84,17 @@ def canonical(scene) -> dict:
         if x.get("video") is not None:
             x["video"]["path"] = file(scene.experiment.video.path)
     return json.loads(json.dumps(d, sort_keys=True, default=str))  # plain JSON types: tuples as lists
+
+
+def _output(out: dict) -> dict:
+    """[output] as hashed: no path (where results go changes none of them); metrics, added later, absent at its
+    default (every group) as before it existed, else the groups it names in one order (another order computes
+    the same)."""
+    out = {k: v for k, v in out.items() if k != "path"}
+    metrics = out.pop("metrics", None)
+    if metrics is not None:
+        out["metrics"] = list(metric_group_names(tuple(metrics)))
+    return out
 
 
 def config_hash(scene) -> str:

@@ -238,7 +238,7 @@ class IntegrationConfig:
 
 @dataclass(frozen=True)
 class OutputConfig:
-    """Where results go and which time histories to keep."""
+    """Where results go, which time histories to keep and which metric groups to compute."""
 
     path: str = _f(
         "Parquet dataset folder of one row per run (relative to the scene file)",
@@ -249,6 +249,14 @@ class OutputConfig:
         "history channels: disp_b1f3, vel_b2f1, abs_acc_b1f3, force_f3, ground_acc (none: metrics only)", ()
     )
     history_decimate: int = _f("keep every n-th step of the histories", 1)
+    metrics: tuple[str, ...] | None = _f(
+        "the metric groups each run computes: energy (the energy balance, energy_residual flag), drift (peak story "
+        "drifts), closest (closest approach), phases (compression time, phases, median phase, median_truncated "
+        "flag), or 'all' / 'none'; a group left out is NaN in its columns and skipped by the lane kernel's steps. "
+        "What a study reads is computed whatever this says",
+        None,
+        when="default: all; a risk study's runs: only the groups the study reads",
+    )
 
 
 @dataclass(frozen=True)

@@ -18,6 +18,7 @@ from pounding_sweep.codes import (
 from pounding_sweep.errors import ConfigError, shown
 from pounding_sweep.scene.axes import check_ks
 from pounding_sweep.scene.channels import experiment_channel, parse_channel
+from pounding_sweep.scene.groups import METRIC_GROUPS
 from pounding_sweep.scene.parameters import (
     FAMILIES,
     STIFFNESS_FORMS,
@@ -232,6 +233,7 @@ def _validate_rest(s: Scene, axes: dict) -> None:
             f"steps over [excitation] duration_s = {e.duration_s!r}, more than {MAX_STEPS:,} (dt in the wrong units?)"
         )
     _positive(s.output.history_decimate, "[output] history_decimate")
+    _check_metrics(s.output.metrics)
     for ch in s.output.histories:
         parse_channel(ch, s.floors)
     check_workers(s.execution.threads, "[execution] threads")
@@ -253,6 +255,22 @@ def _validate_rest(s: Scene, axes: dict) -> None:
         n *= len(a.values)
     if n > MAX_GRID:
         raise ConfigError(f"[sweep]: {n} grid points exceed the limit of {MAX_GRID}")
+
+
+def _check_metrics(metrics: tuple[str, ...] | None) -> None:
+    """[output] metrics: metric group names (METRIC_GROUPS), each once, or 'all' or 'none' alone."""
+    if metrics is None:
+        return
+    shown_key = f"[output] metrics = {shown(metrics[0] if len(metrics) == 1 else list(metrics))}"
+    for name in metrics:
+        if name not in (*METRIC_GROUPS, "all", "none"):
+            raise ConfigError(
+                f"{shown_key}: {shown(name)} is not a metric group (one of: {', '.join(METRIC_GROUPS)}; or 'all', 'none')"
+            )
+    if len(set(metrics)) != len(metrics):
+        raise ConfigError(f"{shown_key}: a group named twice")
+    if len(metrics) > 1 and ("all" in metrics or "none" in metrics):
+        raise ConfigError(f"{shown_key}: 'all' and 'none' stand alone, not in a list of groups")
 
 
 def _check_story_stiffness(b: BuildingConfig, bname: str, n: int) -> None:

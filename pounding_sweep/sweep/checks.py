@@ -107,6 +107,8 @@ class ContactTally:
         self.pair = 0  # the pair that made it
         self.min_gap = math.inf
         self.peaks: dict[str, tuple[float, float]] = {}  # peak_disp / peak_abs_acc column -> (least, largest) over runs
+        # False: the closest group was left out ([output] metrics): its columns are NaN, the approach is unknown
+        self.closest_computed = True
 
     def add(self, table, numpy_column) -> None:
         names = table.column_names
@@ -116,7 +118,7 @@ class ContactTally:
             if np.nansum(numpy_column(table, f"impacts_f{j}")) > 0:
                 self.contact = True
             closest = f"closest_approach_f{j}_m"
-            if closest in names and "gap_m" in names and table.num_rows:
+            if self.closest_computed and closest in names and "gap_m" in names and table.num_rows:
                 approach = float(
                     np.nanmax(numpy_column(table, "gap_m") - numpy_column(table, closest), initial=-np.inf)
                 )
@@ -133,8 +135,13 @@ class ContactTally:
                     self.peaks[name] = (min(lo, float(x.min())), max(hi, float(x.max())))
 
     def separated_on_purpose(self) -> bool:
-        """Every gap at least SEPARATED_ON_PURPOSE times the closest approach (and below the metres hint)."""
-        return 0 < self.min_gap < METRES_HINT_GAP_M and self.min_gap >= SEPARATED_ON_PURPOSE * max(self.approach, 0.0)
+        """Every gap at least SEPARATED_ON_PURPOSE times the closest approach (and below the metres hint); never
+        when the closest approach was not computed (it is not known then)."""
+        return (
+            self.closest_computed
+            and 0 < self.min_gap < METRES_HINT_GAP_M
+            and self.min_gap >= SEPARATED_ON_PURPOSE * max(self.approach, 0.0)
+        )
 
 
 def check_contact(tally: ContactTally, scene) -> None:
@@ -147,7 +154,12 @@ def check_contact(tally: ContactTally, scene) -> None:
     swept = [a.name for a in scene.sweep if a.name in CONTACT_AXES and len(a.values) > 1]
     gap = tally.min_gap
     scale = max((hi for name, (_, hi) in tally.peaks.items() if name.startswith("peak_disp_b")), default=0.0)
-    if tally.approach > ROUNDING_APPROACH * scale:
+    if not tally.closest_computed:
+        moved = (
+            f"how near the facing floors came is not known ([output] metrics leaves out closest, the closest "
+            f"approach), against a gap of {gap * 1e3:.4g} mm"
+        )
+    elif tally.approach > ROUNDING_APPROACH * scale:
         moved = (
             f"the facing floors came at most {tally.approach * 1e3:.3g} mm nearer than at rest (floor pair "
             f"{tally.pair}), against a gap of {gap * 1e3:.4g} mm"

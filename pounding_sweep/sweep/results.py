@@ -9,6 +9,7 @@ of the grid, in run_id order), which pandas, pyarrow, polars and DuckDB read as 
 from __future__ import annotations
 
 import errno
+import fnmatch
 import json
 import os
 import platform
@@ -89,6 +90,8 @@ def arrow_array(values) -> pa.Array:
 
     Built from the NumPy buffers: pa.array() imports pandas on its first call (to check for a
     Series; apache/arrow#34994), which cost a metrics-only sweep half a second of start-up."""
+    if isinstance(values, pa.Array):  # built already (an integer column with nulls: metrics_table)
+        return values
     v = np.asarray(values)
     n = v.size
     if v.dtype.kind == "f":
@@ -141,15 +144,46 @@ def metrics_table(
         if name == "status_code":
             continue
         col = metrics[:, i]
-        cols[name] = col.astype(np.int64) if name.startswith(INT_COLUMNS) else col
+        cols[name] = int_column(col) if name.startswith(INT_COLUMNS) else col
     cols.update(extra or {})
     cols["status"] = np.array(status_words(metrics[:, metric_names.index("status_code")]), dtype=object)
     cols["run_time_s"] = run_time
     return arrow_table(cols)
 
 
-def file_metadata(scene, extra: dict) -> dict[bytes, bytes]:
-    """Key-value metadata: scene TOML, canonical config and hash, versions, units, model facts."""
+def int_column(col: np.ndarray):
+    """A count column (float64 in the metric row) as int64; a NaN (a metric group left out: not computed) as a
+    null, so the column keeps its int64 type and a reader sees a missing value, never a number."""
+    missing = np.isnan(col)
+    if not missing.any():
+        return col.astype(np.int64)
+    ints = np.where(missing, 0, col).astype(np.int64)
+    valid = pa.py_buffer(np.packbits(~missing, bitorder="little"))
+    return pa.Array.from_buffers(pa.int64(), ints.size, [valid, pa.py_buffer(ints)], null_count=int(missing.sum()))
+
+
+#: the status flags a metric group sets (engine/layout.py: left out, the group's flag is never set)
+GROUP_FLAGS = {"energy": "energy_residual", "phases": "median_truncated"}
+
+
+def column_docs(left_out: list[str], groups_left_out: list[str], key: str) -> dict[str, str]:
+    """COLUMN_DOCS for a sweep that left metric groups out: a column of theirs (`left_out`, names) described as not
+    computed, and the status flags they would set named as not checked."""
+    out = dict(COLUMN_DOCS)
+    for pattern, doc in COLUMN_DOCS.items():
+        if any(fnmatch.fnmatchcase(c, pattern) for c in left_out):
+            out[pattern] = (
+                f"not computed: {key} leaves out its group (NaN or null in every row); computed, it is: {doc}"
+            )
+    flags = [GROUP_FLAGS[g] for g in groups_left_out if g in GROUP_FLAGS]
+    if flags:
+        out["status"] += f"; not checked here: {', '.join(flags)} ({key} leaves out their groups)"
+    return out
+
+
+def file_metadata(scene, extra: dict, columns: dict[str, str] | None = None) -> dict[bytes, bytes]:
+    """Key-value metadata: scene TOML, canonical config and hash, versions, units, model facts; `columns`: what
+    each column means (default COLUMN_DOCS; a sweep leaving metric groups out passes column_docs)."""
     import numba
 
     info = {
@@ -163,7 +197,7 @@ def file_metadata(scene, extra: dict) -> dict[bytes, bytes]:
         "config_hash": scene.config_hash(),
         "config": scene.canonical(),
         "units": "SI: m, kg, s, N; unit suffix in each column name",
-        "columns": COLUMN_DOCS,
+        "columns": COLUMN_DOCS if columns is None else columns,
         **extra,
     }
     return {

@@ -42,10 +42,12 @@ from pounding_sweep.sweep.checks import (
     check_time_step,
 )
 from pounding_sweep.sweep.gate import pause
+from pounding_sweep.sweep.metricgroups import KEY, groups_facts, left_out_columns, sweep_groups
 from pounding_sweep.sweep.prepare import Prepared, drift_ratio_columns, prepare  # noqa: F401
 from pounding_sweep.sweep.ranking import Ranking, Refinement, score_columns, score_table_columns
 from pounding_sweep.sweep.results import (
     PART_NAME,
+    column_docs,
     file_metadata,
     histories_path,
     histories_table,
@@ -150,7 +152,8 @@ def _run_claimed(scene, folder, threads, progress, executor, kernel, size, notes
     from pounding_sweep.sweep.executors import make_executor
 
     out_path, hpath, ex = folder.out, folder.hpath, scene.execution
-    prep = prepare(scene, kernel)
+    groups = sweep_groups(scene)  # the metric groups the scene asks for (sweep/metricgroups.py)
+    prep = prepare(scene, kernel, groups)
     check_time_step(prep)
     check_scene(prep)
     check_calibration(prep)
@@ -177,12 +180,16 @@ def _run_claimed(scene, folder, threads, progress, executor, kernel, size, notes
     # where the scene's folder lies from the results: a project moved with its results is still plotted from its
     # own files (plots.scene_of)
     facts["scene_dir_from_results"] = os.path.relpath(Path(scene.source).resolve().parent, out_path.resolve())
-    meta = file_metadata(scene, {**facts, "warnings": notes.messages()})
+    facts["metric_groups"] = groups_facts(groups)
+    left_out = left_out_columns(groups, model.floors, model.n_pairs)
+    columns = column_docs(left_out, facts["metric_groups"]["left_out"], KEY) if left_out else None
+    meta = file_metadata(scene, {**facts, "warnings": notes.messages()}, columns)
     names = L.metric_columns(model.floors, model.n_pairs)
     ranking = (
         Ranking([f"rel_rms_{c}_pct" for c in prep.score_codes] + ["rel_rms_combined_pct"]) if prep.score_codes else None
     )
     tally = _Tally(ranking)
+    tally.contact.closest_computed = bool(groups & L.GROUP_CLOSEST)  # the no-contact warning says when it is not
     for i in sorted(done):
         tally.add(_read_part(out_path / PART_NAME.format(i)))
     tally.mark_resumed()

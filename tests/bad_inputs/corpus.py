@@ -629,6 +629,14 @@ CASES: list[Case] = [
         edit(BASE, 'name = "bad_input_case"', 'name = "../elsewhere"'),
     ),
     _c(
+        "unknown_metric_group",
+        "values",
+        '[output] metrics = ["energy", "drfit"] (a typo of drift)',
+        [S, "[output] metrics"],
+        "drfit",
+        BASE + 'metrics = ["energy", "drfit"]\n',
+    ),
+    _c(
         "r_above_1",
         "values",
         "[contact] r = 1.5",

@@ -257,6 +257,7 @@ def newmark_reference(scene, noise: float = 0.0, seed: int = 0, **overrides) -> 
         p_next = -(P.M @ ones) * ag[k + 1]
         p_hat = p_next + P.M @ (4.0 / dt**2 * u_n + 4.0 / dt * v_n + a_n) + P.C @ (2.0 / dt * u_n + v_n)
 
+        locate = P.scheme == "event"
         if P.scheme == "implicit":
             start = active.copy()
             tried = []
@@ -272,26 +273,21 @@ def newmark_reference(scene, noise: float = 0.0, seed: int = 0, **overrides) -> 
                 if any(np.array_equal(want, s) for s in tried):
                     break  # cycles
                 active = want
-            if not settled:
-                # no set agrees with its end state: the step as the event scheme takes it, from the start's set
+            if settled:
+                stats["impacts"] += active & ~start
+                stats["contact_time"] += np.where(active, dt, 0.0)
+                stats["peak_force"] = np.maximum(stats["peak_force"], np.where(active, F, 0.0))
+            else:  # no set agrees with its end state: the step as the event scheme takes it, from the start's set
                 located += 1
-                u, v, a, F, active, n_unsettled = _event_step(P, k, u_n, v_n, a_n, start, ag, stats)
-                unsettled += n_unsettled
-                U[k + 1], V[k + 1], A[k + 1] = u, v, a
-                F_hist[k + 1] = F
-                act_hist[k + 1] = active
-                continue
-            stats["impacts"] += active & ~start
-            stats["contact_time"] += np.where(active, dt, 0.0)
-            stats["peak_force"] = np.maximum(stats["peak_force"], np.where(active, F, 0.0))
-        elif P.scheme == "event":
+                locate, active = True, start
+        if locate:
             u, v, a, F, active, n_unsettled = _event_step(P, k, u_n, v_n, a_n, active, ag, stats)
             unsettled += n_unsettled
             U[k + 1], V[k + 1], A[k + 1] = u, v, a
             F_hist[k + 1] = F
             act_hist[k + 1] = active
             continue
-        else:
+        if P.scheme == "paper":
             u0 = P.rounded(np.linalg.solve(Keff, p_hat))  # trial step, F = 0
             z0 = P.G.T @ u0
             v0 = 2.0 / dt * (u0 - u_n) - v_n  # trial velocity (eq. 15)

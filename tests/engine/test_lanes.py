@@ -38,7 +38,6 @@ from pounding_sweep.engine import driver, events, registry
 from pounding_sweep.engine import lanes as kernel_lanes
 from pounding_sweep.engine import layout as L
 from pounding_sweep.engine.driver import HistorySpec, RunArrays, ScoreSpec
-from pounding_sweep.engine.lanes.groups import _median_inplace
 from pounding_sweep.model.contact import CONTACT_LAWS
 from pounding_sweep.reference import newmark_reference
 from pounding_sweep.scene import Axis, load_scene
@@ -450,23 +449,6 @@ def test_event_scheme_stiff_coarse_steps(law):
         assert (col(lanes, "max_contact_iterations") == events.MAX_EVENTS).any()
     again, _ = driver.run_chunk_lanes(prep.sysarr, runs, rec, prep.opts, threads=2)
     assert_rows_identical(again, lanes)
-
-
-def test_median_of_compressive_phases_equals_numpys():
-    """The lane kernel's in-place heapsort median against np.median, exactly, odd and even counts,
-    ties, and the empty buffer."""
-    import numba
-
-    @numba.njit
-    def median(buf, k):
-        return _median_inplace(buf, 0, 0, k)
-
-    rng = np.random.default_rng(11)
-    for k in [0, 1, 2, 3, 4, 7, 8, 100, 4096]:
-        x = rng.choice([1e-3, 2e-3, 2.3e-2, 0.0], k) if k % 3 == 0 else rng.random(k)
-        buf = np.zeros((1, 1, max(k, 1)))
-        buf[0, 0, :k] = x
-        assert median(buf, k) == (np.median(x) if k else 0.0)
 
 
 @pytest.mark.parametrize("scheme", SCHEMES)

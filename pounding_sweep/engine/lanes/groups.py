@@ -12,6 +12,7 @@ import numpy as np
 
 from pounding_sweep.codes import EXC_HARMONIC, SCHEME_EVENT
 from pounding_sweep.engine import layout as ML
+from pounding_sweep.engine.bookkeeping import median_inplace
 from pounding_sweep.engine.clock import _monotonic_ns
 from pounding_sweep.engine.inputs import LaneWork
 from pounding_sweep.engine.jit import inline, njit_lanes, njit_step
@@ -107,40 +108,6 @@ def _park(W, l, nrows, r_s):
 
 
 @njit_step
-def _median_inplace(dur, l, j, k):
-    """Median of dur[l, j, :k] (the mean of the two middle values for even k, as np.median), sorting
-    the buffer in place (heapsort: no allocation, no compiled np.median); 0.0 when k = 0."""
-    if k == 0:
-        return 0.0
-    for start in range(k // 2 - 1, -1, -1):  # heapify, then pop the largest to the end
-        _sift_down(dur, l, j, start, k)
-    for end in range(k - 1, 0, -1):
-        x = dur[l, j, 0]
-        dur[l, j, 0] = dur[l, j, end]
-        dur[l, j, end] = x
-        _sift_down(dur, l, j, 0, end)
-    if k % 2 == 1:
-        return dur[l, j, k // 2]
-    return (dur[l, j, k // 2 - 1] + dur[l, j, k // 2]) / 2.0
-
-
-@njit_step
-def _sift_down(dur, l, j, i, n):
-    while True:
-        c = 2 * i + 1
-        if c >= n:
-            return
-        if c + 1 < n and dur[l, j, c + 1] > dur[l, j, c]:
-            c += 1
-        if dur[l, j, c] <= dur[l, j, i]:
-            return
-        x = dur[l, j, c]
-        dur[l, j, c] = dur[l, j, i]
-        dur[l, j, i] = x
-        i = c
-
-
-@njit_step
 def _finalize_lane(gw, l, metrics, steps_done, dt, modal):
     """Write lane l's metric row (scalar.integrate_batch's end-of-run code) after its last step;
     modal = (om2, psi) (engine/inputs.py LaneModel)."""
@@ -166,7 +133,7 @@ def _finalize_lane(gw, l, metrics, steps_done, dt, modal):
         if k > ML.MEDIAN_BUFFER:
             status |= ML.STATUS_MEDIAN_TRUNCATED
             k = ML.MEDIAN_BUFFER
-        metrics[run, base + ML.PAIR_MEDIAN_COMPRESSION] = _median_inplace(dur, l, j, k)
+        metrics[run, base + ML.PAIR_MEDIAN_COMPRESSION] = median_inplace(dur[l, j], k)
     unsettled = W[(r_s + S_UNS) * LANES + l]
     if unsettled > 0:
         status |= ML.STATUS_UNSETTLED

@@ -10,7 +10,9 @@ Who reads a group's columns (found with grep on the columns engine/layout.left_o
 - scoring, ranking, refinement and calibration read no group: the scores come from the kernel's score spec and
   the calibration fits histories, and the best table takes only parameters, scores and status;
 - one run in memory (simulate: the figures' captions read compression phases, the accuracy study the energy
-  balance and its flag), the gap study and the benchmarks call prepare() without a mask: every group.
+  balance and its flag), the gap study and the benchmarks call prepare() without a mask: every group. (The gap
+  study reads closest approach and drift of a dozen runs per record: leaving the other groups out would save a
+  few per cent of seconds and cost a first compile of the lane kernel's other variant, engine/driver.py.)
 """
 
 from __future__ import annotations

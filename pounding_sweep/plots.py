@@ -579,7 +579,9 @@ def history_figures(scene, pick: dict, label: str, md: dict | None = None, skipp
     run_scene, params = _run(scene, pick)
     hist, m = simulate(run_scene, channels=channels + ([f"force_f{top}"] if top else []), **params)
     t = hist.t_s.to_numpy()
-    te = exp.time_s - scene.experiment.time_offset_s if exp is not None else None
+    # the table's instants at simulation time: the run's clock offset (a fitted time_offset_s) and each channel's
+    # own fitted one on top (measured_residuals does the same)
+    te = exp.time_s - pick.get("time_offset_s", scene.experiment.time_offset_s) if exp is not None else None
     zoom = zoom_window(scene, t[-1], exp, hist[f"disp_{shown[0]}_m"].to_numpy())
     zoom_text = f"zoom {_time_text(zoom[0])}-{_time_text(zoom[1])} s"
     out = {}
@@ -593,7 +595,7 @@ def history_figures(scene, pick: dict, label: str, md: dict | None = None, skipp
             ax.plot(t, x, lw=0.9, color="C0", label="numerical")
             if code in disp_codes:
                 ax.plot(
-                    te,
+                    te - pick.get(f"time_offset_s_{code}", 0.0),
                     exp.channels[code] * 1e3,
                     "o",
                     ms=2.2,
@@ -648,25 +650,29 @@ def history_figures(scene, pick: dict, label: str, md: dict | None = None, skipp
         )
         out["pounding_force"] = fig
 
-    # numerical against experimental (SSP), every channel in its own quantity
+    # numerical against experimental (SSP), every channel in its own quantity: the samples the scoring and the
+    # calibration compare (measured_residuals: the window, the fitted clock offsets, the low-pass filter)
     if codes:
-        keep = (te >= 0) & (te <= t[-1])
+        from pounding_sweep.engine.score import relative_rms_error_pct
+
+        compared = measured_residuals(scene, pick, md)
         fig = _figure(figsize=(4.4 * len(codes), 5.6))  # tall enough for square boxes
         axes = fig.subplots(1, len(codes), squeeze=False)[0]
         for ax, code in zip(axes, codes):
             quantity, unit, factor = channel_quantity(code)
-            xe = exp.channels[code][keep] * factor
-            xd = np.interp(te[keep], t, hist[history_column(code)].to_numpy()) * factor
+            _tk, xe_si, xd_si, _res = compared[code]
+            xe, xd = xe_si * factor, xd_si * factor
             lim = float(np.max(np.abs(np.r_[xe, xd]))) * 1.05
             ax.plot([-lim, lim], [-lim, lim], "k--", lw=0.8, label="numerical = experimental")
-            ax.plot(xe, xd, "o", ms=2, alpha=0.6, color="C0", label=f"{keep.sum()} samples")
+            ax.plot(xe, xd, "o", ms=2, alpha=0.6, color="C0", label=f"{xe.size} samples")
             ax.set_xlim(-lim, lim)
             ax.set_ylim(-lim, lim)
             ax.set_xlabel(f"experimental {quantity} [{unit}]")
             ax.set_ylabel(f"numerical {quantity} [{unit}]")
+            corr = float(np.corrcoef(xe_si, xd_si)[0, 1]) if xe.size > 1 else float("nan")
             ax.set_title(
-                f"{channel_label(code, md)}\neq. 20 error {m[f'rel_rms_{code}_pct']:.1f} %, "
-                f"correlation {m[f'corr_{code}']:.4f}",
+                f"{channel_label(code, md)}\neq. 20 error {relative_rms_error_pct(xd_si, xe_si):.1f} %, "
+                f"correlation {corr:.4f}",
                 fontsize=10,
             )
             ax.set_box_aspect(1)

@@ -199,6 +199,30 @@ def test_figures_carry_units_and_legends(scored):
     assert "eq. 20 error" in disp.axes[0].get_title(loc="left")
 
 
+def test_ssp_draws_the_compared_samples_at_the_fitted_clocks(scored):
+    """The sub-space plot holds exactly the samples the scoring and calibration compare (measured_residuals: the
+    window, the run's clock offset and each channel's fitted one), and its caption's eq. 20 error is theirs: a
+    fitted per-channel offset moves that channel's points and no other's."""
+    from pounding_sweep.engine.score import relative_rms_error_pct
+
+    scene, md = plots.scene_of(scored), read_metadata(scored)
+    base = {"ks_ratio": 5.0, "r": 0.4}
+
+    for pick in (base, {**base, "time_offset_s_b2f3": 0.02}):
+        want = plots.measured_residuals(scene, pick, md)
+        axes = plots.history_figures(scene, pick, "test", md)["ssp"].axes
+        assert len(axes) == len(want) == 2
+        for ax, (_t, xe, xm, _r) in zip(axes, want.values()):
+            pts = ax.lines[1]
+            np.testing.assert_array_equal(pts.get_xdata(), xe * 1e3)  # displacements drawn in mm
+            np.testing.assert_array_equal(pts.get_ydata(), xm * 1e3)
+            assert f"eq. 20 error {relative_rms_error_pct(xm, xe):.1f} %" in ax.get_title()
+    plain = plots.measured_residuals(scene, base, md)
+    late = plots.measured_residuals(scene, {**base, "time_offset_s_b2f3": 0.02}, md)
+    np.testing.assert_array_equal(plain["b1f3"][2], late["b1f3"][2])
+    assert not np.array_equal(plain["b2f3"][2], late["b2f3"][2])
+
+
 # ------------------------------------------------------------------ issue 16: wrong files, any two axes, captions
 
 

@@ -695,19 +695,23 @@ def _run(scene, pick: dict) -> tuple:
 def measured_residuals(scene, pick: dict, md: dict) -> dict:
     """Every measured channel of the scene against the run `pick` over the compared window, in SI: code -> (t [s],
     measured, model, residual = measured - model). The model is sampled at the table's instants by linear
-    interpolation between steps (as the calibration samples it: sweep/calibrate.py) and, where the scene
-    low-passes the acceleration channels, both are filtered with the scoring's sections from rest at the window's
-    start, as scored."""
+    interpolation between steps (the calibration interpolates displacements by cubic Hermite from the step's
+    velocities: sweep/calibrate.py; the two differ by O(dt^2) of the curvature); an acceleration channel of a scene
+    that models its accelerometer ([experiment] sensor_filter) is read through that sensor (sweep/sensor.py), as
+    scored and calibrated; and, where the scene low-passes the acceleration channels, both are filtered with the
+    scoring's sections from rest at the window's start, as scored."""
     from scipy.signal import sosfilt
 
     from pounding_sweep.sweep.scoring import load_experiment
+    from pounding_sweep.sweep.sensor import sensor_model
     from pounding_sweep.sweep.simulate import simulate
 
     exp = load_experiment(scene.experiment, scene.floors)
     codes = list(exp.channels)
     run_scene, params = _run(scene, pick)
     hist, _ = simulate(run_scene, channels=[history_column(c).rsplit("_m", 1)[0] for c in codes], **params)
-    t = hist.t_s.to_numpy()
+    t = hist.t_s.to_numpy()  # every step (simulate's default decimation)
+    sensor = sensor_model(scene.experiment, exp.dt_sample, float(t[1] - t[0])) if t.size > 1 else None
     # the samples the calibration compares (sweep/calibrate.py Problem): those inside the window at the scene's own
     # clock offset, each at its simulation time under the run's (a fitted time_offset_s)
     lo, hi = scene.experiment.window_s or (0.0, t[-1])
@@ -720,7 +724,12 @@ def measured_residuals(scene, pick: dict, md: dict) -> dict:
     for code in codes:
         xe = exp.channels[code][keep]
         own = pick.get(f"time_offset_s_{code}", 0.0)  # a fitted per-channel clock, on top of the table's
-        xm = np.interp(tk - own, t, hist[history_column(code)].to_numpy())
+        ts = tk - own
+        model = hist[history_column(code)].to_numpy()
+        if code.startswith(ACC_PREFIX) and sensor is not None:
+            xm = sensor.read(model, float(t[1] - t[0]), ts)
+        else:
+            xm = np.interp(ts, t, model)
         if code.startswith(ACC_PREFIX) and sos.shape[0]:
             xe, xm = sosfilt(sos, xe), sosfilt(sos, xm)
         out[code] = (tk, xe, xm, xe - xm)

@@ -247,3 +247,26 @@ def test_the_results_say_which_sensor(ivp_case):
     assert facts["sensor"]["kind"] == "butter" and facts["sensor"]["rate_Hz"] is None
     assert "simulation step (analog)" in facts["sensor"]["what"]
     assert "sensor" not in _acceleration_facts(prepare(_with(s, path)))
+
+
+def test_the_figures_read_the_model_through_the_sensor(ivp_case):
+    """plots.measured_residuals (the measured-against-model and sub-space figures) reads an acceleration channel
+    through the scene's sensor, on the same stride-1 history and at the same instants as the sweep's scoring
+    (run_sensed): its eq. 20 error is the scored one, exactly; without the sensor the figures would show an error
+    ten times the one the results report."""
+    pytest.importorskip("matplotlib", reason="plots need the 'plot' extra (matplotlib)")
+    from pounding_sweep import plots
+    from pounding_sweep.engine.score import relative_rms_error_pct
+
+    s, path = ivp_case
+    sensed = _with(s, path, sensor_filter="average", sensor_rate_Hz=1000.0)
+    pick = {"ks_ratio": 3.0, "r": 0.5}
+    _, m = simulate(sensed, channels=["abs_acc_b1f3"], **pick)
+    drawn = plots.measured_residuals(sensed, pick, {})
+    plain = plots.measured_residuals(_with(s, path), pick, {})
+    for code in ("abs_acc_b1f3", "abs_acc_b2f3"):
+        _t, xe, xm, res = drawn[code]
+        assert relative_rms_error_pct(xm, xe) == m[f"rel_rms_{code}_pct"]
+        np.testing.assert_array_equal(res, xe - xm)
+        _t, xe_p, xm_p, _ = plain[code]
+        assert relative_rms_error_pct(xm_p, xe_p) > 10 * relative_rms_error_pct(xm, xe)

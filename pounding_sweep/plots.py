@@ -559,9 +559,13 @@ def force_caption(m: dict, top: int, law: str) -> str:
     return facts
 
 
-def history_figures(scene, pick: dict, label: str, md: dict | None = None, skipped: dict | None = None) -> dict:
+def history_figures(
+    scene, pick: dict, label: str, md: dict | None = None, skipped: dict | None = None, compared: dict | None = None
+) -> dict:
     """Re-simulate one run and draw {'displacement_history', 'pounding_force'[, 'ssp']} figures. A run
-    without contact gets no force figure: `skipped` (a dict, when given) is told why."""
+    without contact gets no force figure: `skipped` (a dict, when given) is told why; `compared` (a dict, when
+    given) is filled with the samples the SSP drew (measured_residuals), for measured_figure, so the run is
+    simulated once."""
     from pounding_sweep.sweep.scoring import load_experiment
     from pounding_sweep.sweep.simulate import simulate
 
@@ -653,14 +657,16 @@ def history_figures(scene, pick: dict, label: str, md: dict | None = None, skipp
     # numerical against experimental (SSP), every channel in its own quantity: the samples the scoring and the
     # calibration compare (measured_residuals: the window, the fitted clock offsets, the low-pass filter)
     if codes:
-        from pounding_sweep.engine.score import relative_rms_error_pct
+        from pounding_sweep.engine.score import lagged_correlation, relative_rms_error_pct
 
-        compared = measured_residuals(scene, pick, md)
+        data = measured_residuals(scene, pick, md, hist, exp)
+        if compared is not None:
+            compared.update(data)
         fig = _figure(figsize=(4.4 * len(codes), 5.6))  # tall enough for square boxes
         axes = fig.subplots(1, len(codes), squeeze=False)[0]
         for ax, code in zip(axes, codes):
             quantity, unit, factor = channel_quantity(code)
-            _tk, xe_si, xd_si, _res = compared[code]
+            _tk, xe_si, xd_si, _res = data[code]
             xe, xd = xe_si * factor, xd_si * factor
             lim = float(np.max(np.abs(np.r_[xe, xd]))) * 1.05
             ax.plot([-lim, lim], [-lim, lim], "k--", lw=0.8, label="numerical = experimental")
@@ -669,7 +675,7 @@ def history_figures(scene, pick: dict, label: str, md: dict | None = None, skipp
             ax.set_ylim(-lim, lim)
             ax.set_xlabel(f"experimental {quantity} [{unit}]")
             ax.set_ylabel(f"numerical {quantity} [{unit}]")
-            corr = float(np.corrcoef(xe_si, xd_si)[0, 1]) if xe.size > 1 else float("nan")
+            corr = lagged_correlation(xd_si, xe_si, 0)  # the scored corr_<c> (NaN below 2 samples)
             ax.set_title(
                 f"{channel_label(code, md)}\neq. 20 error {relative_rms_error_pct(xd_si, xe_si):.1f} %, "
                 f"correlation {corr:.4f}",
@@ -692,24 +698,26 @@ def _run(scene, pick: dict) -> tuple:
     return (with_structure(scene, members) if members else scene), params
 
 
-def measured_residuals(scene, pick: dict, md: dict) -> dict:
+def measured_residuals(scene, pick: dict, md: dict, hist=None, exp=None) -> dict:
     """Every measured channel of the scene against the run `pick` over the compared window, in SI: code -> (t [s],
     measured, model, residual = measured - model). The model is sampled at the table's instants by linear
     interpolation between steps (the calibration interpolates displacements by cubic Hermite from the step's
     velocities: sweep/calibrate.py; the two differ by O(dt^2) of the curvature); an acceleration channel of a scene
     that models its accelerometer ([experiment] sensor_filter) is read through that sensor (sweep/sensor.py), as
     scored and calibrated; and, where the scene low-passes the acceleration channels, both are filtered with the
-    scoring's sections from rest at the window's start, as scored."""
+    scoring's sections from rest at the window's start, as scored. `hist` (simulate's histories of `pick` at every
+    step, holding every channel's column) and `exp` (the loaded experiment): a caller's own, not run or read again."""
     from scipy.signal import sosfilt
 
     from pounding_sweep.sweep.scoring import load_experiment
-    from pounding_sweep.sweep.sensor import sensor_model
+    from pounding_sweep.sweep.sensor import acceleration_at, sensor_model
     from pounding_sweep.sweep.simulate import simulate
 
-    exp = load_experiment(scene.experiment, scene.floors)
+    exp = load_experiment(scene.experiment, scene.floors) if exp is None else exp
     codes = list(exp.channels)
-    run_scene, params = _run(scene, pick)
-    hist, _ = simulate(run_scene, channels=[history_column(c).rsplit("_m", 1)[0] for c in codes], **params)
+    if hist is None:
+        run_scene, params = _run(scene, pick)
+        hist, _ = simulate(run_scene, channels=[history_column(c).rsplit("_m", 1)[0] for c in codes], **params)
     t = hist.t_s.to_numpy()  # every step (simulate's default decimation)
     sensor = sensor_model(scene.experiment, exp.dt_sample, float(t[1] - t[0])) if t.size > 1 else None
     # the samples the calibration compares (sweep/calibrate.py Problem): those inside the window at the scene's own
@@ -724,27 +732,26 @@ def measured_residuals(scene, pick: dict, md: dict) -> dict:
     for code in codes:
         xe = exp.channels[code][keep]
         own = pick.get(f"time_offset_s_{code}", 0.0)  # a fitted per-channel clock, on top of the table's
-        ts = tk - own
         model = hist[history_column(code)].to_numpy()
-        if code.startswith(ACC_PREFIX) and sensor is not None:
-            xm = sensor.read(model, float(t[1] - t[0]), ts)
+        if code.startswith(ACC_PREFIX):
+            xm = acceleration_at(sensor, model, float(t[1] - t[0]), tk - own, sos)
+            xe = sosfilt(sos, xe) if sos.shape[0] else xe
         else:
-            xm = np.interp(ts, t, model)
-        if code.startswith(ACC_PREFIX) and sos.shape[0]:
-            xe, xm = sosfilt(sos, xe), sosfilt(sos, xm)
+            xm = np.interp(tk - own, t, model)
         out[code] = (tk, xe, xm, xe - xm)
     return out
 
 
-def measured_figure(scene, pick: dict, label: str, md: dict, noise: dict | None = None):
+def measured_figure(scene, pick: dict, label: str, md: dict, noise: dict | None = None, data: dict | None = None):
     """The run `pick` (the calibrated one where there is a calibration) against every measured channel, each in its
     own quantity (displacement in mm, absolute acceleration in m/s^2; measured_residuals): measured and model
     (left whole, right a 1 s zoom around the largest measured value), and under each its residual with the
     channel's noise band +/- 2 sigma (`noise`: code -> sigma in SI, the calibration's noise floor); each title the
-    eq. 20 error and the residual's RMS against that noise."""
+    eq. 20 error and the residual's RMS against that noise. `data`: measured_residuals' result when the caller
+    has it (figures: history_figures' run)."""
     from pounding_sweep.engine.score import relative_rms_error_pct
 
-    data = measured_residuals(scene, pick, md)
+    data = data or measured_residuals(scene, pick, md)
     codes = list(data)
     t0, first = data[codes[0]][0], data[codes[0]][1]
     zoom = around(float(t0[np.argmax(np.abs(first))]), float(t0[-1]), 1.0)
@@ -921,10 +928,11 @@ def figures(
     if calibrated is not None:  # the calibrated run, not the best grid run, is the one the figures show
         pick = {**{k: v for k, v in pick.items() if k in ("record",)}, **calibrated[0]}
         label = calibrated[1]
-    out.update(history_figures(scene, pick, label, md, skipped))
+    compared: dict = {}
+    out.update(history_figures(scene, pick, label, md, skipped, compared))
     if scene.experiment is not None:
         noise = calibration_noise(best_file, pick) if calibrated is not None else {}
-        out["measured_vs_model"] = measured_figure(scene, pick, label, md, noise)
+        out["measured_vs_model"] = measured_figure(scene, pick, label, md, noise, compared)
     ladder_scene, pick = _run(scene, pick)
     pick = {k: v for k, v in pick.items() if k != "time_offset_s"}  # the ladder runs without the experiment
     if accuracy is None:

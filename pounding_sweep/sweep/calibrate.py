@@ -76,6 +76,7 @@ from pounding_sweep.sweep.globalsearch import find_basin
 from pounding_sweep.sweep.lawcompare import compare_laws as compare_on_one_basis
 from pounding_sweep.sweep.lawcompare import information_criteria
 from pounding_sweep.sweep.prepare import Prepared, history_spec, prepare, structure_groups
+from pounding_sweep.sweep.sensor import acceleration_at
 from pounding_sweep.sweep.uncertainty import model_error_intervals
 from pounding_sweep.warn import warn
 
@@ -296,13 +297,7 @@ class Problem:
             for c, slot in enumerate(self.slots):
                 ts = T.time_exp[c] - offsets[i] - own[i, c]
                 if T.acc[c]:
-                    a = hist[i, slot[0]]
-                    if self.sensor is not None:
-                        model = self.sensor.read(a, self.dt, ts)
-                    else:
-                        model = np.interp(ts / self.dt, np.arange(a.size), a)
-                    if T.sos.shape[0]:
-                        model = sosfilt(T.sos, model)
+                    model = acceleration_at(self.sensor, hist[i, slot[0]], self.dt, ts, T.sos)
                 else:
                     model = _hermite(hist[i, slot[0]], hist[i, slot[1]], self.dt, ts)
                 parts.append((model - T.values[c]) / T.sigma[c])
@@ -511,14 +506,11 @@ def _start(scene: Scene, prob: Problem, best_cell: dict | None) -> tuple[dict | 
     complete = all(n in cell for n in prob.names)
     if not ident and (complete or scene.calibrate.global_points > 0):
         return (cell or None), {}
-    own = {}
+    own = {}  # the scene's values of what the cell lacks (it holds every channel offset, at 0 where it had none)
     for n in prob.names:
-        if channel_offset(n):
-            own[n] = 0.0
-        elif n in prob.base:
-            own[n] = float(prob.base[n][0])
-        else:
-            own[n] = structure_value(scene, n)
+        if n in cell:
+            continue
+        own[n] = float(prob.base[n][0]) if n in prob.base else structure_value(scene, n)
     start = {**own, **cell, **ident}
     grid = best_cell or {}
     source = {n: "start_from" if n in ident else "grid" if n in grid else "scene" for n in prob.names}

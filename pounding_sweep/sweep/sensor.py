@@ -115,6 +115,15 @@ def _at(y: np.ndarray, x: np.ndarray) -> np.ndarray:
     return y[..., k] * (1.0 - w) + y[..., k + 1] * w
 
 
+def acceleration_at(sensor: Sensor | None, a: np.ndarray, dt: float, ts: np.ndarray, sos: np.ndarray) -> np.ndarray:
+    """A model's acceleration history a (a[k] at k dt, every step) as the experiment's table holds it at the
+    simulation instants ts [s]: read through the accelerometer where the scene models one (Sensor.read), else
+    interpolated linearly between steps; then through the experiment's low-pass sections sos (rows of 6; none:
+    unfiltered), causally from rest, as the scoring filters it. The calibration's residuals and the figures."""
+    model = sensor.read(a, dt, ts) if sensor is not None else np.interp(ts / dt, np.arange(a.size), a)
+    return sosfilt(sos, model) if sos.shape[0] else model
+
+
 def sensor_model(cfg, dt_sample: float, dt: float, table: str = "the table") -> Sensor | None:
     """The scene's sensor (None for sensor_filter = 'none'), checked against the table's sample interval
     dt_sample [s] and the simulation step dt [s]; a rate that does not fit is an ExperimentError naming it."""

@@ -602,6 +602,19 @@ def _store(W, st, l, dst, step, dt):
         W[(r_met + z) * LANES + l] = orow[z]
 
 
+@inline
+def _vector_trial(W, st, l, dst, dt):
+    """The trial (the whole step with the start's contact set) as the vector step left it in buffer dst: its
+    end state into Z_QE, Z_QDE, the Kelvin-Voigt forces (eq. 8) of that state into Z_FE. The vector step
+    took exactly this step before it marked the lane (_fixed_set_step's, in its own rounding), so the
+    scalar step does not take it again."""
+    Z, N = st.Z, st.sizes[0]
+    for k in range(N):
+        Z[Z_QE, k] = W[(dst + k) * LANES + l]
+        Z[Z_QDE, k] = (2.0 / dt) * W[(dst + N + k) * LANES + l]
+    _law_forces(Z, st.B, (Z_QE, Z_QDE, Z_FE), st.pairs.k_s, st.gap, st.psi, st.sizes)
+
+
 @njit_step
 def lane_step(W, l, bufs, run, ctx, modal, cdash, work):
     """Lane l's whole step in scalar code, from its start state to its end, its metric and energy rows
@@ -630,7 +643,7 @@ def lane_step(W, l, bufs, run, ctx, modal, cdash, work):
         finite, count, settled = _implicit_step(st, step, dt, max_iter, ag_s, ag)
         locate = not settled  # no consistent set: the step is taken as the event scheme takes it
     if locate:
-        _advance(st, dt, ag_s, ag, False)  # the trial: the whole step with the start's set
+        _vector_trial(W, st, l, dst, dt)  # the trial: the whole step with the start's set
         ground = Ground(harmonic, amp, om)
         finite, n_ev, uns = _event_step(st, ground, (step - 1) * dt, dt, ag_s, ag, EVENT_MIN_FRACTION * dt)
         count = max(count, n_ev)

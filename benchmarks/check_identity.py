@@ -16,7 +16,8 @@ columns of A that B lacks are a difference. It prints one line per table and exi
 `rows` is the quick check of a change to the lane kernel on a busy machine: it runs only the scenes the
 lane kernel computes (the four uneven grids, the paper's Duzce and 6 Hz grids) through
 sweep.prepare in this process (one compile, no subprocess per scene) and saves each scene's metric rows;
-`compare-rows` requires them equal slot for slot (NaN equal to NaN). Run it from a folder other than the
+`compare-rows` requires them equal slot for slot (NaN equal to NaN); where they differ it says by how much
+(each slot against the largest value of its column), for a change meant to move results by rounding. Run it from a folder other than the
 checkout with PYTHONPATH=OTHER_CHECKOUT for the other side.
 """
 
@@ -187,11 +188,22 @@ def compare_rows(a: Path, b: Path) -> int:
             print(f"{name}: shapes differ {u.shape} vs {v.shape}")
             bad += 1
             continue
-        differ = int((~((u == v) | (np.isnan(u) & np.isnan(v)))).sum())
-        print(
-            f"{name}: {u.shape[0]} rows x {u.shape[1]} slots "
-            + ("identical" if not differ else f"DIFFER: {differ} slots")
-        )
+        diff = ~((u == v) | (np.isnan(u) & np.isnan(v)))
+        differ = int(diff.sum())
+        said = "identical"
+        if differ:
+            # how far, for a change meant to move results by rounding only: each slot's difference over the
+            # largest magnitude its column (metric) takes in either table
+            with np.errstate(invalid="ignore", divide="ignore"):
+                scale = np.maximum(np.nanmax(np.abs(u), axis=0), np.nanmax(np.abs(v), axis=0))
+                rel = np.where(diff, np.abs(u - v) / np.where(scale > 0, scale, 1.0), 0.0)
+            rel = np.where(np.isnan(rel), np.inf, rel)  # NaN on one side only
+            worst = np.unravel_index(int(np.argmax(rel)), rel.shape)
+            said = (
+                f"DIFFER: {differ} slots in {int(diff.any(axis=1).sum())} rows, largest {rel[worst]:.2g} of its "
+                f"column's largest value (row {worst[0]}, slot {worst[1]}); median {np.median(rel[diff]):.2g}"
+            )
+        print(f"{name}: {u.shape[0]} rows x {u.shape[1]} slots " + said)
         bad += bool(differ)
     return 1 if bad else 0
 

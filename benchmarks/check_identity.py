@@ -16,15 +16,16 @@ columns of A that B lacks are a difference. It prints one line per table and exi
 `rows` is the quick check of a change to the lane kernel on a busy machine: it runs only the scenes the
 lane kernel computes (the four uneven grids, the paper's Duzce and 6 Hz grids) through
 sweep.prepare in this process (one compile, no subprocess per scene) and saves each scene's metric rows;
-`compare-rows` requires them equal slot for slot (NaN equal to NaN); where they differ it says by how much
-(each slot against the largest value of its column), for a change meant to move results by rounding. Run it from a folder other than the
-checkout with PYTHONPATH=OTHER_CHECKOUT for the other side.
+`compare-rows` requires them equal slot for slot (NaN equal to NaN); where they differ it says by how
+much (each slot against the largest value of its column), for a change meant to move results by rounding.
+Run it from a folder other than the checkout with PYTHONPATH=OTHER_CHECKOUT for the other side.
 """
 
 from __future__ import annotations
 
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -194,7 +195,8 @@ def compare_rows(a: Path, b: Path) -> int:
         if differ:
             # how far, for a change meant to move results by rounding only: each slot's difference over the
             # largest magnitude its column (metric) takes in either table
-            with np.errstate(invalid="ignore", divide="ignore"):
+            with np.errstate(invalid="ignore", divide="ignore"), warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)  # a column of NaN in both: "All-NaN slice"
                 scale = np.maximum(np.nanmax(np.abs(u), axis=0), np.nanmax(np.abs(v), axis=0))
                 rel = np.where(diff, np.abs(u - v) / np.where(scale > 0, scale, 1.0), 0.0)
             rel = np.where(np.isnan(rel), np.inf, rel)  # NaN on one side only

@@ -282,11 +282,11 @@ def event_functions(ops: EventOps, inline: bool = False):  # noqa: C901 (39: the
         hs, so the switch happens where the discrete motion crosses (penetration 0, or no-tension force 0)
         and the contact springs store or return no energy there. The second sub-step is a Newton step with
         the interpolant's slope at theta, the next ones secants through the last two; one that falls
-        outside the bracket (or any after the 8th) is Illinois false position on it, so every sub-step
+        outside the bracket (and from the tenth on) is Illinois false position on it, so every sub-step
         stays inside the bracket. The estimate is off by the sub-step map's own error, so Newton and one
         secant usually meet the 1e-13 tolerance: 3.4-4.6 sub-steps per switch where the plain Illinois
-        search took 4.0-5.2 (benchmarks/count_substeps.py). A pair that crosses earlier inside the accepted sub-step takes over. Leaves the sub-step's
-        end state in st and the pairs to switch in st.pairs.switch; 0 (switch at the start) when the
+        search took 4.0-5.2 (benchmarks/count_substeps.py). A pair that crosses earlier inside the accepted
+        sub-step takes over. Leaves the sub-step's end state in st and the pairs to switch in st.pairs.switch; 0 (switch at the start) when the
         crossing is closer than hmin. ag_s, ag_e: the ground acceleration at t_s and at t_s + h."""
         pr = st.pairs
         npair = pr.active.size

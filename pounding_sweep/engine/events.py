@@ -205,8 +205,13 @@ def bracket_crossing(herm, h, law, sign, f_lo, f_hi):
 
 
 def event_functions(ops: EventOps, inline: bool = False):  # noqa: C901 (39: the closures it makes count into it)
-    """The event step compiled with a kernel's pieces: (event_step, contradicts); with `inline`, each of its
-    functions inlined into its caller (the lane kernel: its state record is wide, and a call passes it whole).
+    """The event step compiled with a kernel's pieces: (event_step, contradicts). With `inline` (the lane
+    kernel: its state record is wide, and a call passes it whole) the small functions called many times per
+    event (indicator, contradicts) are inlined into their callers, the kernel's pieces being inlined already;
+    event_step, locate_event and first_event stay compiled functions of their own either way: each runs
+    once or twice per step or switch, beside work a call's cost does not show in (benchmarks/
+    compare_checkouts.py: 0.975 event, 0.997 implicit, --paired 20), and Numba inlines every call site's
+    copy again, which made the lane kernel's compile 93 s against 50 s (benchmarks/profile_compile.py --case 1).
 
     event_step(st, ground, t_s, h, ag_s, ag_e, hmin) -> (finite, switches located, unsettled count): the
     rest of a step from t_s (length h, ground acceleration ag_s to ag_e), its trial with the start's contact
@@ -246,7 +251,7 @@ def event_functions(ops: EventOps, inline: bool = False):  # noqa: C901 (39: the
                 return True
         return False
 
-    @compiled
+    @njit_generic
     def first_event(st, h):
         """Fraction of the piece (0..1] of length h at which the first pair leaves its contact state, or 2.0
         if none does, from each pair's Hermite interpolant between the start and end states; each pair's
@@ -274,7 +279,7 @@ def event_functions(ops: EventOps, inline: bool = False):  # noqa: C901 (39: the
             pr.switch[j] = pr.theta[j] <= first + 1e-9
         return first
 
-    @compiled
+    @njit_generic
     def locate_event(st, theta, h, hmin, ground, t_s, ag_s, ag_e):
         """Length hs (0 <= hs <= h) of the sub-step that ends where the first pair switches.
 
@@ -352,7 +357,7 @@ def event_functions(ops: EventOps, inline: bool = False):  # noqa: C901 (39: the
             pr.switch[j] = j == target or pr.theta[j] <= 1.0  # the target, and pairs crossing with it
         return hs
 
-    @compiled
+    @njit_generic
     def event_step(st, ground, t_s, h, ag_s, ag_e, hmin):
         """The rest of a step from t_s (length h, ground acceleration ag_s to ag_e), its trial with the start's
         contact set already in st: accepted whole where no pair contradicts the set, else split at the located

@@ -174,7 +174,7 @@ def njit_generic(fn):
 #: inlined into its callers at Numba's IR level (the lane kernel's vector helpers, and its event step's
 #: pieces: a call passing the lane's state record cost its scalar steps as much as the work)
 inline = numba.njit(inline="always", **LANES_JIT)
-#: njit_generic, inlined (the lane kernel's event step: events.event_functions(..., inline=True))
+#: njit_generic, inlined (the lane kernel's event step's small functions: events.event_functions(..., inline=True))
 inline_generic = numba.njit(inline="always", **dict(LANES_JIT, cache=False))
 #: the same with the scalar kernels' flags, for a per-step helper whose call showed in the time (structure_work:
 #: about 8 % of the scalar kernel on the 6 Hz grid; inlining the other helpers this way cost more than it saved)

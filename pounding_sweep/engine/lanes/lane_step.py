@@ -9,11 +9,14 @@ cr (h/2) q' per mode, the contact forces at its end solve (I + diag(kappa) W)_SS
 c delta')_S of the free step (W = Psi^T diag(cf) Psi, kappa = k_s + 2 c / h): the same system as
 engine/scalar.py's S = G^T Keff^-1 G.
 
-Everything here is inlined into lane_step at Numba's IR level (engine/jit.py `inline`), the event step's
-functions too (events.event_functions(..., inline=True)): LLVM left these small functions as calls, and
-the calls, each passing the lane's state, made the scalar steps 20-30 % slower than when they took their
-arrays one by one (benchmarks/compare_checkouts.py). bracket_crossing and the scalar helpers of
-engine/events.py stay calls (LLVM inlines them).
+Everything here is inlined into its callers at Numba's IR level (engine/jit.py `inline`), as are the event
+step's small functions (events.event_functions(..., inline=True)): LLVM left these small functions as calls,
+and the calls, each passing the lane's state, made the scalar steps 20-30 % slower than when they took their
+arrays one by one (benchmarks/compare_checkouts.py). The event step's three large functions (event_step,
+locate_event, first_event: once or twice per step or switch) are calls, with these pieces inlined into
+them: inlined into lane_step too they cost the compile 43 s and the run nothing measurable
+(events.event_functions). bracket_crossing and the scalar helpers of engine/events.py stay calls (LLVM
+inlines them).
 """
 
 from __future__ import annotations
@@ -392,9 +395,8 @@ def _advance(st, h, ag_s, ag_e, cold):
 @inline
 def _pair_at(st, end, j):
     """EventOps.pair: (penetration, its rate) of pair j at the end or start state."""
-    if end:
-        return _pair(st.Z, Z_QE, Z_QDE, j, st.psi, st.gap, st.sizes[0])
-    return _pair(st.Z, Z_Q, Z_QD, j, st.psi, st.gap, st.sizes[0])
+    rq, rqd = (Z_QE, Z_QDE) if end else (Z_Q, Z_QD)  # one inlined copy of _pair, not one per branch
+    return _pair(st.Z, rq, rqd, j, st.psi, st.gap, st.sizes[0])
 
 
 @inline

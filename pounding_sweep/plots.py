@@ -583,9 +583,6 @@ def history_figures(
     run_scene, params = _run(scene, pick)
     hist, m = simulate(run_scene, channels=channels + ([f"force_f{top}"] if top else []), **params)
     t = hist.t_s.to_numpy()
-    # the table's instants at simulation time: the run's clock offset (a fitted time_offset_s) and each channel's
-    # own fitted one on top (measured_residuals does the same)
-    te = exp.time_s - pick.get("time_offset_s", scene.experiment.time_offset_s) if exp is not None else None
     zoom = zoom_window(scene, t[-1], exp, hist[f"disp_{shown[0]}_m"].to_numpy())
     zoom_text = f"zoom {_time_text(zoom[0])}-{_time_text(zoom[1])} s"
     out = {}
@@ -599,7 +596,7 @@ def history_figures(
             ax.plot(t, x, lw=0.9, color="C0", label="numerical")
             if code in disp_codes:
                 ax.plot(
-                    te - pick.get(f"time_offset_s_{code}", 0.0),
+                    sample_times(scene, pick, exp, code),
                     exp.channels[code] * 1e3,
                     "o",
                     ms=2.2,
@@ -698,6 +695,14 @@ def _run(scene, pick: dict) -> tuple:
     return (with_structure(scene, members) if members else scene), params
 
 
+def sample_times(scene, pick: dict, exp, code: str | None = None) -> np.ndarray:
+    """The experiment table's instants at the run's simulation clock [s]: shifted by the run's clock offset (a
+    fitted time_offset_s, else the scene's) and, for a channel, by its own fitted offset on top, as the
+    calibration shifts them (sweep/calibrate.py Problem). The figures' one rule for it."""
+    t = exp.time_s - pick.get("time_offset_s", scene.experiment.time_offset_s)
+    return t if code is None else t - pick.get(f"time_offset_s_{code}", 0.0)
+
+
 def measured_residuals(scene, pick: dict, md: dict, hist=None, exp=None) -> dict:
     """Every measured channel of the scene against the run `pick` over the compared window, in SI: code -> (t [s],
     measured, model, residual = measured - model). The model is sampled at the table's instants by linear
@@ -725,19 +730,19 @@ def measured_residuals(scene, pick: dict, md: dict, hist=None, exp=None) -> dict
     lo, hi = scene.experiment.window_s or (0.0, t[-1])
     t0 = exp.time_s - scene.experiment.time_offset_s
     keep = (t0 >= lo) & (t0 <= hi)
-    tk = exp.time_s[keep] - pick.get("time_offset_s", scene.experiment.time_offset_s)
+    tk = sample_times(scene, pick, exp)[keep]
     lowpass = md.get("experiment", {}).get("lowpass")
     sos = np.asarray(lowpass["sos"], float) if lowpass else np.zeros((0, 6))
     out = {}
     for code in codes:
         xe = exp.channels[code][keep]
-        own = pick.get(f"time_offset_s_{code}", 0.0)  # a fitted per-channel clock, on top of the table's
+        ts = sample_times(scene, pick, exp, code)[keep]
         model = hist[history_column(code)].to_numpy()
         if code.startswith(ACC_PREFIX):
-            xm = acceleration_at(sensor, model, float(t[1] - t[0]), tk - own, sos)
+            xm = acceleration_at(sensor, model, float(t[1] - t[0]), ts, sos)
             xe = sosfilt(sos, xe) if sos.shape[0] else xe
         else:
-            xm = np.interp(tk - own, t, model)
+            xm = np.interp(ts, t, model)
         out[code] = (tk, xe, xm, xe - xm)
     return out
 

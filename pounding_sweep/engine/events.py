@@ -291,8 +291,8 @@ def event_functions(ops: EventOps, inline: bool = False):  # noqa: C901 (39: the
         stays inside the bracket. The estimate is off by the sub-step map's own error, so Newton and one
         secant usually meet the 1e-13 tolerance: 3.4-4.6 sub-steps per switch where the plain Illinois
         search took 4.0-5.2 (benchmarks/count_substeps.py). A pair that crosses earlier inside the accepted
-        sub-step takes over. Leaves the sub-step's end state in st and the pairs to switch in st.pairs.switch; 0 (switch at the start) when the
-        crossing is closer than hmin. ag_s, ag_e: the ground acceleration at t_s and at t_s + h."""
+        sub-step takes over. Leaves the sub-step's end state in st and the pairs to switch in st.pairs.switch;
+        0 (switch at the start) when the crossing is closer than hmin. ag_s, ag_e: the ground acceleration at t_s and at t_s + h."""
         pr = st.pairs
         npair = pr.active.size
         if theta * h < hmin:

@@ -28,8 +28,8 @@ Schemes. "implicit": every pair carries its law at the end of the step (no activ
 law is 0 out of contact). "event": the step is taken with the pairs in contact at its start carrying the
 law, the others force-free; where a pair's end penetration contradicts that (an impact or a separation),
 the instant where its penetration crosses zero is located on the real sub-step map (from the step's
-Hermite estimate, Newton and secant steps inside a false-position bracket: engine/events.py, the step written once for every kernel),
-the step split there and continued;
+Hermite estimate, Newton and secant steps inside a false-position bracket: engine/events.py, the step
+written once for every kernel), the step split there and continued;
 at an impact the hertzdamp law takes v0 from the located state. The law's own kinks (Jankowski's
 approach/restitution switch at delta_dot = 0, Hertz-damp's clip at F = 0) are not located: the force is
 continuous there, so a kink inside a step costs O(h^2) in the velocity, the scheme's order.

@@ -33,7 +33,8 @@ Three references:
   eq. 8 on the trial state applied as a load, step repeated once).
 * `newmark_reference(scheme="event")`: Newmark with each step split where a pair switches: the
   switch instants found by scipy's brentq on the sub-step map (the kernel uses an interpolant
-  estimate, then Newton and secant steps inside a false-position bracket), every sub-step a full np.linalg.solve.
+  estimate, then Newton and secant steps inside a false-position bracket), every sub-step a full
+  np.linalg.solve.
 (The continuous-time reference is reference/ivp.py; closed forms without contact reference/closed_form.py.)
 """
 

@@ -10,10 +10,10 @@ c delta')_S of the free step (W = Psi^T diag(cf) Psi, kappa = k_s + 2 c / h): th
 engine/scalar.py's S = G^T Keff^-1 G.
 
 The pieces here are inlined into their callers at Numba's IR level (engine/jit.py `inline`; lane_step,
-_mask and end_phase are compiled functions), as are the event
-step's small functions (events.event_functions(..., inline=True)): LLVM left these small functions as calls,
-and the calls, each passing the lane's state, made the scalar steps 20-30 % slower than when they took their
-arrays one by one (benchmarks/compare_checkouts.py). The event step's three large functions (event_step,
+_mask and end_phase are compiled functions), as are the event step's small functions
+(events.event_functions(..., inline=True)): LLVM left these small functions as calls, and the calls, each
+passing the lane's state, made the scalar steps 20-30 % slower than when they took their arrays one by one
+(benchmarks/compare_checkouts.py). The event step's three large functions (event_step,
 locate_event, first_event: once or twice per step or switch) are calls, with these pieces inlined into
 them: inlined into lane_step too they cost the compile 47 s and the run nothing measurable
 (events.event_functions). bracket_crossing and the scalar helpers of engine/events.py stay calls (LLVM

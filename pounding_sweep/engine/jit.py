@@ -24,11 +24,15 @@ from pathlib import Path
 
 import numba
 
+from pounding_sweep.engine import inlining
+
+inlining.install()  # Numba's IR inliner without its quadratic copy (the same code, a shorter compile)
+
 HERE = Path(__file__).resolve().parent
 #: engine modules that compile nothing (plain Python driving or choosing the kernels), by their path in the
 #: engine: an edit there changes no compiled code, so it must not cost every user a fresh compile of every
 #: kernel (tests/engine/test_jit.py checks that no module listed here holds compiled code)
-NOT_COMPILED = ("driver.py", "registry.py", "lanes/__init__.py", "lanes/eligibility.py")
+NOT_COMPILED = ("driver.py", "registry.py", "inlining.py", "lanes/__init__.py", "lanes/eligibility.py")
 #: the sources whose compiled code the cache holds
 SOURCES = sorted(p for p in HERE.rglob("*.py") if p.relative_to(HERE).as_posix() not in NOT_COMPILED) + [
     HERE.parent / "codes.py"

@@ -473,82 +473,97 @@ def _time_loop(run, model, opts, runs, records, histories, experiment, out, st, 
     return status, unsettled, max_it_seen, steps_done, ke_next
 
 
-@njit_kernel
+def _nonlinear_kernel(scored: bool):
+    """The Hertz-type kernel compiled with or without the scoring code (as scalar._batch_kernel)."""
+
+    @njit_kernel
+    def integrate_nonlinear(start, stop, model, opts, runs, records, histories, experiment, out):
+        m, C, K, i1, i2 = model.m, model.C, model.K, model.i1, model.i2
+        n = m.shape[0]
+        P = i1.shape[0]
+        u, v, a = np.empty(n), np.empty(n), np.empty(n)
+        un, vn, an = np.empty(n), np.empty(n), np.empty(n)
+        work = (
+            np.empty((n, n)),
+            np.empty((n, P + 1)),
+            np.empty((P, P)),
+            np.empty(P),
+            np.empty(P),
+            np.empty(P),
+            np.empty((P, P + 6)),
+        )
+        F = np.zeros(P)
+        alpha = np.zeros(P)
+        graze = np.zeros(P, dtype=np.bool_)
+        touching = np.zeros(P, dtype=np.bool_)
+        flags = np.zeros(1, dtype=np.int64)
+        phases = (np.zeros(P, dtype=np.bool_), np.zeros(P), np.empty((P, L.MEDIAN_BUFFER)), np.zeros(P, np.int64))
+        bufs = (np.zeros(P, dtype=np.bool_), np.zeros(P), np.zeros(P), np.zeros(P))
+        was, Sprev, Dprev, pen_prev = bufs
+        marks = (np.zeros(P, dtype=np.bool_), np.zeros(P, dtype=np.bool_), np.empty(P))  # just, flip, thetas
+        en = np.zeros(EN_N)
+        Cdu = np.empty(n)
+        xs = np.empty((experiment.dof.size, experiment.t.size))
+        wk = StepWork(np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.ones(P, dtype=np.bool_), xs)
+        pbase = L.PER_DOF * n
+        rbase = pbase + L.PER_PAIR * P
+        for run in range(start, stop):
+            t_start = _clock()
+            row = out.metrics[run]
+            d = runs.gap[run]
+            k = runs.ks[run]
+            pr = Pairs(touching, marks[0], marks[1], marks[2], runs.cdash[run], 1.0, False)
+            st = HertzState(
+                m, C, K, i1, i2, d, u, v, a, un, vn, an, F, pr, runs.law[run], k, alpha, graze, opts.min_impact_speed,
+                flags, opts.scheme, model.dt, was, Sprev, Dprev, pen_prev, en, row, phases, Cdu, work,
+            )  # fmt: skip
+            bk.start_row(row, P, pbase, d)
+            bk.start_pairs(touching, F, bufs, phases, d)
+            for j in range(P):
+                alpha[j] = 0.0
+            for q in range(EN_N):
+                en[q] = 0.0
+            flags[0] = 0
+            kind = runs.exc_kind[run]
+            rid = runs.rec_id[run] if kind == EXC_RECORD else 0
+            roff = records.off[rid] if kind == EXC_RECORD else 0
+            rlen = records.len[rid] if kind == EXC_RECORD else 0
+            ag = ground_acceleration(
+                kind, runs.exc_amp[run], runs.exc_omega[run], records.flat, roff, rlen, 0, model.dt
+            )
+            for i in range(n):
+                u[i] = 0.0
+                v[i] = 0.0
+                a[i] = -ag
+            if out.hist.shape[0] > 0:
+                bk.keep_history(out.hist, run, 0, histories.kinds, histories.index, u, v, a, F, ag)
+            status, unsettled, max_it_seen, steps_done, ke_next = _time_loop(
+                run, model, opts, runs, records, histories, experiment, out, st, wk
+            )
+            status |= runs.status_in[run] | flags[0]
+            status = bk.close_row(row, pbase, P, phases, status)
+            if scored:  # a closure constant: the other variant has no scoring code
+                status = bk.score_run(out.scores, run, xs, experiment, ke_next, status)
+            # energy: the spring part's trapezoidal work against the energy k_h delta^2.5 / 2.5 it stores at
+            # the end; their difference (the residual) is the quadrature error of the steps across impacts
+            e_spring = 0.0
+            for j in range(P):
+                if touching[j] and pen_prev[j] > 0.0:
+                    e_spring += k * pen_prev[j] ** 2.5 / 2.5
+            energies = (en[EN_IN], en[EN_ABS], en[EN_DST], en[EN_WDA], e_spring, en[EN_WSP] - e_spring)
+            status = bk.energy_row(row, rbase, m, K, u, v, energies, status)
+            bk.run_counts(row, rbase, unsettled, max_it_seen, steps_done, status)
+            out.run_time[run] = _clock() - t_start
+
+    return integrate_nonlinear
+
+
+_VARIANTS = (_nonlinear_kernel(False), _nonlinear_kernel(True))
+
+
 def integrate_nonlinear(start, stop, model, opts, runs, records, histories, experiment, out):
     """engine.scalar.integrate_batch for a Hertz-type law (runs.law: codes.LAW_HERTZ, LAW_HERTZDAMP,
     LAW_JANKOWSKI): runs start..stop-1 of the chunk into out (metrics, run_time, histories, scores).
     runs.ks holds k_h [N/m^1.5] and runs.cdash[run, j] the law's coefficient (hertzdamp: a; jankowski:
     c0; hertz: unused)."""
-    m, C, K, i1, i2 = model.m, model.C, model.K, model.i1, model.i2
-    n = m.shape[0]
-    P = i1.shape[0]
-    u, v, a = np.empty(n), np.empty(n), np.empty(n)
-    un, vn, an = np.empty(n), np.empty(n), np.empty(n)
-    work = (
-        np.empty((n, n)),
-        np.empty((n, P + 1)),
-        np.empty((P, P)),
-        np.empty(P),
-        np.empty(P),
-        np.empty(P),
-        np.empty((P, P + 6)),
-    )
-    F = np.zeros(P)
-    alpha = np.zeros(P)
-    graze = np.zeros(P, dtype=np.bool_)
-    touching = np.zeros(P, dtype=np.bool_)
-    flags = np.zeros(1, dtype=np.int64)
-    phases = (np.zeros(P, dtype=np.bool_), np.zeros(P), np.empty((P, L.MEDIAN_BUFFER)), np.zeros(P, np.int64))
-    bufs = (np.zeros(P, dtype=np.bool_), np.zeros(P), np.zeros(P), np.zeros(P))
-    was, Sprev, Dprev, pen_prev = bufs
-    marks = (np.zeros(P, dtype=np.bool_), np.zeros(P, dtype=np.bool_), np.empty(P))  # just, flip, thetas
-    en = np.zeros(EN_N)
-    Cdu = np.empty(n)
-    xs = np.empty((experiment.dof.size, experiment.t.size))
-    wk = StepWork(np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.ones(P, dtype=np.bool_), xs)
-    pbase = L.PER_DOF * n
-    rbase = pbase + L.PER_PAIR * P
-    for run in range(start, stop):
-        t_start = _clock()
-        row = out.metrics[run]
-        d = runs.gap[run]
-        k = runs.ks[run]
-        pr = Pairs(touching, marks[0], marks[1], marks[2], runs.cdash[run], 1.0, False)
-        st = HertzState(
-            m, C, K, i1, i2, d, u, v, a, un, vn, an, F, pr, runs.law[run], k, alpha, graze, opts.min_impact_speed,
-            flags, opts.scheme, model.dt, was, Sprev, Dprev, pen_prev, en, row, phases, Cdu, work,
-        )  # fmt: skip
-        bk.start_row(row, P, pbase, d)
-        bk.start_pairs(touching, F, bufs, phases, d)
-        for j in range(P):
-            alpha[j] = 0.0
-        for q in range(EN_N):
-            en[q] = 0.0
-        flags[0] = 0
-        kind = runs.exc_kind[run]
-        rid = runs.rec_id[run] if kind == EXC_RECORD else 0
-        roff = records.off[rid] if kind == EXC_RECORD else 0
-        rlen = records.len[rid] if kind == EXC_RECORD else 0
-        ag = ground_acceleration(kind, runs.exc_amp[run], runs.exc_omega[run], records.flat, roff, rlen, 0, model.dt)
-        for i in range(n):
-            u[i] = 0.0
-            v[i] = 0.0
-            a[i] = -ag
-        if out.hist.shape[0] > 0:
-            bk.keep_history(out.hist, run, 0, histories.kinds, histories.index, u, v, a, F, ag)
-        status, unsettled, max_it_seen, steps_done, ke_next = _time_loop(
-            run, model, opts, runs, records, histories, experiment, out, st, wk
-        )
-        status |= runs.status_in[run] | flags[0]
-        status = bk.close_row(row, pbase, P, phases, status)
-        status = bk.score_run(out.scores, run, xs, experiment, ke_next, status)
-        # energy: the spring part's trapezoidal work against the energy k_h delta^2.5 / 2.5 it stores at
-        # the end; their difference (the residual) is the quadrature error of the steps across impacts
-        e_spring = 0.0
-        for j in range(P):
-            if touching[j] and pen_prev[j] > 0.0:
-                e_spring += k * pen_prev[j] ** 2.5 / 2.5
-        energies = (en[EN_IN], en[EN_ABS], en[EN_DST], en[EN_WDA], e_spring, en[EN_WSP] - e_spring)
-        status = bk.energy_row(row, rbase, m, K, u, v, energies, status)
-        bk.run_counts(row, rbase, unsettled, max_it_seen, steps_done, status)
-        out.run_time[run] = _clock() - t_start
+    _VARIANTS[experiment.dof.size > 0](start, stop, model, opts, runs, records, histories, experiment, out)

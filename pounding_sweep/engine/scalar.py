@@ -417,7 +417,99 @@ def _time_loop(run, model, opts, runs, records, histories, experiment, out, st, 
     return status, unsettled, max_it_seen, steps_done, ke_next
 
 
-@njit_kernel
+def _batch_kernel(scored: bool):
+    """The scalar kernel compiled with or without the scoring code (eq. 20 against the experiment, its lag
+    search): `scored` is a closure constant, so Numba prunes the branch, and a scene that scores nothing
+    never compiles the scoring (4.6 s of the 20 s compile: benchmarks/profile_compile.py --case 3)."""
+
+    @njit_kernel
+    def integrate_batch(start, stop, model, opts, runs, records, histories, experiment, out):
+        m, C, K, S, i1, i2 = model.m, model.C, model.K, model.S, model.i1, model.i2
+        n = m.shape[0]
+        npair = i1.shape[0]
+        # work arrays, allocated once per batch (never inside the time loop)
+        u, v, a = np.empty(n), np.empty(n), np.empty(n)
+        un, vn, an = np.empty(n), np.empty(n), np.empty(n)
+        F = np.empty(npair)
+        active = np.zeros(npair, dtype=np.bool_)
+        iw = ImplicitWork(
+            S,
+            np.empty(npair),
+            np.empty(npair),
+            np.empty(npair),
+            np.empty(npair),
+            np.zeros(npair, dtype=np.bool_),
+            np.zeros(opts.max_iter + 1, dtype=np.int64),
+            (np.empty(npair, dtype=np.int64), np.empty((npair, npair)), np.empty(npair)),
+        )
+        xs = np.empty((experiment.dof.size, experiment.t.size))
+        wk = StepWork(np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), xs, iw)
+        phases = (
+            np.zeros(npair, dtype=np.bool_),
+            np.zeros(npair),
+            np.empty((npair, L.MEDIAN_BUFFER)),
+            np.zeros(npair, np.int64),
+        )
+        bufs = (np.zeros(npair, dtype=np.bool_), np.zeros(npair), np.zeros(npair), np.zeros(npair))
+        was_active, Sprev, Dprev, pen_prev = bufs
+        marks = (np.zeros(npair, dtype=np.bool_), np.zeros(npair, dtype=np.bool_), np.empty(npair))
+        en = np.zeros(EN_N)
+        solve = (np.empty(n), np.empty((n, n)), np.empty(n))  # Cdu, A, r
+        pbase = L.PER_DOF * n
+        rbase = pbase + L.PER_PAIR * npair
+        for run in range(start, stop):
+            t_start = _clock()
+            row = out.metrics[run]
+            d = runs.gap[run]
+            k_s = runs.ks[run]
+            pr = Pairs(active, marks[0], marks[1], marks[2], runs.cdash[run], k_s, runs.law[run] == LAW_NO_TENSION)
+            st = LinearState(
+                m, C, K, i1, i2, d, u, v, a, un, vn, an, F, pr, was_active, Sprev, Dprev, pen_prev, en, row, phases,
+                solve[0], solve[1], solve[2],
+            )  # fmt: skip
+            bk.start_row(row, npair, pbase, d)
+            bk.start_pairs(active, F, bufs, phases, d)
+            for q in range(EN_N):
+                en[q] = 0.0
+            # initial state: at rest relative to the table; eq. (11): a0 = M^-1 (p0 - C v0 - K u0) = -ag(0)
+            kind = runs.exc_kind[run]
+            rid = runs.rec_id[run] if kind == EXC_RECORD else 0
+            roff = records.off[rid] if kind == EXC_RECORD else 0
+            rlen = records.len[rid] if kind == EXC_RECORD else 0
+            ag = ground_acceleration(
+                kind, runs.exc_amp[run], runs.exc_omega[run], records.flat, roff, rlen, 0, model.dt
+            )
+            for i in range(n):
+                u[i] = 0.0
+                v[i] = 0.0
+                a[i] = -ag
+            if out.hist.shape[0] > 0:
+                bk.keep_history(out.hist, run, 0, histories.kinds, histories.index, u, v, a, F, ag)
+            status, unsettled, max_it_seen, steps_done, ke_next = _time_loop(
+                run, model, opts, runs, records, histories, experiment, out, st, wk
+            )
+            status |= runs.status_in[run]
+            status = bk.close_row(row, pbase, npair, phases, status)
+            if scored:  # a closure constant: the other variant has no scoring code
+                status = bk.score_run(out.scores, run, xs, experiment, ke_next, status)
+            # energy balance at the end: E_in = KE + SE + D_struct + D_contact + E_spring + residual;
+            # the residual is the spring work the discrete contact switching did not store
+            e_spring = 0.0
+            for j in range(npair):
+                if active[j]:
+                    e_spring += 0.5 * k_s * pen_prev[j] * pen_prev[j]
+            residual = en[EN_WSP] - e_spring - en[EN_WREL]
+            energies = (en[EN_IN], en[EN_ABS], en[EN_DST], en[EN_WDA] + en[EN_WREL], e_spring, residual)
+            status = bk.energy_row(row, rbase, m, K, u, v, energies, status)
+            bk.run_counts(row, rbase, unsettled, max_it_seen, steps_done, status)
+            out.run_time[run] = _clock() - t_start
+
+    return integrate_batch
+
+
+_VARIANTS = (_batch_kernel(False), _batch_kernel(True))
+
+
 def integrate_batch(start, stop, model, opts, runs, records, histories, experiment, out):
     """Integrate runs start..stop-1 of the chunk: fill out.metrics[run] (engine/layout.py), out.run_time[run],
     the histories out.hist[run] when histories.kinds is not empty, and, when experiment.dof is not empty,
@@ -426,79 +518,4 @@ def integrate_batch(start, stop, model, opts, runs, records, histories, experime
 
     Records (engine/inputs.py): model Structure, opts KernelOptions, runs RunArrays, records Records,
     histories HistorySpec, experiment ScoreSpec, out Outputs."""
-    m, C, K, S, i1, i2 = model.m, model.C, model.K, model.S, model.i1, model.i2
-    n = m.shape[0]
-    npair = i1.shape[0]
-    # work arrays, allocated once per batch (never inside the time loop)
-    u, v, a = np.empty(n), np.empty(n), np.empty(n)
-    un, vn, an = np.empty(n), np.empty(n), np.empty(n)
-    F = np.empty(npair)
-    active = np.zeros(npair, dtype=np.bool_)
-    iw = ImplicitWork(
-        S,
-        np.empty(npair),
-        np.empty(npair),
-        np.empty(npair),
-        np.empty(npair),
-        np.zeros(npair, dtype=np.bool_),
-        np.zeros(opts.max_iter + 1, dtype=np.int64),
-        (np.empty(npair, dtype=np.int64), np.empty((npair, npair)), np.empty(npair)),
-    )
-    xs = np.empty((experiment.dof.size, experiment.t.size))
-    wk = StepWork(np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), xs, iw)
-    phases = (
-        np.zeros(npair, dtype=np.bool_),
-        np.zeros(npair),
-        np.empty((npair, L.MEDIAN_BUFFER)),
-        np.zeros(npair, np.int64),
-    )
-    bufs = (np.zeros(npair, dtype=np.bool_), np.zeros(npair), np.zeros(npair), np.zeros(npair))
-    was_active, Sprev, Dprev, pen_prev = bufs
-    marks = (np.zeros(npair, dtype=np.bool_), np.zeros(npair, dtype=np.bool_), np.empty(npair))
-    en = np.zeros(EN_N)
-    solve = (np.empty(n), np.empty((n, n)), np.empty(n))  # Cdu, A, r
-    pbase = L.PER_DOF * n
-    rbase = pbase + L.PER_PAIR * npair
-    for run in range(start, stop):
-        t_start = _clock()
-        row = out.metrics[run]
-        d = runs.gap[run]
-        k_s = runs.ks[run]
-        pr = Pairs(active, marks[0], marks[1], marks[2], runs.cdash[run], k_s, runs.law[run] == LAW_NO_TENSION)
-        st = LinearState(
-            m, C, K, i1, i2, d, u, v, a, un, vn, an, F, pr, was_active, Sprev, Dprev, pen_prev, en, row, phases,
-            solve[0], solve[1], solve[2],
-        )  # fmt: skip
-        bk.start_row(row, npair, pbase, d)
-        bk.start_pairs(active, F, bufs, phases, d)
-        for q in range(EN_N):
-            en[q] = 0.0
-        # initial state: at rest relative to the table; eq. (11): a0 = M^-1 (p0 - C v0 - K u0) = -ag(0)
-        kind = runs.exc_kind[run]
-        rid = runs.rec_id[run] if kind == EXC_RECORD else 0
-        roff = records.off[rid] if kind == EXC_RECORD else 0
-        rlen = records.len[rid] if kind == EXC_RECORD else 0
-        ag = ground_acceleration(kind, runs.exc_amp[run], runs.exc_omega[run], records.flat, roff, rlen, 0, model.dt)
-        for i in range(n):
-            u[i] = 0.0
-            v[i] = 0.0
-            a[i] = -ag
-        if out.hist.shape[0] > 0:
-            bk.keep_history(out.hist, run, 0, histories.kinds, histories.index, u, v, a, F, ag)
-        status, unsettled, max_it_seen, steps_done, ke_next = _time_loop(
-            run, model, opts, runs, records, histories, experiment, out, st, wk
-        )
-        status |= runs.status_in[run]
-        status = bk.close_row(row, pbase, npair, phases, status)
-        status = bk.score_run(out.scores, run, xs, experiment, ke_next, status)
-        # energy balance at the end: E_in = KE + SE + D_struct + D_contact + E_spring + residual;
-        # the residual is the spring work the discrete contact switching did not store
-        e_spring = 0.0
-        for j in range(npair):
-            if active[j]:
-                e_spring += 0.5 * k_s * pen_prev[j] * pen_prev[j]
-        residual = en[EN_WSP] - e_spring - en[EN_WREL]
-        energies = (en[EN_IN], en[EN_ABS], en[EN_DST], en[EN_WDA] + en[EN_WREL], e_spring, residual)
-        status = bk.energy_row(row, rbase, m, K, u, v, energies, status)
-        bk.run_counts(row, rbase, unsettled, max_it_seen, steps_done, status)
-        out.run_time[run] = _clock() - t_start
+    _VARIANTS[experiment.dof.size > 0](start, stop, model, opts, runs, records, histories, experiment, out)

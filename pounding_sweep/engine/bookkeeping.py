@@ -11,6 +11,7 @@ import numpy as np
 
 from pounding_sweep import codes
 from pounding_sweep.engine import layout as L
+from pounding_sweep.engine.events import ground_acceleration
 from pounding_sweep.engine.jit import inline_kernel, njit_inner, njit_kernel
 from pounding_sweep.engine.score import N_SCORES, score_channel, sos_filter
 
@@ -22,6 +23,25 @@ def start_row(out, npair, pbase, gap):
         out[q] = 0.0
     for j in range(npair):
         out[pbase + L.PER_PAIR * j + L.PAIR_CLOSEST] = gap
+
+
+@njit_inner
+def start_at_rest(run, runs, records, dt, u, v, a):
+    """The run at rest relative to the table: u = v = 0 and, by eq. (11) a0 = M^-1 (p0 - C v0 - K u0) with
+    p0 = -M 1 ag(0), a = -ag(0). Returns (roff, rlen, ag(0)): the run's record in records.flat (offset,
+    length; 0, 0 for a harmonic run) and the table's acceleration at t = 0 [m/s^2]."""
+    kind = runs.exc_kind[run]
+    roff = 0
+    rlen = 0
+    if kind == codes.EXC_RECORD:
+        roff = records.off[runs.rec_id[run]]
+        rlen = records.len[runs.rec_id[run]]
+    ag = ground_acceleration(kind, runs.exc_amp[run], runs.exc_omega[run], records.flat, roff, rlen, 0, dt)
+    for i in range(u.size):
+        u[i] = 0.0
+        v[i] = 0.0
+        a[i] = -ag
+    return roff, rlen, ag
 
 
 @njit_inner

@@ -39,7 +39,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from pounding_sweep.codes import EXC_HARMONIC, EXC_RECORD, LAW_NO_TENSION, SCHEME_EVENT, SCHEME_IMPLICIT, SCHEME_PAPER
+from pounding_sweep.codes import EXC_HARMONIC, LAW_NO_TENSION, SCHEME_EVENT, SCHEME_IMPLICIT, SCHEME_PAPER
 from pounding_sweep.engine import bookkeeping as bk
 from pounding_sweep.engine import floors
 from pounding_sweep.engine import layout as L
@@ -356,15 +356,12 @@ def _time_loop(run, model, opts, runs, records, histories, experiment, out, st, 
     d, k_s, c = st.gap, pr.k_s, pr.c
     kind = runs.exc_kind[run]
     ground = Ground(kind == EXC_HARMONIC, runs.exc_amp[run], runs.exc_omega[run])
-    rec_flat, rec_off, rec_len = records
-    roff = 0
-    rlen = 0
-    if kind == EXC_RECORD:
-        roff = rec_off[runs.rec_id[run]]
-        rlen = rec_len[runs.rec_id[run]]
+    rec_flat = records.flat
+    roff, rlen, ag = bk.start_at_rest(run, runs, records, dt, u, v, a)
+    if keep_hist:
+        bk.keep_history(hist, run, 0, histories.kinds, histories.index, u, v, a, F, ag)
     for j in range(npair):
         ke[j] = k_s + b1 * c[j]
-    ag = ground_acceleration(kind, ground.amp, ground.omega, rec_flat, roff, rlen, 0, dt)
     ke_next = bk.samples_at_rest(experiment.t, xs)  # next experiment sample to fill
     status = 0
     unsettled = 0
@@ -471,20 +468,6 @@ def _batch_kernel(scored: bool):
             bk.start_pairs(active, F, bufs, phases, d)
             for q in range(EN_N):
                 en[q] = 0.0
-            # initial state: at rest relative to the table; eq. (11): a0 = M^-1 (p0 - C v0 - K u0) = -ag(0)
-            kind = runs.exc_kind[run]
-            rid = runs.rec_id[run] if kind == EXC_RECORD else 0
-            roff = records.off[rid] if kind == EXC_RECORD else 0
-            rlen = records.len[rid] if kind == EXC_RECORD else 0
-            ag = ground_acceleration(
-                kind, runs.exc_amp[run], runs.exc_omega[run], records.flat, roff, rlen, 0, model.dt
-            )
-            for i in range(n):
-                u[i] = 0.0
-                v[i] = 0.0
-                a[i] = -ag
-            if out.hist.shape[0] > 0:
-                bk.keep_history(out.hist, run, 0, histories.kinds, histories.index, u, v, a, F, ag)
             status, unsettled, max_it_seen, steps_done, ke_next = _time_loop(
                 run, model, opts, runs, records, histories, experiment, out, st, wk
             )

@@ -41,7 +41,7 @@ class Kernel:
     name: str  # its compile-time record's key (engine/jit.py TYPICAL_COMPILE_S)
     label: str  # what a first run calls it while it compiles
     lanes: bool  # LANES runs side by side (engine/lanes) or one at a time (start, stop, records...)
-    entry: Callable  # the compiled entry point (engine/lanes.integrate_lanes, scalar.integrate_batch, ...)
+    entry: Callable  # its entry point (lanes.integrate_lanes; scalar.integrate_batch: picks the compiled variant)
     laws: tuple  # the contact laws (codes.LAW_*) it integrates
     why_not: Callable[[Chunk], str | None]  # why it cannot run a chunk (None: it can)
 

@@ -109,7 +109,7 @@ def _park(W, l, nrows, r_s):
 
 @njit_step
 def _finalize_lane(gw, l, metrics, steps_done, dt, modal):
-    """Write lane l's metric row (scalar.integrate_batch's end-of-run code) after its last step;
+    """Write lane l's metric row (the scalar kernel's end-of-run code, scalar._batch_kernel) after its last step;
     modal = (om2, psi) (engine/inputs.py LaneModel)."""
     W, run, status = gw.W, gw.run[l], gw.status[l]
     dur, nph = gw.lane.dur, gw.lane.nph
@@ -233,7 +233,7 @@ def _start_group(gw, lanes, model, opts, runs, excitation):
 @inline
 def _stale_phases(gw, step):
     """A compressive phase left open by a switch-off at a step's very end (see _scalar_steps) closes in
-    the lane's next step, as in scalar.integrate_batch: here, if that step was a vector step; if it is
+    the lane's next step, as in the scalar kernel: here, if that step was a vector step; if it is
     this step's scalar step, lane_step closes it as the scalar kernel does."""
     W = gw.W
     N, _n1, P, _rows = gw.sizes

@@ -210,8 +210,9 @@ def event_functions(ops: EventOps, inline: bool = False):  # noqa: C901 (39: the
     several times per switch, and contradicts) are inlined into their callers, as the kernel's pieces are;
     event_step, locate_event and first_event stay compiled functions of their own either way: each runs
     once or twice per step or switch, beside work a call's cost does not show in (benchmarks/
-    compare_checkouts.py: 0.975 event, 0.997 implicit, --paired 20), and Numba inlines every call site's
-    copy again, which made the lane kernel's compile 97 s against 50 s (benchmarks/profile_compile.py --case 1).
+    compare_checkouts.py: 0.975 event, 0.997 implicit, --paired 20), and inlined they make the lane kernel's
+    compile 38.0 s against 28.7 s (benchmarks/profile_compile.py --case 1; 97 s against 50 s before
+    engine/inlining.py).
 
     event_step(st, ground, t_s, h, ag_s, ag_e, hmin) -> (finite, switches located, unsettled count): the
     rest of a step from t_s (length h, ground acceleration ag_s to ag_e), its trial with the start's contact

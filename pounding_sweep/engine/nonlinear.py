@@ -550,4 +550,4 @@ def integrate_nonlinear(start, stop, model, opts, runs, records, histories, expe
     LAW_JANKOWSKI): runs start..stop-1 of the chunk into out (metrics, run_time, histories, scores).
     runs.ks holds k_h [N/m^1.5] and runs.cdash[run, j] the law's coefficient (hertzdamp: a; jankowski:
     c0; hertz: unused)."""
-    _VARIANTS[experiment.dof.size > 0](start, stop, model, opts, runs, records, histories, experiment, out)
+    _VARIANTS[experiment.active](start, stop, model, opts, runs, records, histories, experiment, out)

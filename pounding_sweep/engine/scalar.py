@@ -501,4 +501,4 @@ def integrate_batch(start, stop, model, opts, runs, records, histories, experime
 
     Records (engine/inputs.py): model Structure, opts KernelOptions, runs RunArrays, records Records,
     histories HistorySpec, experiment ScoreSpec, out Outputs."""
-    _VARIANTS[experiment.dof.size > 0](start, stop, model, opts, runs, records, histories, experiment, out)
+    _VARIANTS[experiment.active](start, stop, model, opts, runs, records, histories, experiment, out)

@@ -26,7 +26,7 @@ from typing import NamedTuple
 import numpy as np
 
 from pounding_sweep.codes import EXC_HARMONIC
-from pounding_sweep.engine.jit import inline_generic, njit_generic, njit_inner, njit_kernel
+from pounding_sweep.engine.jit import inline_generic, njit_generic, njit_generic_lanes, njit_inner, njit_kernel
 
 MAX_EVENTS = 16  # contact switches located inside one step before the step is taken as it is (flagged)
 EVENT_MIN_FRACTION = 1e-9  # a sub-step shorter than this fraction of dt is not integrated (rounding)
@@ -227,6 +227,8 @@ def event_functions(ops: EventOps, inline: bool = False):  # noqa: C901 (39: the
     the cached kernels that call them hold their code.)"""
     advance, pair, tolerance, is_finite, accept, switch, crossing = ops
     compiled = inline_generic if inline else njit_generic
+    # the lane kernel's are optimised in their own module first, as its step is (engine/linking.py)
+    large = njit_generic_lanes if inline else njit_generic
 
     @compiled
     def indicator(st, end, j):
@@ -252,7 +254,7 @@ def event_functions(ops: EventOps, inline: bool = False):  # noqa: C901 (39: the
                 return True
         return False
 
-    @njit_generic
+    @large
     def first_event(st, h):
         """Fraction of the piece (0..1] of length h at which the first pair leaves its contact state, or 2.0
         if none does, from each pair's Hermite interpolant between the start and end states; each pair's
@@ -280,7 +282,7 @@ def event_functions(ops: EventOps, inline: bool = False):  # noqa: C901 (39: the
             pr.switch[j] = pr.theta[j] <= first + 1e-9
         return first
 
-    @njit_generic
+    @large
     def locate_event(st, theta, h, hmin, ground, t_s, ag_s, ag_e):
         """Length hs (0 <= hs <= h) of the sub-step that ends where the first pair switches.
 
@@ -358,7 +360,7 @@ def event_functions(ops: EventOps, inline: bool = False):  # noqa: C901 (39: the
             pr.switch[j] = j == target or pr.theta[j] <= 1.0  # the target, and pairs crossing with it
         return hs
 
-    @njit_generic
+    @large
     def event_step(st, ground, t_s, h, ag_s, ag_e, hmin):
         """The rest of a step from t_s (length h, ground acceleration ag_s to ag_e), its trial with the start's
         contact set already in st: accepted whole where no pair contradicts the set, else split at the located

@@ -24,14 +24,16 @@ from pathlib import Path
 
 import numba
 
-from pounding_sweep.engine import inlining
+from pounding_sweep.engine import inlining, linking
 
 inlining.install()  # Numba's IR inliner without its quadratic copy (the same code, a shorter compile)
+linking.install()  # pieces without an entry are optimised once, in their kernel (the same code, a shorter compile)
 
 HERE = Path(__file__).resolve().parent
 #: engine modules that compile nothing (plain Python driving or choosing the kernels), by their path in the
 #: engine: an edit there changes no compiled code, so it must not cost every user a fresh compile of every
-#: kernel (tests/engine/test_jit.py checks that no module listed here holds compiled code)
+#: kernel (tests/engine/test_jit.py checks that no module listed here holds compiled code). linking.py is not
+#: one: it decides what a cached piece holds (a module to link, no machine code)
 NOT_COMPILED = ("driver.py", "registry.py", "inlining.py", "lanes/__init__.py", "lanes/eligibility.py")
 #: the sources whose compiled code the cache holds
 SOURCES = sorted(p for p in HERE.rglob("*.py") if p.relative_to(HERE).as_posix() not in NOT_COMPILED) + [
@@ -90,7 +92,7 @@ CACHE_DIR = _cache_dir()
 
 #: how long compiling a kernel took on a 2-core x86-64 machine (benchmarks/bench_compile.py), for the
 #: first compile on a machine; later ones say how long the last one took here (COMPILE_TIMES)
-TYPICAL_COMPILE_S = {"lanes": 30.0, "scalar": 17.0, "scalar_scored": 22.0, "nonlinear": 30.0, "nonlinear_scored": 32.0}
+TYPICAL_COMPILE_S = {"lanes": 30.0, "scalar": 12.0, "scalar_scored": 17.0, "nonlinear": 30.0, "nonlinear_scored": 32.0}
 COMPILE_TIMES = "compile_times.json"
 
 
@@ -156,13 +158,17 @@ def njit_step(fn):
     """Decorate a function of the lane kernel's time loop: it allocates nothing, so it is compiled without
     Numba's runtime, whose atomic reference counts on every array argument took a third of the scalar
     steps' time; called only from compiled code, so without the Python and C entry wrappers (their
-    argument boxing was a good part of the compile time)."""
+    argument boxing was a good part of the compile time). Its own module is optimised before its caller's
+    (not registered with engine/linking.py): LLVM makes faster code of the lane kernel's step and vector
+    loops in two passes (its event case took 1.18x as long with one)."""
     return _cached(numba.njit(_nrt=False, no_cpython_wrapper=True, no_cfunc_wrapper=True, **LANES_JIT))(fn)
 
 
 def njit_inner(fn):
     """Decorate a helper of the scalar kernels' time loop that allocates nothing: no reference counts on
-    its array arguments and no Python entry wrapper (as njit_step), with the scalar kernels' flags."""
+    its array arguments and no Python entry wrapper (as njit_step), with the scalar kernels' flags; its code
+    optimised only in its callers' modules (engine/linking.py: once per kernel, not once per level of calls)."""
+    fn = linking.optimised_by_callers(fn)
     return _cached(numba.njit(_nrt=False, no_cpython_wrapper=True, no_cfunc_wrapper=True, **KERNEL_JIT))(fn)
 
 
@@ -172,6 +178,12 @@ def njit_generic(fn):
     closure's cache by its cell contents, and a compiled function there pickles with an id of this process,
     so every process would add an entry no other finds (numba#6264). The cached kernels that call it hold
     its code."""
+    return njit_generic_lanes(linking.optimised_by_callers(fn))
+
+
+def njit_generic_lanes(fn):
+    """njit_generic for the lane kernel's event step: its code optimised in its own module before its
+    callers' (not registered with engine/linking.py), as the lane kernel's step is."""
     return numba.njit(_nrt=False, no_cpython_wrapper=True, no_cfunc_wrapper=True, **dict(KERNEL_JIT, cache=False))(fn)
 
 

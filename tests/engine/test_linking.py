@@ -1,0 +1,99 @@
+"""engine/linking.py: the engine's registered pieces (no entry) skip their own LLVM module pipeline, their
+callers run it over their code, and nothing else changes."""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+import pytest
+from llvmlite import binding as ll
+from numba.core import typed_passes
+
+from pounding_sweep.engine import linking
+from pounding_sweep.engine.bookkeeping import median_inplace
+
+installed = pytest.mark.skipif(
+    not getattr(typed_passes.BaseNativeLowering.run_pass, "marks_libraries", False),
+    reason=f"this Numba's lowering and code library (source digest {linking.source_digest()}) are not the ones "
+    "engine/linking.py was written against (KNOWN_SOURCES): nothing installed, the kernels compile more slowly "
+    "to the same code; read the new methods and add their digest if the module's reasoning still holds",
+)
+
+FULL = "Module passes (full optimization)"  # Numba's name for the module pipeline's timing record
+
+
+def _pipelines(library) -> list[str]:
+    return [r.name for r in library.recorded_timings]
+
+
+def _fresh(flags: dict):
+    """median_inplace's Python function (registered by jit.njit_inner) compiled afresh, without the disk cache."""
+    return numba.njit(cache=False, _nrt=False, **flags)(median_inplace.py_func)
+
+
+@installed
+def test_piece_without_entry_is_optimised_only_in_its_caller(monkeypatch):
+    monkeypatch.setattr(numba.config, "LLVM_PASS_TIMINGS", True)  # so each library records its pipelines
+    piece = _fresh(dict(no_cpython_wrapper=True, no_cfunc_wrapper=True))
+
+    @numba.njit(cache=False)
+    def caller(x, k):
+        return piece(x, k)
+
+    x = np.array([4.0, -1.0, 2.5, 7.0, 0.5, 3.0])
+    assert caller(x.copy(), 6) == np.median(x)  # (2.5 + 3.0) / 2: exact in binary, the same bit for bit
+    (piece_cres,) = piece.overloads.values()
+    (caller_cres,) = caller.overloads.values()
+    assert getattr(piece_cres.library, linking.MARK, False)
+    assert FULL not in _pipelines(piece_cres.library)  # its own module pipeline was skipped ...
+    assert FULL in _pipelines(caller_cres.library)  # ... and its caller ran it, over the piece's code as well
+    assert not getattr(caller_cres.library, linking.MARK, False)
+    # no machine code of its own (nothing runs it, and loaded beside its callers it slowed them), and a module
+    # whose definitions its next caller can link
+    own = [fn.linkage for fn in piece_cres.library._final_module.functions if not fn.is_declaration]
+    assert own and all(k == ll.Linkage.available_externally for k in own)
+    shared = piece_cres.library._get_module_for_linking()
+    assert {fn.linkage for fn in shared.functions if not fn.is_declaration} == {ll.Linkage.linkonce_odr}
+
+
+@installed
+def test_functions_with_an_entry_or_not_registered_keep_numbas_pipeline(monkeypatch):
+    monkeypatch.setattr(numba.config, "LLVM_PASS_TIMINGS", True)
+    with_entry = _fresh({})  # callable from Python: its own library's code runs, so it must be optimised
+    x = np.array([2.0, 1.0, 3.0])
+    assert with_entry(x.copy(), 3) == 2.0
+
+    def outside(x):  # not registered: as a user's own function without entries
+        return x[0] + 1.0
+
+    outside_piece = numba.njit(cache=False, no_cpython_wrapper=True, no_cfunc_wrapper=True)(outside)
+
+    @numba.njit(cache=False)
+    def call_outside(x):
+        return outside_piece(x)
+
+    assert call_outside(x) == 3.0
+    for dispatcher in (with_entry, outside_piece):
+        (cres,) = dispatcher.overloads.values()
+        assert not getattr(cres.library, linking.MARK, False)
+        assert FULL in _pipelines(cres.library)
+
+
+def test_registered_pieces():
+    """The decorators say which pieces their callers optimise: the scalar kernels' time loop and event step,
+    not the lane kernel's step or vector loops."""
+    from pounding_sweep.engine import scalar
+    from pounding_sweep.engine.lanes import lane_step, vector
+
+    assert scalar._time_loop.py_func in linking._REGISTERED
+    assert scalar._event_step.py_func in linking._REGISTERED
+    assert median_inplace.py_func in linking._REGISTERED
+    assert lane_step.lane_step.py_func not in linking._REGISTERED
+    assert lane_step._event_step.py_func not in linking._REGISTERED
+    assert vector._quiet.py_func not in linking._REGISTERED
+
+
+def test_installed_where_the_methods_are_known():
+    """install() is idempotent and says whether the patch is in place; it is, exactly where the digest is known."""
+    assert linking.install() == (linking.source_digest() in linking.KNOWN_SOURCES)
+    assert linking.install() == linking.install()

@@ -14,10 +14,13 @@ linking), and the disk cache keeps its module for the next caller to link. Not r
 own pieces (jit.njit_step), of which LLVM makes faster code in two passes (optimised once, its event case
 took 1.18x as long and its quiet loop 1.14x).
 Arithmetic is the same either way: without fast-math flags LLVM may not reorder or fuse floating-point
-operations, so where the optimiser inlines, unrolls or vectorises differently the results are bit-identical
-(benchmarks/check_identity.py). Only registered functions are touched: a user's own Numba functions, Numba's
-overloads and @cfunc callbacks keep Numba's pipeline. It relies on how Numba builds and finalises a library,
-so it is installed only where the methods read for it are unchanged (KNOWN_SOURCES); elsewhere nothing changes
+operations, so where the optimiser inlines, unrolls or vectorises differently the results stay bit-identical
+(benchmarks/check_identity.py: every table); only where Numba finds Intel's SVML could a loop vectorised in one
+build and not the other call a vector math function that differs from libm's in the last bit. Only
+registered functions are touched: a user's own Numba functions, Numba's overloads and @cfunc callbacks keep
+Numba's pipeline, and so does a piece in a recursion Numba resolves at run time. It relies on how Numba builds,
+finalises, caches and links a library, so it is installed only where the methods read for it (METHODS) are
+unchanged (KNOWN_SOURCES); elsewhere nothing changes
 but the compile time. Figures: docs/explanation/performance.md.
 """
 
@@ -30,9 +33,22 @@ import inspect
 from llvmlite import binding as ll
 from numba.core import codegen, typed_passes
 
-#: SHA-256 (16 hex digits) of the source of BaseNativeLowering.run_pass, CPUCodeLibrary.finalize and
-#: CPUCodeLibrary._optimize_final_module as this module was written against (numba 0.68.1)
-KNOWN_SOURCES = frozenset({"d781a62cdbc44676"})
+#: the Numba methods this module relies on: where a library is made and marked, finalised and optimised, the
+#: module its callers link (a _shared_module set beforehand is used as it is), how a library is cached and
+#: loaded, and the run-time resolution of recursive calls
+METHODS = (
+    (typed_passes.BaseNativeLowering, "run_pass"),
+    (codegen.CPUCodeLibrary, "finalize"),
+    (codegen.CPUCodeLibrary, "_optimize_final_module"),
+    (codegen.CPUCodeLibrary, "_get_module_for_linking"),
+    (codegen.CPUCodeLibrary, "_finalize_final_module"),
+    (codegen.CPUCodeLibrary, "serialize_using_object_code"),
+    (codegen.CPUCodeLibrary, "_unserialize"),
+    (codegen.RuntimeLinker, "scan_unresolved_symbols"),
+    (codegen.RuntimeLinker, "resolve"),
+)
+#: SHA-256 (16 hex digits) of the source of METHODS as this module was written against (numba 0.68.1)
+KNOWN_SOURCES = frozenset({"2ead6f571fce5eab"})
 #: the attribute that marks a library whose code only its callers' libraries optimise
 MARK = "_optimised_by_callers"
 #: the Python functions whose compiled code only their callers' libraries optimise (optimised_by_callers)
@@ -40,13 +56,9 @@ _REGISTERED: set = set()
 
 
 def source_digest() -> str:
-    """The digest KNOWN_SOURCES holds, of this Numba's methods (their own source, not the installed wrappers)."""
+    """The digest KNOWN_SOURCES holds, of this Numba's METHODS (their own source, not the installed wrappers)."""
     h = hashlib.sha256()
-    for owner, name in (
-        (typed_passes.BaseNativeLowering, "run_pass"),
-        (codegen.CPUCodeLibrary, "finalize"),
-        (codegen.CPUCodeLibrary, "_optimize_final_module"),
-    ):
+    for owner, name in METHODS:
         h.update(inspect.getsource(inspect.unwrap(getattr(owner, name))).encode())
     return h.hexdigest()[:16]
 
@@ -81,6 +93,18 @@ def _for_linking_only(library) -> None:
             fn.linkage = "available_externally"
 
 
+def _in_recursion(library) -> bool:
+    """Whether the library takes part in a recursion Numba resolves at run time (numba/core/codegen.py
+    RuntimeLinker): it calls a function not yet defined through a `.numba.unresolved$` pointer, or defines one
+    that such a pointer waits for. Then the JIT jumps to this library's own machine code, so it keeps Numba's
+    pipeline (no engine piece recurses; a mutual recursion of two marked pieces crashed without this)."""
+    prefix = codegen.RuntimeLinker.PREFIX
+    if any(gv.name.startswith(prefix) for gv in library._final_module.global_variables):
+        return True
+    waiting = library.codegen._rtlinker._unresolved
+    return any(fn.name in waiting for fn in library._final_module.functions if not fn.is_declaration)
+
+
 def _known() -> bool:
     try:
         return source_digest() in KNOWN_SOURCES
@@ -110,7 +134,7 @@ def install() -> bool:
 
     @functools.wraps(optimize)
     def optimize_final_module(self):
-        if getattr(self, MARK, False):
+        if getattr(self, MARK, False) and not _in_recursion(self):
             _for_linking_only(self)  # its callers' libraries optimise this code with theirs
             return None
         return optimize(self)

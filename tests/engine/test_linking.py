@@ -3,6 +3,10 @@ callers run it over their code, and nothing else changes."""
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+
 import numba
 import numpy as np
 import pytest
@@ -94,6 +98,86 @@ def test_registered_pieces():
 
 
 def test_installed_where_the_methods_are_known():
-    """install() is idempotent and says whether the patch is in place; it is, exactly where the digest is known."""
-    assert linking.install() == (linking.source_digest() in linking.KNOWN_SOURCES)
-    assert linking.install() == linking.install()
+    """install() says whether the patch is in place; it is, exactly where the digest is known."""
+    known = linking.source_digest() in linking.KNOWN_SOURCES
+    assert linking.install() == known
+    assert getattr(typed_passes.BaseNativeLowering.run_pass, "marks_libraries", False) == known
+
+
+@installed
+def test_mutual_recursion_of_pieces_keeps_numbas_pipeline():
+    """Two registered pieces calling each other: Numba resolves the call at run time to a piece's own machine
+    code, so those pieces keep it (with it skipped, the resolved address was 0 and the call crashed)."""
+    flags = dict(_nrt=False, no_cpython_wrapper=True, no_cfunc_wrapper=True, cache=False)
+
+    @numba.njit(**flags)
+    @linking.optimised_by_callers
+    def even(n):
+        if n == 0:
+            return 1
+        return odd(n - 1)
+
+    @numba.njit(**flags)
+    @linking.optimised_by_callers
+    def odd(n):
+        if n == 0:
+            return 0
+        return even(n - 1)
+
+    @numba.njit(cache=False)
+    def caller(n):
+        return even(n)
+
+    assert (caller(10), caller(7)) == (1, 0)
+
+
+TOY = """
+import numba
+from pounding_sweep.engine import linking, jit  # jit installs the patch
+
+PIECE = dict(_nrt=False, no_cpython_wrapper=True, no_cfunc_wrapper=True, cache=True)
+
+
+@numba.njit(**PIECE)
+@linking.optimised_by_callers
+def piece(x):
+    s = 0.0
+    for v in x:
+        s += v * v
+    return s
+
+
+@numba.njit(cache=True)
+def caller1(x):
+    return piece(x) + 1.0
+
+
+@numba.njit(cache=True)
+def caller2(x):
+    return 2.0 * piece(x)
+"""
+
+RUN = """
+import sys
+import numpy as np
+import toy
+x = np.arange(1.0, 6.0)
+value = getattr(toy, sys.argv[1])(x)
+print(value, toy.piece.stats.cache_hits.get(toy.piece.signatures[0], 0), toy.piece.stats.cache_misses.get(toy.piece.signatures[0], 0))
+"""
+
+
+@installed
+def test_a_cached_piece_links_into_a_new_caller(tmp_path):
+    """A piece compiled and cached with one caller (no machine code of its own) is loaded from the disk cache by
+    a later process and linked into a caller compiled there: the new caller runs its own copy of the code."""
+    (tmp_path / "toy.py").write_text(TOY)
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), PYTHONPATH=str(tmp_path))
+    got = []
+    for caller in ("caller1", "caller2"):
+        r = subprocess.run([sys.executable, "-c", RUN, caller], env=env, cwd=tmp_path, capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr[-2000:]
+        got.append(r.stdout.split())
+    # 1 + 4 + 9 + 16 + 25 = 55: sums of small integers, exact in binary
+    assert got[0] == ["56.0", "0", "1"]  # compiled in the first process ...
+    assert got[1] == ["110.0", "1", "0"]  # ... loaded from the cache in the second, linked into caller2

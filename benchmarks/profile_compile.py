@@ -1,6 +1,6 @@
 """Where a first run's compile time goes: per compiled function, per Numba pass, and how much of it is LLVM.
 
-    python benchmarks/profile_compile.py [--case 0..3] [--opt 0..3]
+    python benchmarks/profile_compile.py [--case 0..3] [--opt 0..3] [--after 0..3]
 
 Runs one of bench_compile.py's cases (default 0: the README's scored scene, cut to 10 ms) through the command
 line's entry point in this process, with Numba's cache in a new temporary folder (so everything compiles), and
@@ -93,6 +93,12 @@ def main(argv=None) -> int:
     ap.add_argument("--case", type=int, default=0, help="bench_compile.py's case (0: the README scene)")
     ap.add_argument("--opt", type=int, choices=(0, 1, 2, 3), help="NUMBA_OPT for this run (default: Numba's, 3)")
     ap.add_argument("--top", type=int, default=15)
+    ap.add_argument(
+        "--after",
+        type=int,
+        help="first run this case (not profiled) into the same cache: e.g. --after 1 --case 2 profiles what a new pair "
+        "of story counts compiles once the lane kernel is cached",
+    )
     args = ap.parse_args(argv)
     tmp = Path(tempfile.mkdtemp(prefix="profile_compile_"))
     os.environ["NUMBA_CACHE_DIR"] = str(tmp / "cache")  # before Numba and the engine read it
@@ -101,11 +107,16 @@ def main(argv=None) -> int:
     import bench_compile
     from numba.core import event
 
-    name, scene = list(bench_compile.cases(tmp).items())[args.case]
+    scenes = list(bench_compile.cases(tmp).items())
+    name, scene = scenes[args.case]
+    from pounding_sweep.cli import run
+
+    if args.after is not None:
+        run.main([str(scenes[args.after][1]), "--out", str(tmp / "before.parquet"), "--quiet", "--yes"])
+        name = f"{name}, after {scenes[args.after][0]}"
     listeners = {k: event.RecordingListener() for k in ("numba:compile", "numba:run_pass", "numba:llvm_lock")}
     for k, li in listeners.items():
         event.register(k, li)
-    from pounding_sweep.cli import run
 
     t0, c0 = time.perf_counter(), time.process_time()
     rc = run.main([str(scene), "--out", str(tmp / "out.parquet"), "--quiet", "--yes"])

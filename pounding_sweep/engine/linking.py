@@ -1,27 +1,30 @@
-"""The kernels' LLVM optimisation once per kernel, not once per level of calls: the same code, a shorter compile.
+"""The scalar kernels' LLVM optimisation once per kernel, not once per level of calls: a shorter compile.
 
 Numba compiles every function into a library of its own and finalises it at once: it links in the modules of
 the functions it calls, runs LLVM's full module pipeline (O3) over the whole and emits machine code
 (numba/core/codegen.py CPUCodeLibrary.finalize). A caller then links that optimised module into its own and
 optimises everything again, so code called from deep inside a kernel (the event step's pieces, four levels
-down) is optimised once per level. The scalar kernels' pieces that only compiled code calls (engine/jit.py
-njit_inner and njit_generic, the time loop and the event step: no Python or C entry) never run from their own
-library: only a caller's copy of their code runs, and that caller (in the end a kernel's entry, called from
-Python) optimises the whole module, their code included, with the same pipeline. Those decorators register
-their functions here (`optimised_by_callers`), and `install` makes a registered function's library skip its
-own module pipeline and its machine code; it still runs Numba's function passes (the cleanup before
-linking), and the disk cache keeps its module for the next caller to link. Not registered: the lane kernel's
-own pieces (jit.njit_step), of which LLVM makes faster code in two passes (optimised once, its event case
-took 1.18x as long and its quiet loop 1.14x).
+down) is optimised once per level.
+
+The scalar kernels' pieces that only compiled code calls (engine/jit.py njit_inner and njit_generic: the time
+loop, the event step and their helpers, without a Python or C entry) never run from their own library: only a
+caller's copy of their code runs, and that caller (in the end a kernel's entry, called from Python) optimises
+the whole module, their code included, with the same pipeline. Those decorators register their functions here
+(`optimised_by_callers`), and `install` makes a registered function's library skip its own module pipeline
+and its machine code; it still runs Numba's function passes (the cleanup before linking), and the disk cache
+keeps its module for the next caller to link. Not registered: the lane kernel's own pieces (jit.njit_step,
+jit.njit_generic_lanes), of which LLVM makes faster code in two passes (optimised once, its event case took
+1.18x as long and its quiet loop 1.14x). Nor a piece in a recursion Numba resolves at run time (its own code
+is jumped to), nor anything else: a user's own Numba functions, Numba's overloads and @cfunc callbacks keep
+Numba's pipeline.
+
 Arithmetic is the same either way: without fast-math flags LLVM may not reorder or fuse floating-point
 operations, so where the optimiser inlines, unrolls or vectorises differently the results stay bit-identical
 (benchmarks/check_identity.py: every table); only where Numba finds Intel's SVML could a loop vectorised in one
-build and not the other call a vector math function that differs from libm's in the last bit. Only
-registered functions are touched: a user's own Numba functions, Numba's overloads and @cfunc callbacks keep
-Numba's pipeline, and so does a piece in a recursion Numba resolves at run time. It relies on how Numba builds,
-finalises, caches and links a library, so it is installed only where the methods read for it (METHODS) are
-unchanged (KNOWN_SOURCES); elsewhere nothing changes
-but the compile time. Figures: docs/explanation/performance.md.
+build and not the other call a vector math function that differs from libm's in the last bit. The module relies
+on how Numba builds, finalises, caches and links a library, so it is installed only where the methods read for
+it (METHODS) are unchanged (KNOWN_SOURCES); elsewhere nothing changes but the compile time. Figures:
+docs/explanation/performance.md.
 """
 
 from __future__ import annotations
@@ -106,6 +109,7 @@ def _in_recursion(library) -> bool:
 
 
 def _known() -> bool:
+    """Whether this Numba's METHODS are the ones this module was written against."""
     try:
         return source_digest() in KNOWN_SOURCES
     except (OSError, TypeError, AttributeError):  # no source to read: not the Numba this was written for

@@ -177,13 +177,14 @@ def njit_generic(fn):
     variables (engine/events.py event_functions). As njit_inner, but not cached on its own: Numba keys a
     closure's cache by its cell contents, and a compiled function there pickles with an id of this process,
     so every process would add an entry no other finds (numba#6264). The cached kernels that call it hold
-    its code."""
+    its code. Registered with engine/linking.py, as njit_inner's functions are: the flags are
+    njit_generic_lanes', the one difference is that registration."""
     return njit_generic_lanes(linking.optimised_by_callers(fn))
 
 
 def njit_generic_lanes(fn):
-    """njit_generic for the lane kernel's event step: its code optimised in its own module before its
-    callers' (not registered with engine/linking.py), as the lane kernel's step is."""
+    """The flags of njit_generic, without its registration: the lane kernel's event step (events.event_functions
+    with inline), whose code is optimised in its own module before its callers', as the lane kernel's step is."""
     return numba.njit(_nrt=False, no_cpython_wrapper=True, no_cfunc_wrapper=True, **dict(KERNEL_JIT, cache=False))(fn)
 
 

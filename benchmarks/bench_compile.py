@@ -6,8 +6,9 @@ For each case a scene is run twice by `python -m pounding_sweep` in a fresh proc
 cache (NUMBA_CACHE_DIR pointing at a new temporary folder): the first run compiles, the second loads the
 cache. The runs are 10 ms long, so both are start-up plus compile or cache load; their difference is the
 compile time a user waits for once. Wall time is what a user waits; on a shared machine it grows with the
-other processes' load, so the table also gives the runs' CPU time (user + system, of the child process):
-compiling is one thread's work, so that one does not. Cases: the README's scored scene (the scalar kernel with scoring),
+other processes' load, so the table also gives the runs' CPU time (user + system of the run and of the
+second process that compiles some pieces beside it, engine/aside.py): the work done, which a loaded machine
+does not change, and which a second CPU does not shorten. Cases: the README's scored scene (the scalar kernel with scoring),
 the Duzce metrics-only scene (the lane kernel), the same with another pair of story counts (4 + 2:
 what a new building pair costs), and the 6 Hz scene with histories (the scalar kernel without scoring).
 The runs are not --quiet: the table says whether the cold run announced its compile on stderr

@@ -32,6 +32,10 @@ SLOW = {
     "tests/cli/test_bad_inputs.py": ("test_bad_input_real_command",),
     "tests/cli/test_first_run.py": ("test_the_first_run_announces_its_compile_and_a_run_from_the_cache_says_nothing",),
     "tests/cli/test_signals.py": ("test_a_sweep_started_with_sigint_ignored_still_stops_at_ctrl_c",),
+    "tests/engine/test_aside.py": (
+        "test_both_scalar_kernels_load_the_scoring_code_the_second_process_compiled",
+        "test_the_lane_kernel_loads_the_step_the_second_process_compiled",
+    ),
     "tests/engine/test_lag_search.py": ("test_short_searches_stay_direct_and_long_ones_are_cheap",),
     "tests/engine/test_lanes.py": ("test_lane_kernel_metrics_equal_the_numpy_reference",),
     "tests/engine/test_nonlinear.py": (

@@ -295,6 +295,28 @@ def score_run(scores, run, xs, experiment, k_filled, status):
     return status
 
 
+def score_run_signature(score) -> tuple:
+    """The argument types the scalar kernels call score_run with for this experiment (engine/scalar.py,
+    engine/nonlinear.py: out.scores, the run's index, the run's samples xs = np.empty((channels, samples)),
+    the experiment, k_filled and the status), so a second process can compile it for them (engine/aside.py;
+    tests/engine/test_aside.py checks that the kernels find it)."""
+    from numba import typeof, types
+
+    return (
+        typeof(np.empty((0, 0, N_SCORES))),
+        types.int64,
+        typeof(np.empty((0, 0))),
+        typeof(score),
+        types.int64,
+        types.int64,
+    )
+
+
+def score_pieces(score) -> tuple:
+    """What a scalar kernel's compile can leave to a second process (engine/aside.py): score_run, when it scores."""
+    return ((score_run, score_run_signature(score)),) if score is not None and score.active else ()
+
+
 @njit_inner
 def energy_row(out, rbase, m, K, u, v, energies, status):
     """The energy balance E_in = KE + SE + D_struct + D_contact + E_spring + residual at the run's end

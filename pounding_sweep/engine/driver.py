@@ -30,35 +30,32 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from pounding_sweep.codes import LAW_CLASSIC
+from pounding_sweep.engine import aside, registry
 from pounding_sweep.engine import layout as L
-from pounding_sweep.engine import registry
 from pounding_sweep.engine.inputs import (
     HistorySpec,
     KernelOptions,
     LaneExcitation,
-    LaneModel,
     LaneOutputs,
     Outputs,
     Records,
     RunArrays,
     ScoreSpec,
     Structure,
-    building_split,
 )
 from pounding_sweep.engine.lanes import (
     LANES,
     ST_N,
-    coefficient_table,
     excitation_profiles,
     group_work,
     integrate_lanes,
+    lane_model,
     lane_modes,
-    size_tuples,
 )
 from pounding_sweep.engine.registry import Chunk
 from pounding_sweep.engine.score import N_SCORES
 from pounding_sweep.model.coupled import SystemArrays
-from pounding_sweep.model.modal import ModalArrays, modal_arrays
+from pounding_sweep.model.modal import ModalArrays
 
 
 def resolve_threads(threads: int) -> int:
@@ -227,14 +224,8 @@ def run_chunk_lanes(
     redo = np.zeros(n, np.int64)
     coef, pid, prof = excitation_profiles(runs, rec, sys.dt)
     order = np.lexsort((runs.gap, pid, -runs.nsteps)).astype(np.int64)
-    nt, n1t = size_tuples(sys)
     n_groups = -(-n // LANES)
-    ma = ma if ma is not None else modal_arrays(sys, building_split(sys))
-    # every metric group (the default) as a compile-time constant, so the vector steps carry no test for a
-    # group (as runtime flags they cost the lane kernel 6-12 %: benchmarks/compare_checkouts.py); a caller
-    # leaving groups out gets the one other compiled variant, whose steps test opts.groups at run time
-    gt = (0,) if opts.groups & L.GROUPS_ALL == L.GROUPS_ALL else ()
-    model = LaneModel(float(sys.dt), nt, n1t, gt, ma.phi, ma.psi, ma.om2, ma.dmp, ma.gam, ma.W, coefficient_table(ma))
+    model = lane_model(sys, opts, ma)
     excitation = LaneExcitation(coef, pid, prof)
     stats_g = np.zeros((n_groups, ST_N), dtype=np.int64)  # one row per group: no thread shares one
 
@@ -275,14 +266,16 @@ Announce = Callable[[str, str, float, bool], Callable[[float], None]]
 
 
 @contextlib.contextmanager
-def _announced(kernel: str, label: str, announce: Announce | None):
+def _announced(kernel: str, label: str, announce: Announce | None, pieces: Callable[[], tuple] = tuple):
     """Call `announce` when Numba starts compiling inside (a cache miss: Numba's 'numba:compile' event
-    fires only then), its return value when done; remember how long the compile took here."""
+    fires only then), its return value when done; remember how long the compile took here. Then too, start
+    compiling the kernel's self-contained pieces (what `pieces()` returns) in a second process (engine/aside.py)."""
     from numba.core import event
 
     from pounding_sweep.engine.jit import compile_estimate, record_compile
 
     started: list = []
+    helpers: list = []
 
     class _Listener(event.Listener):
         def on_start(self, ev):
@@ -290,6 +283,7 @@ def _announced(kernel: str, label: str, announce: Announce | None):
                 started.append(time.perf_counter())
                 est, here = compile_estimate(kernel)
                 started.append(announce(kernel, label, est, here) if announce is not None else None)
+                helpers.append(aside.start(pieces))
 
         def on_end(self, ev):
             pass
@@ -300,6 +294,8 @@ def _announced(kernel: str, label: str, announce: Announce | None):
         yield
     finally:
         event.unregister("numba:compile", listener)
+        for proc in helpers:
+            aside.stop(proc)
         if started:
             took = time.perf_counter() - started[0]
             record_compile(kernel, took)
@@ -334,26 +330,14 @@ def compile_kernel(
             key = k.compile_key(score)
             if key not in compiled:
                 compiled.add(key)
-                with _announced(*key, announce):
+                with _announced(*key, announce, lambda k=k, chunk=chunk: k.aside(chunk)):
                     _one_step(k, sys, opts, law, hist or none, score)
     return time.perf_counter() - t0
 
 
 def _one_step(k: registry.Kernel, sys, opts, law, hist, score):
     """One run of one step of `law` on kernel k: compiles it (or loads it from the cache)."""
-    p = sys.i1.size
-    runs = RunArrays(
-        np.ones(1),
-        np.zeros((1, p)),
-        np.zeros(1),
-        np.zeros(1, np.int64),
-        np.zeros(1),
-        np.ones(1),
-        np.zeros(1, np.int64),
-        np.ones(1, np.int64),
-        np.zeros(1, np.int64),
-        np.full(1, law, np.int64),
-    )
+    runs = RunArrays.one_at_rest(sys.i1.size, law)
     rec = Records(np.zeros(1), np.zeros(1, np.int64), np.zeros(1, np.int64))
     if k.lanes:
         run_chunk_lanes(sys, runs, rec, opts, 1, lane_modes(sys, hist, opts, score, law))

@@ -81,6 +81,22 @@ class RunArrays(NamedTuple):
         """The runs at `idx`, contiguous."""
         return RunArrays(*(np.ascontiguousarray(a[idx]) for a in self))
 
+    @classmethod
+    def one_at_rest(cls, pairs: int, law: int) -> RunArrays:
+        """One harmonic run of one step with no table motion (what a compile runs the kernels on)."""
+        return cls(
+            np.ones(1),
+            np.zeros((1, pairs)),
+            np.zeros(1),
+            np.zeros(1, np.int64),
+            np.zeros(1),
+            np.ones(1),
+            np.zeros(1, np.int64),
+            np.ones(1, np.int64),
+            np.zeros(1, np.int64),
+            np.full(1, law, np.int64),
+        )
+
 
 class Records(NamedTuple):
     """Every ground-motion record a chunk may use, resampled to dt [m/s^2] and flattened."""

@@ -14,6 +14,7 @@ from typing import NamedTuple
 
 from pounding_sweep.codes import CONTACT_LAWS, HERTZ_LAWS, KELVIN_VOIGT_LAWS
 from pounding_sweep.engine import lanes
+from pounding_sweep.engine.bookkeeping import score_pieces
 from pounding_sweep.engine.inputs import HistorySpec, KernelOptions, ScoreSpec
 from pounding_sweep.engine.nonlinear import integrate_nonlinear
 from pounding_sweep.engine.scalar import integrate_batch
@@ -44,6 +45,9 @@ class Kernel:
     entry: Callable  # its entry point (lanes.integrate_lanes; scalar.integrate_batch: picks the compiled variant)
     laws: tuple  # the contact laws (codes.LAW_*) it integrates
     why_not: Callable[[Chunk], str | None]  # why it cannot run a chunk (None: it can)
+    #: its self-contained pieces for a chunk, which a second process may compile while this one compiles the
+    #: rest (engine/aside.py): (dispatcher, argument types) pairs
+    aside: Callable[[Chunk], tuple] = lambda chunk: ()
 
     @property
     def choice(self) -> str:
@@ -76,10 +80,32 @@ def _lanes_why_not(chunk: Chunk) -> str | None:
 
 #: the kernels, in the order "auto" prefers them
 KERNELS = (
-    Kernel("lanes", "the lane kernel", True, lanes.integrate_lanes, lanes.LAWS, _lanes_why_not),
-    Kernel("scalar", "the scalar kernel", False, integrate_batch, KELVIN_VOIGT_LAWS, _one_at_a_time(KELVIN_VOIGT_LAWS)),
     Kernel(
-        "nonlinear", "the Hertz-type contact kernel", False, integrate_nonlinear, HERTZ_LAWS, _one_at_a_time(HERTZ_LAWS)
+        "lanes",
+        "the lane kernel",
+        True,
+        lanes.integrate_lanes,
+        lanes.LAWS,
+        _lanes_why_not,
+        lambda chunk: lanes.step_pieces(chunk.sys, chunk.opts, chunk.law),
+    ),
+    Kernel(
+        "scalar",
+        "the scalar kernel",
+        False,
+        integrate_batch,
+        KELVIN_VOIGT_LAWS,
+        _one_at_a_time(KELVIN_VOIGT_LAWS),
+        lambda chunk: score_pieces(chunk.score),
+    ),
+    Kernel(
+        "nonlinear",
+        "the Hertz-type contact kernel",
+        False,
+        integrate_nonlinear,
+        HERTZ_LAWS,
+        _one_at_a_time(HERTZ_LAWS),
+        lambda chunk: score_pieces(chunk.score),
     ),
 )
 

@@ -273,15 +273,21 @@ FORBIDDEN = (
 )
 
 
+#: the one exception, on purpose: engine/aside.py starts its own module (`sys.executable -m
+#: pounding_sweep.engine.aside`, no shell, no user input) to compile kernel pieces beside this process, and
+#: hands it the pieces' Numba types, which only pickle, over a pipe from this process: nothing a user wrote
+EXCEPTIONS = {"engine/aside.py": {"subprocess", "pickle"}}
+
+
 def test_no_reader_can_run_code():
-    """Static check of the package: nothing unpickles, evaluates or shells out, and the only file
-    readers are the listed ones (AT2/CSV records are parsed by hand in records.py)."""
+    """Static check of the package: nothing unpickles, evaluates or shells out (but EXCEPTIONS), and the only
+    file readers are the listed ones (AT2/CSV records are parsed by hand in records.py)."""
     found: dict[str, set[str]] = {}
     for py in sorted((REPO / "pounding_sweep").rglob("*.py")):
         code = "\n".join(line.split("#")[0] for line in py.read_text().splitlines())
-        bad = re.findall(FORBIDDEN, code)
         name = py.relative_to(REPO / "pounding_sweep").as_posix()
-        assert not bad, f"{name}: {bad}"
+        bad = set(re.findall(FORBIDDEN, code)) - EXCEPTIONS.get(name, set())
+        assert not bad, f"{name}: {sorted(bad)}"
         for call in re.findall(r"\b(?:pd|pq|pa|np|cv2|ds)\.(?:read_\w+|load\w*|VideoCapture)\b", code):
             found.setdefault(call, set()).add(name)
     assert set(found) <= set(ALLOWED_READERS), found

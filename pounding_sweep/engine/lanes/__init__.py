@@ -16,13 +16,14 @@ Modules, by concern: rows (where everything is kept: the lane-major rows W, one 
 the coefficient table), vector (the vector steps: quiet and contact), lane_step (one lane's step in
 scalar code at a contact event: engine/events.py's located step with modal pieces, or the implicit
 scheme's active-set iteration), groups (the group driver), excitation (ground-motion profiles),
-eligibility (why the lane kernel cannot run a chunk). A run that diverges is handed back to the
+eligibility (why the lane kernel cannot run a chunk), model (its model record). A run that diverges is handed back to the
 driver, which reruns it with the scalar kernel.
 """
 
 from pounding_sweep.engine.lanes.eligibility import LAWS, lane_modes
 from pounding_sweep.engine.lanes.excitation import excitation_profiles, size_tuples
-from pounding_sweep.engine.lanes.groups import group_work, integrate_lanes
+from pounding_sweep.engine.lanes.groups import group_work, integrate_lanes, step_pieces
+from pounding_sweep.engine.lanes.model import lane_model
 from pounding_sweep.engine.lanes.rows import LANES, ST_CALLS, ST_FIX_NS, ST_FIXUPS, ST_N, ST_VSTEPS, coefficient_table
 
 __all__ = [
@@ -37,6 +38,8 @@ __all__ = [
     "excitation_profiles",
     "group_work",
     "integrate_lanes",
+    "lane_model",
     "lane_modes",
     "size_tuples",
+    "step_pieces",
 ]

@@ -14,9 +14,10 @@ from pounding_sweep.codes import EXC_HARMONIC, SCHEME_EVENT
 from pounding_sweep.engine import layout as ML
 from pounding_sweep.engine.bookkeeping import median_inplace
 from pounding_sweep.engine.clock import _monotonic_ns
-from pounding_sweep.engine.inputs import LaneWork
+from pounding_sweep.engine.inputs import LaneWork, RunArrays
 from pounding_sweep.engine.jit import inline, njit_lanes, njit_step
-from pounding_sweep.engine.lanes.lane_step import end_phase, lane_step
+from pounding_sweep.engine.lanes.lane_step import end_phase, lane_step, lane_step_signature
+from pounding_sweep.engine.lanes.model import lane_model
 from pounding_sweep.engine.lanes.rows import (
     BR,
     LANES,
@@ -445,3 +446,12 @@ def integrate_lanes(order, g_start, g_stop, model, opts, runs, excitation, out, 
     Numba's reference counts (on the records' arrays they cost the scalar steps a fifth of their time)."""
     gw = work if work is not None else group_work(model, opts.max_iter)
     _integrate_groups(order, (g_start, g_stop), model, opts, runs, excitation, out, gw)
+
+
+def step_pieces(sys, opts, law) -> tuple:
+    """What a compile of the lane kernel for this system (model.coupled.SystemArrays), options and contact law
+    can leave to a second process (engine/aside.py): the scalar step, lane_step (17 s of its 30 s compile), whose
+    types do not depend on the floor counts."""
+    model = lane_model(sys, opts)
+    runs = RunArrays.one_at_rest(sys.i1.size, law)
+    return ((lane_step, lane_step_signature(model, opts, runs, group_work(model, opts.max_iter))),)

@@ -1,0 +1,142 @@
+"""Compile a kernel's self-contained pieces in a second process while this one compiles the rest.
+
+A kernel's first compile is one thread's work: Numba holds one lock. Some of the pieces it calls stand alone:
+functions cached on their own, called with one signature, such as the scoring code (bookkeeping.score_run,
+about 5 s of the README scene's 19 s compile) and the lane kernel's scalar step (lanes.lane_step, 17 s of its
+30 s). A second process compiles them into the disk cache while this one compiles the rest. When the
+kernel's typing reaches their call, Numba finds them there (numba/core/dispatcher.py `Dispatcher.compile`
+looks in the cache before compiling).
+
+It starts only where it can help: a second CPU, a disk cache, and the piece not cached yet. When this
+process needs a piece the second one is still compiling, it waits for it, then loads the piece from the cache.
+If the second process failed, this one compiles the piece itself; the code is the same either way. The
+second process is a plain child, killed when this one is done. `python -m pounding_sweep.engine.aside` is
+the child: it reads (cache folder, pieces) from its standard input, pickled by this process (Numba's types
+only pickle), not a command for users (tests/cli/test_bad_inputs.py names it as the one exception).
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import pickle
+import subprocess
+import sys
+from collections.abc import Callable
+
+from numba.core import sigutils
+from numba.core.caching import NullCache
+
+
+def _cpus() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def _args(sig) -> tuple:
+    return tuple(sigutils.normalize_signature(sig)[0])
+
+
+def _wanted(pieces) -> list:
+    """The pieces a second process should compile: cached, importable by name, not compiled or cached yet."""
+    out = []
+    for dispatcher, sig in pieces:
+        cache = dispatcher._cache
+        name = dispatcher.py_func.__qualname__
+        if isinstance(cache, NullCache) or _args(sig) in dispatcher.overloads or "." in name:
+            continue
+        if cache.load_overload(_args(sig), dispatcher.targetctx) is None:
+            out.append((dispatcher, _args(sig)))
+    return out
+
+
+class Aside:
+    """The second process, and its pieces' caches told to wait for it: a piece this process needs while the
+    second one is still compiling it is loaded from the cache once that one is done, not compiled twice."""
+
+    def __init__(self, proc: subprocess.Popen, wanted: list):
+        self.proc = proc
+        self.caches = []
+        for dispatcher, _ in wanted:
+            cache = dispatcher._cache
+            if cache not in self.caches:
+                self.caches.append(cache)
+                cache.load_overload = self._waiting(cache.load_overload, {a for d, a in wanted if d is dispatcher})
+
+    def _waiting(self, load, compiled_aside: set):
+        def load_overload(sig, target_context):
+            if _args(sig) in compiled_aside:
+                self.proc.wait()
+            return load(sig, target_context)
+
+        return load_overload
+
+    def stop(self) -> None:
+        """Kill the second process if it is still running (this one is done: it did not need the rest of its
+        work; Numba writes a cache entry by replacing the file, so one cut short leaves none) and let the caches
+        load without waiting again."""
+        if self.proc.poll() is None:
+            self.proc.kill()
+        self.proc.wait()
+        for cache in self.caches:
+            del cache.load_overload
+
+
+def start(pieces: Callable[[], tuple]) -> Aside | None:
+    """Start compiling the pieces `pieces()` returns ((dispatcher, argument types) pairs) in a second process;
+    None where it would not help (one CPU, no disk cache, nothing left to compile) or cannot start. It is
+    called inside Numba's compile, which only a speed-up must not break: an error in `pieces()` leaves the
+    compile to this process (tests/engine/test_aside.py would see the miss)."""
+    from pounding_sweep.engine import jit
+
+    if jit.CACHE_DIR is None or _cpus() < 2:
+        return None
+    try:
+        wanted = _wanted(pieces())
+    except Exception:  # noqa: BLE001 (see the docstring)
+        return None
+    if not wanted:
+        return None
+    names = [(d.py_func.__module__, d.py_func.__qualname__, args) for d, args in wanted]
+    try:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "pounding_sweep.engine.aside"],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+    except OSError:  # no process to spare: compile here
+        return None
+    try:
+        assert proc.stdin is not None
+        proc.stdin.write(pickle.dumps((str(jit.CACHE_DIR), names)))
+        proc.stdin.close()
+    except OSError:  # it ended at once: compile here
+        proc.kill()
+        proc.wait()
+        return None
+    return Aside(proc, wanted)
+
+
+def stop(aside: Aside | None) -> None:
+    """End what start() began (nothing if it began nothing)."""
+    if aside is not None:
+        aside.stop()
+
+
+def main() -> int:
+    """The second process: compile each piece into the cache folder this process would use too."""
+    cache_dir, names = pickle.load(sys.stdin.buffer)
+    from pounding_sweep.engine import jit
+
+    if str(jit.CACHE_DIR) != cache_dir:  # another configuration: its cache entries would help no one
+        return 1
+    for module, name, args in names:
+        getattr(importlib.import_module(module), name).compile(args)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,118 @@
+"""Compiling a kernel's self-contained pieces in a second process (engine/aside.py).
+
+The second process compiles the scoring code, or the lane kernel's scalar step, into the disk cache; the
+kernel's own compile must then find it there, so the signature must be exactly the one the kernels call it
+with (bookkeeping.score_run_signature, lane_step.lane_step_signature). This process waits for the second one when
+it needs the piece first, so the checks do not depend on which process is faster. And the second process
+starts only where it can help.
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import subprocess
+import sys
+
+import numba
+import numpy as np
+from conftest import SWEEPS
+
+from pounding_sweep.engine import aside, bookkeeping
+from pounding_sweep.engine.inputs import ScoreSpec
+
+RUN = f"""
+import dataclasses
+import sys
+from pounding_sweep.engine import aside, driver
+from pounding_sweep.engine import bookkeeping as bk
+from pounding_sweep.engine.lanes.lane_step import lane_step
+from pounding_sweep.scene import load_scene
+from pounding_sweep.sweep.prepare import prepare
+
+aside._cpus = lambda: 2  # as on a machine with a CPU to spare, whatever this one has
+name, piece, laws = {{"scored": ("scored_6hz", bk.score_run, ("classic", "hertzdamp")),
+                     "lanes": ("paper_duzce", lane_step, ("classic",))}}[sys.argv[1]]
+scene = load_scene({str(SWEEPS)!r} + f"/{{name}}.toml")
+scene = dataclasses.replace(scene, sweep=())
+for law in laws:
+    prep = prepare(dataclasses.replace(scene, contact=dataclasses.replace(scene.contact, law=law)))
+    kernel = "scalar" if prep.score.active else "lanes"
+    driver.compile_kernel(prep.sysarr, prep.opts, prep.hist, prep.score, kernel, prep.law_codes_used)
+    sig = piece.signatures[0]
+    print(law, len(piece.signatures), piece.stats.cache_hits.get(sig, 0), piece.stats.cache_misses.get(sig, 0))
+"""
+
+
+def _compile_with_an_empty_cache(tmp_path, what: str) -> list[list[str]]:
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    r = subprocess.run([sys.executable, "-c", RUN, what], env=env, cwd=tmp_path, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-3000:]
+    return [line.split() for line in r.stdout.splitlines()]
+
+
+def test_both_scalar_kernels_load_the_scoring_code_the_second_process_compiled(tmp_path):
+    """With an empty cache: the second process compiles score_run, and the scalar kernel's compile loads it from
+    the cache (a hit, no compile here; it waits for the second process if it needs the piece first); the
+    Hertz-type kernel then calls it with the same types (still one signature). A signature that drifted from
+    the kernels' call would show as a miss."""
+    got = _compile_with_an_empty_cache(tmp_path, "scored")
+    assert got == [["classic", "1", "1", "0"], ["hertzdamp", "1", "1", "0"]]
+
+
+def test_the_lane_kernel_loads_the_step_the_second_process_compiled(tmp_path):
+    """The same for the lane kernel's scalar step (lane_step.lane_step_signature against groups._scalar_steps' call)."""
+    assert _compile_with_an_empty_cache(tmp_path, "lanes") == [["classic", "1", "1", "0"]]
+
+
+def test_nothing_to_leave_aside_without_scoring():
+    """No scoring, no pieces: the second process is not started."""
+    assert bookkeeping.score_pieces(ScoreSpec.none()) == ()
+    assert bookkeeping.score_pieces(None) == ()
+    assert aside.start(tuple) is None
+
+
+def test_an_error_listing_the_pieces_leaves_the_compile_here(monkeypatch):
+    """start() runs inside Numba's compile: a failing list of pieces starts nothing and raises nothing."""
+    monkeypatch.setattr(aside, "_cpus", lambda: 2)
+
+    def broken():
+        raise TypeError("a signature that cannot be built")
+
+    assert aside.start(broken) is None
+
+
+def test_one_cpu_starts_no_second_process(monkeypatch):
+    """With one CPU the second process would only take turns with this one."""
+    monkeypatch.setattr(aside, "_cpus", lambda: 1)
+    spec = ScoreSpec.none()._replace(dof=np.zeros(1, dtype=np.int64))
+    assert aside.start(lambda: bookkeeping.score_pieces(spec)) is None
+
+
+@numba.njit(cache=True)
+def _plus_one(x):
+    return x + 1.0
+
+
+def test_pieces_compiled_here_or_not_importable_are_left_out():
+    """A piece this process has compiled (or loaded) already is left out, and so is one a second process could
+    not import by name (a function made inside another)."""
+
+    @numba.njit(cache=True)
+    def local(x):
+        return x + 1.0
+
+    _plus_one(1.0)
+    assert aside._wanted([(_plus_one, (numba.float64,))]) == []
+    assert aside._wanted([(local, (numba.float64,))]) == []
+
+
+def test_the_second_process_refuses_another_cache_folder(tmp_path):
+    """Started with a cache folder it would not use itself, the second process compiles nothing (exit 1)."""
+
+    r = subprocess.run(
+        [sys.executable, "-m", "pounding_sweep.engine.aside"],
+        input=pickle.dumps((str(tmp_path / "elsewhere"), [("pounding_sweep.engine.bookkeeping", "score_run", ())])),
+        capture_output=True,
+    )
+    assert r.returncode == 1, r.stderr[-2000:]

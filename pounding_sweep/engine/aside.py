@@ -11,7 +11,8 @@ It starts only where it can help: a second CPU, a disk cache, and the piece not 
 process needs a piece the second one is still compiling, it waits for it, then loads the piece from the cache.
 If the second process failed, this one compiles the piece itself; the code is the same either way. The
 second process is a plain child, killed when this one is done. `python -m pounding_sweep.engine.aside` is
-the child: it reads (cache folder, pieces) from its standard input, pickled by this process (Numba's types
+the child: it reads the pieces (module, name, argument types, cache folder) from its standard input, pickled
+by this process (Numba's types
 only pickle), not a command for users (tests/cli/test_bad_inputs.py names it as the one exception).
 """
 
@@ -39,6 +40,11 @@ def _args(sig) -> tuple:
     return tuple(sigutils.normalize_signature(sig)[0])
 
 
+#: the longest this process waits for the second one before it kills it and compiles the piece itself: many times
+#: what a piece takes (lane_step: 17 s on a quiet 2-core machine, about 50 s on a busy one)
+WAIT_S = 300.0
+
+
 def _wanted(pieces) -> list:
     """The pieces a second process should compile: cached, importable by name, not compiled or cached yet."""
     out = []
@@ -58,30 +64,42 @@ class Aside:
 
     def __init__(self, proc: subprocess.Popen, wanted: list):
         self.proc = proc
-        self.caches = []
+        self.caches: list = []  # (cache, what its load_overload instance attribute was: None for none)
         for dispatcher, _ in wanted:
             cache = dispatcher._cache
-            if cache not in self.caches:
-                self.caches.append(cache)
+            if all(cache is not c for c, _ in self.caches):
+                self.caches.append((cache, cache.__dict__.get("load_overload")))
                 cache.load_overload = self._waiting(cache.load_overload, {a for d, a in wanted if d is dispatcher})
 
     def _waiting(self, load, compiled_aside: set):
         def load_overload(sig, target_context):
             if _args(sig) in compiled_aside:
-                self.proc.wait()
+                self._wait()
             return load(sig, target_context)
 
         return load_overload
 
-    def stop(self) -> None:
-        """Kill the second process if it is still running (this one is done: it did not need the rest of its
-        work; Numba writes a cache entry by replacing the file, so one cut short leaves none) and let the caches
-        load without waiting again."""
-        if self.proc.poll() is None:
+    def _wait(self) -> None:
+        try:
+            self.proc.wait(timeout=WAIT_S)
+        except subprocess.TimeoutExpired:  # stuck: compile here
             self.proc.kill()
-        self.proc.wait()
-        for cache in self.caches:
-            del cache.load_overload
+            self.proc.wait()
+
+    def stop(self) -> None:
+        """Kill the second process if it is still running (this one is done and did not need the rest of its
+        work; cut short while saving, it may leave an index entry without its data, which Numba reads as not
+        cached, or a temporary file) and put the caches' loading back as it was."""
+        try:
+            if self.proc.poll() is None:
+                self.proc.kill()
+            self.proc.wait()
+        finally:
+            for cache, before in self.caches:
+                if before is not None:
+                    cache.load_overload = before
+                else:
+                    cache.__dict__.pop("load_overload", None)
 
 
 def start(pieces: Callable[[], tuple]) -> Aside | None:
@@ -91,15 +109,17 @@ def start(pieces: Callable[[], tuple]) -> Aside | None:
     compile to this process (tests/engine/test_aside.py would see the miss)."""
     from pounding_sweep.engine import jit
 
-    if jit.CACHE_DIR is None or _cpus() < 2:
-        return None
+    if jit.CACHE_DIR is None or _cpus() < 2 or not sys.executable or getattr(sys, "frozen", False):
+        return None  # no disk cache, no CPU to spare, or no Python to start (an embedding or frozen program)
     try:
         wanted = _wanted(pieces())
     except Exception:  # noqa: BLE001 (see the docstring)
         return None
     if not wanted:
         return None
-    names = [(d.py_func.__module__, d.py_func.__qualname__, args) for d, args in wanted]
+    # each piece with the cache file it must land in: a second process that imports the package from
+    # elsewhere (another checkout first on its path) would write where this one does not read
+    names = [(d.py_func.__module__, d.py_func.__qualname__, args, d._cache._cache_path) for d, args in wanted]
     try:
         proc = subprocess.Popen(
             [sys.executable, "-m", "pounding_sweep.engine.aside"],
@@ -107,11 +127,11 @@ def start(pieces: Callable[[], tuple]) -> Aside | None:
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
         )
-    except OSError:  # no process to spare: compile here
+    except Exception:  # noqa: BLE001 (no process to spare, or none can start: compile here)
         return None
     try:
         assert proc.stdin is not None
-        proc.stdin.write(pickle.dumps((str(jit.CACHE_DIR), names)))
+        proc.stdin.write(pickle.dumps(names))
         proc.stdin.close()
     except OSError:  # it ended at once: compile here
         proc.kill()
@@ -127,15 +147,17 @@ def stop(aside: Aside | None) -> None:
 
 
 def main() -> int:
-    """The second process: compile each piece into the cache folder this process would use too."""
-    cache_dir, names = pickle.load(sys.stdin.buffer)
-    from pounding_sweep.engine import jit
-
-    if str(jit.CACHE_DIR) != cache_dir:  # another configuration: its cache entries would help no one
-        return 1
-    for module, name, args in names:
-        getattr(importlib.import_module(module), name).compile(args)
-    return 0
+    """The second process: compile each piece whose cache is where the first process reads it; exit 1 if one
+    was not (another checkout or configuration: its entries would help no one)."""
+    names = pickle.load(sys.stdin.buffer)
+    missed = 0
+    for module, name, args, cache_path in names:
+        dispatcher = getattr(importlib.import_module(module), name)
+        if getattr(dispatcher._cache, "_cache_path", None) != cache_path:
+            missed += 1
+            continue
+        dispatcher.compile(args)
+    return 1 if missed else 0
 
 
 if __name__ == "__main__":

@@ -294,13 +294,15 @@ def _announced(kernel: str, label: str, announce: Announce | None, pieces: Calla
         yield
     finally:
         event.unregister("numba:compile", listener)
-        for proc in helpers:
-            aside.stop(proc)
-        if started:
-            took = time.perf_counter() - started[0]
-            record_compile(kernel, took)
-            if started[1] is not None:
-                started[1](took)
+        try:
+            for proc in helpers:
+                aside.stop(proc)
+        finally:
+            if started:
+                took = time.perf_counter() - started[0]
+                record_compile(kernel, took)
+                if started[1] is not None:
+                    started[1](took)
 
 
 def compile_kernel(

@@ -34,7 +34,15 @@ HERE = Path(__file__).resolve().parent
 #: engine: an edit there changes no compiled code, so it must not cost every user a fresh compile of every
 #: kernel (tests/engine/test_jit.py checks that no module listed here holds compiled code). linking.py is not
 #: one: it decides what a cached piece holds (a module to link, no machine code)
-NOT_COMPILED = ("driver.py", "registry.py", "inlining.py", "lanes/__init__.py", "lanes/eligibility.py")
+NOT_COMPILED = (
+    "driver.py",
+    "registry.py",
+    "inlining.py",
+    "aside.py",
+    "lanes/__init__.py",
+    "lanes/eligibility.py",
+    "lanes/model.py",
+)
 #: the sources whose compiled code the cache holds
 SOURCES = sorted(p for p in HERE.rglob("*.py") if p.relative_to(HERE).as_posix() not in NOT_COMPILED) + [
     HERE.parent / "codes.py"

@@ -44,10 +44,43 @@ for law in laws:
 """
 
 
+#: logs every cache entry a process saves (pid, index file, key), in this process and the second one alike
+SITE = """
+import os
+from numba.core import caching
+
+_save = caching.IndexDataCacheFile.save
+
+
+def save(self, key, data):
+    _save(self, key, data)
+    with open(os.environ["ASIDE_LOG"], "a") as f:
+        f.write(f"{os.getpid()}|{os.path.basename(self._index_path)}|{key[0]}\\n")
+
+
+caching.IndexDataCacheFile.save = save
+"""
+
+
 def _compile_with_an_empty_cache(tmp_path, what: str) -> list[list[str]]:
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    """Compile in a fresh process with an empty cache; its lines. Both processes must have saved entries, and no
+    function's index may be written by both with different keys: Numba's index save (caching.py
+    IndexDataCacheFile.save) is not safe against two processes adding different keys at once."""
+    (tmp_path / "site").mkdir()
+    (tmp_path / "site" / "sitecustomize.py").write_text(SITE)
+    log = tmp_path / "saves.log"
+    path = os.pathsep.join([str(tmp_path / "site"), os.environ.get("PYTHONPATH", "")])
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), PYTHONPATH=path, ASIDE_LOG=str(log))
     r = subprocess.run([sys.executable, "-c", RUN, what], env=env, cwd=tmp_path, capture_output=True, text=True)
     assert r.returncode == 0, r.stderr[-3000:]
+    saves = [line.split("|") for line in log.read_text().splitlines()]
+    assert len({pid for pid, _, _ in saves}) == 2, "one process saved every entry"
+    by_index: dict[str, set] = {}
+    for pid, index, key in saves:
+        by_index.setdefault(index, set()).add((pid, key))
+    for index, entries in by_index.items():
+        pids = {pid for pid, _ in entries}
+        assert len(pids) == 1 or len({key for _, key in entries}) == 1, (index, entries)
     return [line.split() for line in r.stdout.splitlines()]
 
 
@@ -107,12 +140,46 @@ def test_pieces_compiled_here_or_not_importable_are_left_out():
     assert aside._wanted([(local, (numba.float64,))]) == []
 
 
-def test_the_second_process_refuses_another_cache_folder(tmp_path):
-    """Started with a cache folder it would not use itself, the second process compiles nothing (exit 1)."""
-
+def test_the_second_process_skips_a_piece_whose_cache_is_elsewhere():
+    """A second process that finds a piece's cache in another folder than this one's (another checkout first on
+    its path) compiles nothing there and says so (exit 1)."""
+    names = [("pounding_sweep.engine.bookkeeping", "score_run", (), "/nowhere/this/process/reads")]
     r = subprocess.run(
-        [sys.executable, "-m", "pounding_sweep.engine.aside"],
-        input=pickle.dumps((str(tmp_path / "elsewhere"), [("pounding_sweep.engine.bookkeeping", "score_run", ())])),
-        capture_output=True,
+        [sys.executable, "-m", "pounding_sweep.engine.aside"], input=pickle.dumps(names), capture_output=True
     )
     assert r.returncode == 1, r.stderr[-2000:]
+
+
+def test_no_python_to_start_starts_nothing(monkeypatch):
+    """In a program that embeds Python (sys.executable empty or None) nothing is started, and nothing raises."""
+    monkeypatch.setattr(aside, "_cpus", lambda: 2)
+    for exe in (None, ""):
+        monkeypatch.setattr(sys, "executable", exe)
+        assert aside.start(lambda: ((_plus_one, (numba.int64,)),)) is None
+
+
+def test_a_stuck_second_process_is_killed_and_the_caches_are_put_back(monkeypatch):
+    """Waiting ends after WAIT_S (the piece is then compiled here); stop() puts each cache's loading back as it
+    was, an attribute set before included."""
+    _plus_one(1.0)
+    cache = _plus_one._cache
+    proc = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    monkeypatch.setattr(aside, "WAIT_S", 0.1)
+    a = aside.Aside(proc, [(_plus_one, (numba.int64,))])
+    assert "load_overload" in cache.__dict__
+    a._wait()
+    assert proc.poll() is not None
+    a.stop()
+    assert "load_overload" not in cache.__dict__
+
+    def mine(sig, target_context):
+        return None
+
+    cache.load_overload = mine
+    try:
+        b = aside.Aside(subprocess.Popen([sys.executable, "-c", "pass"]), [(_plus_one, (numba.int64,))])
+        assert cache.load_overload is not mine
+        b.stop()
+        assert cache.load_overload is mine
+    finally:
+        del cache.load_overload

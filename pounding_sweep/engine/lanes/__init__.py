@@ -16,8 +16,8 @@ Modules, by concern: rows (where everything is kept: the lane-major rows W, one 
 the coefficient table), vector (the vector steps: quiet and contact), lane_step (one lane's step in
 scalar code at a contact event: engine/events.py's located step with modal pieces, or the implicit
 scheme's active-set iteration), groups (the group driver), excitation (ground-motion profiles),
-eligibility (why the lane kernel cannot run a chunk), model (its model record). A run that diverges is handed back to the
-driver, which reruns it with the scalar kernel.
+eligibility (why the lane kernel cannot run a chunk), model (its model record). A run that diverges is
+handed back to the driver, which reruns it with the scalar kernel.
 """
 
 from pounding_sweep.engine.lanes.eligibility import LAWS, lane_modes

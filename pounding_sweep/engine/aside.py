@@ -45,16 +45,22 @@ def _args(sig) -> tuple:
 WAIT_S = 300.0
 
 
+def _in_cache(dispatcher, args: tuple) -> bool:
+    """Whether the disk cache's index holds the piece: the key Numba's load_overload looks up (numba/core/caching.py
+    Cache._load_overload), without loading the entry, which Numba does when the kernel's typing needs it."""
+    cache = dispatcher._cache
+    return cache._index_key(args, dispatcher.targetctx.codegen()) in cache._cache_file._load_index()
+
+
 def _wanted(pieces) -> list:
     """The pieces a second process should compile: cached, importable by name, not compiled or cached yet."""
     out = []
     for dispatcher, sig in pieces:
-        cache = dispatcher._cache
-        name = dispatcher.py_func.__qualname__
-        if isinstance(cache, NullCache) or _args(sig) in dispatcher.overloads or "." in name:
+        args = _args(sig)
+        if isinstance(dispatcher._cache, NullCache) or args in dispatcher.overloads:
             continue
-        if cache.load_overload(_args(sig), dispatcher.targetctx) is None:
-            out.append((dispatcher, _args(sig)))
+        if "." not in dispatcher.py_func.__qualname__ and not _in_cache(dispatcher, args):
+            out.append((dispatcher, args))
     return out
 
 

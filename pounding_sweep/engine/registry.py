@@ -73,6 +73,11 @@ def _one_at_a_time(laws):
     return why_not
 
 
+def _scoring_pieces(chunk: Chunk) -> tuple:
+    """The scalar kernels' pieces a second process may compile: the scoring code, when the chunk scores."""
+    return score_pieces(chunk.score)
+
+
 def _lanes_why_not(chunk: Chunk) -> str | None:
     why = lanes.lane_modes(chunk.sys, chunk.hist, chunk.opts, chunk.score, chunk.law)
     return why if isinstance(why, str) else None
@@ -96,7 +101,7 @@ KERNELS = (
         integrate_batch,
         KELVIN_VOIGT_LAWS,
         _one_at_a_time(KELVIN_VOIGT_LAWS),
-        lambda chunk: score_pieces(chunk.score),
+        _scoring_pieces,
     ),
     Kernel(
         "nonlinear",
@@ -105,7 +110,7 @@ KERNELS = (
         integrate_nonlinear,
         HERTZ_LAWS,
         _one_at_a_time(HERTZ_LAWS),
-        lambda chunk: score_pieces(chunk.score),
+        _scoring_pieces,
     ),
 )
 

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import collections
-import ctypes
 import os
 import re
 import shutil
@@ -67,6 +66,28 @@ def compiled_functions(dispatcher) -> list[tuple[int, str]]:
     return sorted(set(out))
 
 
+def _mapped_bytes(addr: int, size: int) -> bytes:
+    """Up to `size` bytes of this process's memory from addr, stopping at the first unmapped page (the next
+    symbol can lie in another module's mapping, so addr + size may run past this one's: reading that through a
+    pointer crashed the process; /proc/self/mem answers EIO instead)."""
+    out = bytearray()
+    fd = os.open("/proc/self/mem", os.O_RDONLY)
+    try:
+        while len(out) < size:
+            page_end = (addr + len(out)) // 4096 * 4096 + 4096
+            want = min(size - len(out), page_end - (addr + len(out)))
+            try:
+                chunk = os.pread(fd, want, addr + len(out))
+            except OSError:
+                break
+            if not chunk:
+                break
+            out += chunk
+    finally:
+        os.close(fd)
+    return bytes(out)
+
+
 def instruction_class(text: str) -> str:
     op = text.split()[0]
     ops = text[len(op) :].strip()
@@ -89,6 +110,10 @@ def main() -> None:
     ap.add_argument("--gap", type=float, default=0.0, help="gap [m] of every run (0: every pair pounds)")
     ap.add_argument("--scheme", default="event", choices=["event", "implicit"])
     ap.add_argument("--seconds", type=float, default=4.0, help="how long perf samples")
+    ap.add_argument(
+        "--function", default="", help="the instruction mix of the hottest compiled function whose name has this"
+    )
+    ap.add_argument("--hot", type=int, default=0, help="also print its N instructions with the most samples")
     a = ap.parse_args()
     perf = shutil.which("perf")
     if perf is None:
@@ -169,8 +194,8 @@ def _profile(a, perf: str, tmp: Path, pmap: Path) -> None:
     for fn, share in shares.items():
         print(f"{share:>15.2f}%   {fn}")
 
-    named = [(shares.get(short(n), 0.0), k) for k, (_, n) in enumerate(syms)]
-    best, k = max(named)
+    named = [(shares.get(short(n), 0.0), k) for k, (_, n) in enumerate(syms) if a.function in short(n)]
+    best, k = max(named, default=(0.0, 0))
     hot = syms[k]
     objdump = shutil.which("objdump")
     if objdump is None or best == 0.0:
@@ -180,7 +205,7 @@ def _profile(a, perf: str, tmp: Path, pmap: Path) -> None:
     hot_name = short(name)
     end = syms[k + 1][0] if k + 1 < len(syms) else addr + 65536
     binf = tmp / "hot.bin"
-    binf.write_bytes(ctypes.string_at(addr, end - addr))
+    binf.write_bytes(_mapped_bytes(addr, end - addr))
     asm = subprocess.run(
         [objdump, "-D", "-b", "binary", "-mi386:x86-64", f"--adjust-vma={addr:#x}", str(binf)],
         capture_output=True,
@@ -194,9 +219,11 @@ def _profile(a, perf: str, tmp: Path, pmap: Path) -> None:
             ips[int(parts[0], 16)] += 1
     total = sum(ips.values())
     by_class, static = collections.Counter(), collections.Counter()
+    text = {}
     for line in asm.splitlines():
         m = re.match(r"\s*([0-9a-f]+):\s+(?:[0-9a-f]{2} )+\s*(\S.*)", line)
         if m:
+            text[int(m.group(1), 16)] = m.group(2)
             c = instruction_class(m.group(2))
             by_class[c] += ips.get(int(m.group(1), 16), 0)
             static[c] += 1
@@ -208,6 +235,10 @@ def _profile(a, perf: str, tmp: Path, pmap: Path) -> None:
     print("share of samples   class   (instructions of that class in the code)")
     for c, n in by_class.most_common():
         print(f"{n / max(total, 1):>16.1%}   {c}   ({static[c]})")
+    if a.hot:
+        print(f"\nits {a.hot} instructions with the most samples (address order)")
+        for ip, n in sorted(ips.most_common(a.hot)):
+            print(f"{n / max(total, 1):>7.1%}  {ip:#x}  {text.get(ip, '?')}")
 
 
 if __name__ == "__main__":

@@ -173,6 +173,13 @@ def njit_step(fn):
     return _cached(numba.njit(_nrt=False, no_cpython_wrapper=True, no_cfunc_wrapper=True, **LANES_JIT))(fn)
 
 
+def njit_step_once(fn):
+    """njit_step for the lane kernel's scalar step, a large piece: LLVM optimises its module on its own, and its
+    callers link that optimised code after optimising theirs (engine/linking.py optimised_once), rather than
+    optimise it and make its machine code again in every kernel that calls it."""
+    return njit_step(linking.optimised_once(fn))
+
+
 def njit_inner(fn):
     """Decorate a helper of the scalar kernels' time loop that allocates nothing: no reference counts on
     its array arguments and no Python entry wrapper (as njit_step), with the scalar kernels' flags; its code

@@ -18,6 +18,14 @@ jit.njit_generic_lanes), of which LLVM makes faster code in two passes (optimise
 is jumped to), nor anything else: a user's own Numba functions, Numba's overloads and @cfunc callbacks keep
 Numba's pipeline.
 
+The other way round, a large piece with a module of its own that LLVM has already optimised (the lane kernel's
+scalar step, `optimised_once`) would be optimised again in its caller's module, and its machine code made
+again. Its caller (`install`'s finalize) optimises its own code with only the piece's declarations in its
+module, then links the piece's optimised code in and makes the machine code of the whole: the kernel stays one
+self-contained library (cached and loaded alone), and the piece is optimised once. The LLVM time of the lane
+kernel's entry for a new pair of story counts, its step cached: 2.9-3.0 s against 4.8-5.9 s
+(benchmarks/profile_compile.py --case 2 --after 1; docs/explanation/performance.md).
+
 Arithmetic is the same either way: without fast-math flags LLVM may not reorder or fuse floating-point
 operations, so where the optimiser inlines, unrolls or vectorises differently the results stay bit-identical
 (benchmarks/check_identity.py: every table); only where Numba finds Intel's SVML could a loop vectorised in one
@@ -34,7 +42,7 @@ import hashlib
 import inspect
 
 from llvmlite import binding as ll
-from numba.core import codegen, typed_passes
+from numba.core import codegen, itanium_mangler, typed_passes
 
 #: the Numba methods this module relies on: where a library is made and marked, finalised and optimised, the
 #: module its callers link (a _shared_module set beforehand is used as it is), how a library is cached and
@@ -56,6 +64,10 @@ KNOWN_SOURCES = frozenset({"2ead6f571fce5eab"})
 MARK = "_optimised_by_callers"
 #: the Python functions whose compiled code only their callers' libraries optimise (optimised_by_callers)
 _REGISTERED: set = set()
+#: the pieces optimised once, in their own module (optimised_once): their qualified name -> their symbols' prefixes
+_ONCE: dict[str, set[str]] = {}
+#: the attribute of a caller's library that holds the optimised modules it links after its own optimisation
+_AFTER = "_linked_after_optimisation"
 
 
 def source_digest() -> str:
@@ -70,6 +82,48 @@ def optimised_by_callers(fn):
     """Register fn, a function compiled without a Python or C entry, as one whose code its callers optimise."""
     _REGISTERED.add(fn)
     return fn
+
+
+def optimised_once(fn):
+    """Register fn, a piece compiled without a Python or C entry whose own module LLVM optimises: its callers
+    link its optimised code after optimising their own, not before (it is not optimised a second time)."""
+    ident = f"{fn.__module__}.{fn.__qualname__}"
+    prefix = "_Z" + itanium_mangler.mangle_identifier(ident)[:-1]  # Numba's symbol for fn, up to its tags
+    _ONCE.setdefault(fn.__qualname__, set()).add(prefix)
+    return fn
+
+
+def _once_module(library):
+    """The module a caller links of this library, if the library is an optimised_once piece's, else None."""
+    prefixes = _ONCE.get(library.name)
+    if not prefixes:
+        return None
+    module = library._get_module_for_linking()
+    for fn in module.functions:
+        if fn.is_declaration:
+            continue
+        for prefix in prefixes:  # the symbol, then its ABI tags (B...) or its end (E)
+            if fn.name.startswith(prefix) and fn.name[len(prefix) : len(prefix) + 1] in ("B", "E"):
+                return module
+    return None
+
+
+def _declarations(module):
+    """A module that declares the functions `module` defines for its callers (no code, no other globals)."""
+    lines = [f'target triple = "{module.triple}"', f'target datalayout = "{module.data_layout}"']
+    for fn in module.functions:
+        if fn.is_declaration or fn.linkage not in (ll.Linkage.linkonce_odr, ll.Linkage.external):
+            continue
+        fty = str(fn.global_value_type)  # e.g. "i32 (ptr, ptr, i64)"
+        ret, params = fty.split(" (", 1)
+        lines.append(f'declare {ret} @"{fn.name}"({params}')
+    return ll.parse_assembly("\n".join(lines) + "\n")
+
+
+def _link_after(library) -> None:
+    """Link into the caller's (optimised) module the optimised modules of its optimised_once pieces."""
+    for module in getattr(library, _AFTER, ()):
+        library._final_module.link_in(module, preserve=True)
 
 
 def _marked(state) -> bool:
@@ -126,6 +180,7 @@ def install() -> bool:
         return False
     run_pass = lowering.run_pass
     optimize = codegen.CPUCodeLibrary._optimize_final_module
+    finalize = codegen.CPUCodeLibrary.finalize
 
     @functools.wraps(run_pass)
     def marking_run_pass(self, state):
@@ -139,11 +194,35 @@ def install() -> bool:
     @functools.wraps(optimize)
     def optimize_final_module(self):
         if getattr(self, MARK, False) and not _in_recursion(self):
+            _link_after(self)
             _for_linking_only(self)  # its callers' libraries optimise this code with theirs
             return None
-        return optimize(self)
+        out = optimize(self)
+        _link_after(self)
+        return out
+
+    @functools.wraps(finalize)
+    def finalize_library(self):
+        once = {}
+        for lib in dict.fromkeys(self._linking_libraries):
+            module = _once_module(lib)
+            if module is not None:
+                once[lib] = module
+        if not once:
+            return finalize(self)
+        # finalize links each library's _shared_module: the declarations while this one is optimised
+        setattr(self, _AFTER, list(once.values()))
+        try:
+            for lib, module in once.items():
+                lib._shared_module = _declarations(module)
+            return finalize(self)
+        finally:
+            for lib, module in once.items():
+                lib._shared_module = module
+            setattr(self, _AFTER, ())
 
     marking_run_pass.marks_libraries = True  # type: ignore[attr-defined]
     lowering.run_pass = marking_run_pass  # type: ignore[method-assign]
     codegen.CPUCodeLibrary._optimize_final_module = optimize_final_module  # type: ignore[method-assign]
+    codegen.CPUCodeLibrary.finalize = finalize_library  # type: ignore[method-assign]
     return True

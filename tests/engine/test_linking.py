@@ -95,6 +95,85 @@ def test_registered_pieces():
     assert lane_step.lane_step.py_func not in linking._REGISTERED
     assert lane_step._event_step.py_func not in linking._REGISTERED
     assert vector._quiet.py_func not in linking._REGISTERED
+    assert "lane_step" in linking._ONCE  # optimised once, in its own module (its callers link it after theirs)
+    assert "_quiet" not in linking._ONCE and "_time_loop" not in linking._ONCE
+
+
+@installed
+def test_an_optimised_once_piece_is_linked_after_its_callers_optimisation(monkeypatch):
+    """A piece registered optimised_once keeps its own module pipeline; its caller optimises its own code with
+    only the piece's declaration (so a piece this small is not inlined: the caller's optimiser never saw its
+    body), then links the piece's optimised code into its module: the caller is one self-contained library."""
+    monkeypatch.setattr(numba.config, "LLVM_PASS_TIMINGS", True)
+    flags = dict(_nrt=False, no_cpython_wrapper=True, no_cfunc_wrapper=True, cache=False)
+
+    @numba.njit(**flags)
+    @linking.optimised_once
+    def tiny(x):
+        return 2.0 * x + 1.0
+
+    @numba.njit(cache=False)
+    def caller(x):
+        return tiny(x) - 1.0
+
+    assert caller(3.0) == 6.0  # small integers: exact in binary
+    (piece_cres,) = tiny.overloads.values()
+    (caller_cres,) = caller.overloads.values()
+    assert FULL in _pipelines(piece_cres.library)  # optimised in its own module ...
+    symbol = piece_cres.fndesc.mangled_name
+    module = caller_cres.library._final_module
+    assert not module.get_function(symbol).is_declaration  # ... its code in the caller's module ...
+    caller_ir = str(module.get_function(caller_cres.fndesc.mangled_name))
+    assert f'@"{symbol}"' in caller_ir or f"@{symbol}" in caller_ir  # ... and called, not inlined
+    # a caller's own callers link its module as before (the piece's code with it)
+    assert not caller_cres.library._get_module_for_linking().get_function(symbol).is_declaration
+
+
+ONCE_TOY = """
+import numba
+from pounding_sweep.engine import linking, jit  # jit installs the patch
+
+PIECE = dict(_nrt=False, no_cpython_wrapper=True, no_cfunc_wrapper=True, cache=True)
+
+
+@numba.njit(**PIECE)
+@linking.optimised_once
+def piece(x):
+    s = 0.0
+    for v in x:
+        s += v * v
+    return s
+
+
+@numba.njit(cache=True)
+def caller1(x):
+    return piece(x) + 1.0
+"""
+
+
+RUN_ONCE = """
+import numpy as np
+import toy
+value = toy.caller1(np.arange(1.0, 6.0))
+sig = toy.caller1.signatures[0]
+print(value, len(toy.piece.signatures), toy.caller1.stats.cache_hits.get(sig, 0), toy.caller1.stats.cache_misses.get(sig, 0))
+"""
+
+
+@installed
+def test_a_cached_caller_of_an_optimised_once_piece_runs_alone(tmp_path):
+    """A caller of an optimised_once piece, loaded from the disk cache by a later process that never loads the
+    piece, runs: its cached code holds the piece's (a call to a symbol no library in that process defined
+    crashed the process before the piece's code was linked into the caller)."""
+    (tmp_path / "toy.py").write_text(ONCE_TOY)
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), PYTHONPATH=str(tmp_path))
+    got = []
+    for _ in range(2):
+        r = subprocess.run([sys.executable, "-c", RUN_ONCE], env=env, cwd=tmp_path, capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr[-2000:]
+        got.append(r.stdout.split())
+    assert got[0] == ["56.0", "1", "0", "1"]  # the piece compiled in the first process ...
+    assert got[1] == ["56.0", "0", "1", "0"]  # ... not even loaded in the second: its cached caller runs its code
 
 
 def test_installed_where_the_methods_are_known():

@@ -38,7 +38,7 @@ from pounding_sweep.engine.events import (
     event_functions,
     switch_tolerance,
 )
-from pounding_sweep.engine.jit import inline, njit_step
+from pounding_sweep.engine.jit import inline, njit_step, njit_step_once
 from pounding_sweep.engine.lanes.rows import (
     B_ACT,
     B_INC,
@@ -618,7 +618,7 @@ def _vector_trial(W, st, l, dst, dt):
     _law_forces(Z, st.B, (Z_QE, Z_QDE, Z_FE), st.pairs.k_s, st.gap, st.psi, st.sizes)
 
 
-@njit_step
+@njit_step_once
 def lane_step(W, l, bufs, run, ctx, modal, cdash, work):
     """Lane l's whole step in scalar code, from its start state to its end, its metric and energy rows
     updated. bufs = (src, dst, step): the state buffers of the step's start and end, and the step; run:

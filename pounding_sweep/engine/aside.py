@@ -109,16 +109,19 @@ class Aside:
 
 
 def start(pieces: Callable[[], tuple]) -> Aside | None:
-    """Start compiling the pieces `pieces()` returns ((dispatcher, argument types) pairs) in a second process;
-    None where it would not help (one CPU, no disk cache, nothing left to compile) or cannot start. It is
-    called inside Numba's compile, which only a speed-up must not break: an error in `pieces()` leaves the
-    compile to this process (tests/engine/test_aside.py would see the miss)."""
+    """Start compiling, in a second process, the first piece `pieces()` returns ((dispatcher, argument types)
+    pairs, in the order a second process should take them) that is not compiled or cached yet: one piece, as
+    a kernel's list is ordered so that this process's own work covers the first (the lane kernel: its step,
+    else its contact loop; a second piece after the step would keep this process waiting for it); None where
+    it would not help (one CPU, no disk cache, nothing left to compile) or cannot start. It is called inside
+    Numba's compile, which only a speed-up must not break: an error in `pieces()` leaves the compile to this
+    process (tests/engine/test_aside.py would see the miss)."""
     from pounding_sweep.engine import jit
 
     if jit.CACHE_DIR is None or _cpus() < 2 or not sys.executable or getattr(sys, "frozen", False):
         return None  # no disk cache, no CPU to spare, or no Python to start (an embedding or frozen program)
     try:
-        wanted = _wanted(pieces())
+        wanted = _wanted(pieces())[:1]
     except Exception:  # noqa: BLE001 (see the docstring)
         return None
     if not wanted:

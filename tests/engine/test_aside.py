@@ -41,21 +41,38 @@ for law in laws:
     driver.compile_kernel(prep.sysarr, prep.opts, prep.hist, prep.score, kernel, prep.law_codes_used)
     sig = piece.signatures[0]
     print(law, len(piece.signatures), piece.stats.cache_hits.get(sig, 0), piece.stats.cache_misses.get(sig, 0))
+if sys.argv[1] == "lanes":  # a new pair of floor counts (4 + 2), the step cached: the contact loop is aside
+    from pounding_sweep.engine.lanes.vector import _contact
+
+    b1 = dataclasses.replace(scene.building1, masses_kg=(1.7, 1.7, 1.6, 1.6))
+    b2 = dataclasses.replace(scene.building2, masses_kg=(0.56, 0.45))
+    prep = prepare(dataclasses.replace(scene, building1=b1, building2=b2))
+    driver.compile_kernel(prep.sysarr, prep.opts, prep.hist, prep.score, "lanes", prep.law_codes_used)
+    sig = _contact.signatures[-1]
+    print("4+2", len(_contact.signatures), _contact.stats.cache_hits.get(sig, 0), _contact.stats.cache_misses.get(sig, 0))
 """
 
 
-#: logs every cache entry a process saves (pid, index file, key), in this process and the second one alike
+#: logs when a process starts and every cache entry it saves (pid, what, time, index file, key), in this process
+#: and the second ones alike
 SITE = """
 import os
+import time
 from numba.core import caching
 
+
+def _log(what, index="", key=""):
+    with open(os.environ["ASIDE_LOG"], "a") as f:
+        f.write(f"{os.getpid()}|{what}|{time.time()!r}|{index}|{key}\\n")
+
+
+_log("start")
 _save = caching.IndexDataCacheFile.save
 
 
 def save(self, key, data):
     _save(self, key, data)
-    with open(os.environ["ASIDE_LOG"], "a") as f:
-        f.write(f"{os.getpid()}|{os.path.basename(self._index_path)}|{key[0]}\\n")
+    _log("save", os.path.basename(self._index_path), key[0])
 
 
 caching.IndexDataCacheFile.save = save
@@ -63,9 +80,10 @@ caching.IndexDataCacheFile.save = save
 
 
 def _compile_with_an_empty_cache(tmp_path, what: str) -> list[list[str]]:
-    """Compile in a fresh process with an empty cache; its lines. Both processes must have saved entries, and no
-    function's index may be written by both with different keys: Numba's index save (caching.py
-    IndexDataCacheFile.save) is not safe against two processes adding different keys at once."""
+    """Compile in a fresh process with an empty cache; its lines. A second process must have saved entries, and no
+    function's index may be written by this process and a second one with different keys while that one runs:
+    Numba's index save (caching.py IndexDataCacheFile.save) is not safe against two processes adding different
+    keys at once."""
     (tmp_path / "site").mkdir()
     (tmp_path / "site" / "sitecustomize.py").write_text(SITE)
     log = tmp_path / "saves.log"
@@ -73,14 +91,18 @@ def _compile_with_an_empty_cache(tmp_path, what: str) -> list[list[str]]:
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), PYTHONPATH=path, ASIDE_LOG=str(log))
     r = subprocess.run([sys.executable, "-c", RUN, what], env=env, cwd=tmp_path, capture_output=True, text=True)
     assert r.returncode == 0, r.stderr[-3000:]
-    saves = [line.split("|") for line in log.read_text().splitlines()]
-    assert len({pid for pid, _, _ in saves}) == 2, "one process saved every entry"
-    by_index: dict[str, set] = {}
-    for pid, index, key in saves:
-        by_index.setdefault(index, set()).add((pid, key))
-    for index, entries in by_index.items():
-        pids = {pid for pid, _ in entries}
-        assert len(pids) == 1 or len({key for _, key in entries}) == 1, (index, entries)
+    events = [line.split("|") for line in log.read_text().splitlines()]
+    starts = {pid: float(t) for pid, kind, t, _, _ in events if kind == "start"}
+    saves = [(pid, float(t), index, key) for pid, kind, t, index, key in events if kind == "save"]
+    parent = min(starts, key=starts.get)
+    children = {pid for pid, _, _, _ in saves} - {parent}
+    assert children, "this process saved every entry"
+    for child in children:
+        mine = [(t, index, key) for pid, t, index, key in saves if pid == child]
+        until = max(t for t, _, _ in mine)
+        during = [(index, key) for pid, t, index, key in saves if pid == parent and starts[child] <= t <= until]
+        for index, key in during:
+            assert all(k == key for _, i, k in mine if i == index), (index, key, mine)
     return [line.split() for line in r.stdout.splitlines()]
 
 
@@ -94,8 +116,11 @@ def test_both_scalar_kernels_load_the_scoring_code_the_second_process_compiled(t
 
 
 def test_the_lane_kernel_loads_the_step_the_second_process_compiled(tmp_path):
-    """The same for the lane kernel's scalar step (lane_step.lane_step_signature against groups._scalar_steps' call)."""
-    assert _compile_with_an_empty_cache(tmp_path, "lanes") == [["classic", "1", "1", "0"]]
+    """The same for the lane kernel's scalar step (lane_step.lane_step_signature against groups._scalar_steps' call);
+    then, for a new pair of floor counts with the step cached, its contact loop (groups._contact_signature against
+    _integrate_groups' call): compiled for the first pair here, for the second loaded from the cache."""
+    got = _compile_with_an_empty_cache(tmp_path, "lanes")
+    assert got == [["classic", "1", "1", "0"], ["4+2", "2", "1", "0"]]
 
 
 def test_nothing_to_leave_aside_without_scoring():

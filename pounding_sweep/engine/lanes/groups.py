@@ -450,8 +450,42 @@ def integrate_lanes(order, g_start, g_stop, model, opts, runs, excitation, out, 
 
 def step_pieces(sys, opts, law) -> tuple:
     """What a compile of the lane kernel for this system (model.coupled.SystemArrays), options and contact law
-    can leave to a second process (engine/aside.py): the scalar step, lane_step (17 s of its 30 s compile), whose
-    types do not depend on the floor counts."""
+    can leave to a second process (engine/aside.py), in the order it takes them (the first not cached): the
+    scalar step, lane_step (17 s of its 30 s compile), whose types do not depend on the floor counts; once that
+    is cached, for a new pair of floor counts, the contact loop _contact (3 s of 10 s), which this process
+    types after the quiet loop."""
     model = lane_model(sys, opts)
     runs = RunArrays.one_at_rest(sys.i1.size, law)
-    return ((lane_step, lane_step_signature(model, opts, runs, group_work(model, opts.max_iter))),)
+    gw = group_work(model, opts.max_iter)
+    return (
+        (lane_step, lane_step_signature(model, opts, runs, gw)),
+        (_contact, _contact_signature(model, opts, runs, gw)),
+    )
+
+
+def _contact_signature(model, opts, runs, gw) -> tuple:
+    """The argument types _integrate_groups calls _contact with for this model (LaneModel), options, runs
+    (RunArrays) and work arrays (group_work): W, two steps, dt, scheme, law, the floor-count tuples, the
+    coefficient table, the pairs in contact (int64), the excitation profiles (2-d), the lanes' profile ids,
+    uniform (a bool), the first profile id and the metric groups (tests/engine/test_aside.py checks that the
+    kernel finds it)."""
+    from numba import typeof, types
+
+    i64 = types.int64
+    return (
+        typeof(gw.W),
+        i64,
+        i64,
+        typeof(model.dt),
+        typeof(opts.scheme),
+        typeof(runs.law).dtype,
+        typeof(model.nt),
+        typeof(model.n1t),
+        typeof(model.Cv),
+        typeof(gw.act_pair).dtype,
+        types.Array(types.float64, 2, "C"),
+        typeof(gw.pid),
+        types.boolean,
+        i64,
+        typeof((model.gt, opts.groups)),
+    )

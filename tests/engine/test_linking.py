@@ -129,60 +129,6 @@ def test_an_optimised_once_piece_is_linked_after_its_callers_optimisation(monkey
     assert not caller_cres.library._get_module_for_linking().get_function(symbol).is_declaration
 
 
-ONCE_TOY = """
-import numba
-from pounding_sweep.engine import linking, jit  # jit installs the patch
-
-PIECE = dict(_nrt=False, no_cpython_wrapper=True, no_cfunc_wrapper=True, cache=True)
-
-
-@numba.njit(**PIECE)
-@linking.optimised_once
-def piece(x):
-    s = 0.0
-    for v in x:
-        s += v * v
-    return s
-
-
-@numba.njit(cache=True)
-def caller1(x):
-    return piece(x) + 1.0
-"""
-
-
-RUN_ONCE = """
-import numpy as np
-import toy
-value = toy.caller1(np.arange(1.0, 6.0))
-sig = toy.caller1.signatures[0]
-print(value, len(toy.piece.signatures), toy.caller1.stats.cache_hits.get(sig, 0), toy.caller1.stats.cache_misses.get(sig, 0))
-"""
-
-
-@installed
-def test_a_cached_caller_of_an_optimised_once_piece_runs_alone(tmp_path):
-    """A caller of an optimised_once piece, loaded from the disk cache by a later process that never loads the
-    piece, runs: its cached code holds the piece's (a call to a symbol no library in that process defined
-    crashed the process before the piece's code was linked into the caller)."""
-    (tmp_path / "toy.py").write_text(ONCE_TOY)
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), PYTHONPATH=str(tmp_path))
-    got = []
-    for _ in range(2):
-        r = subprocess.run([sys.executable, "-c", RUN_ONCE], env=env, cwd=tmp_path, capture_output=True, text=True)
-        assert r.returncode == 0, r.stderr[-2000:]
-        got.append(r.stdout.split())
-    assert got[0] == ["56.0", "1", "0", "1"]  # the piece compiled in the first process ...
-    assert got[1] == ["56.0", "0", "1", "0"]  # ... not even loaded in the second: its cached caller runs its code
-
-
-def test_installed_where_the_methods_are_known():
-    """install() says whether the patch is in place; it is, exactly where the digest is known."""
-    known = linking.source_digest() in linking.KNOWN_SOURCES
-    assert linking.install() == known
-    assert getattr(typed_passes.BaseNativeLowering.run_pass, "marks_libraries", False) == known
-
-
 @installed
 def test_mutual_recursion_of_pieces_keeps_numbas_pipeline():
     """Two registered pieces calling each other: Numba resolves the call at run time to a piece's own machine
@@ -260,3 +206,39 @@ def test_a_cached_piece_links_into_a_new_caller(tmp_path):
     # 1 + 4 + 9 + 16 + 25 = 55: sums of small integers, exact in binary
     assert got[0] == ["56.0", "0", "1"]  # compiled in the first process ...
     assert got[1] == ["110.0", "1", "0"]  # ... loaded from the cache in the second, linked into caller2
+
+
+#: the same piece, registered optimised_once
+ONCE_TOY = TOY.replace("@linking.optimised_by_callers", "@linking.optimised_once")
+assert ONCE_TOY != TOY
+
+RUN_ONCE = """
+import numpy as np
+import toy
+value = toy.caller1(np.arange(1.0, 6.0))
+sig = toy.caller1.signatures[0]
+print(value, len(toy.piece.signatures), toy.caller1.stats.cache_hits.get(sig, 0), toy.caller1.stats.cache_misses.get(sig, 0))
+"""
+
+
+@installed
+def test_a_cached_caller_of_an_optimised_once_piece_runs_alone(tmp_path):
+    """A caller of an optimised_once piece, loaded from the disk cache by a later process that never loads the
+    piece, runs: its cached code holds the piece's (a call to a symbol no library in that process defined
+    crashed the process before the piece's code was linked into the caller)."""
+    (tmp_path / "toy.py").write_text(ONCE_TOY)
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), PYTHONPATH=str(tmp_path))
+    got = []
+    for _ in range(2):
+        r = subprocess.run([sys.executable, "-c", RUN_ONCE], env=env, cwd=tmp_path, capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr[-2000:]
+        got.append(r.stdout.split())
+    assert got[0] == ["56.0", "1", "0", "1"]  # the piece compiled in the first process ...
+    assert got[1] == ["56.0", "0", "1", "0"]  # ... not even loaded in the second: its cached caller runs its code
+
+
+def test_installed_where_the_methods_are_known():
+    """install() says whether the patch is in place; it is, exactly where the digest is known."""
+    known = linking.source_digest() in linking.KNOWN_SOURCES
+    assert linking.install() == known
+    assert getattr(typed_passes.BaseNativeLowering.run_pass, "marks_libraries", False) == known

@@ -44,11 +44,14 @@ import inspect
 from llvmlite import binding as ll
 from numba.core import codegen, itanium_mangler, typed_passes
 
-#: the Numba methods this module relies on: where a library is made and marked, finalised and optimised, the
-#: module its callers link (a _shared_module set beforehand is used as it is), how a library is cached and
-#: loaded, and the run-time resolution of recursive calls
+#: the Numba methods this module relies on: where a library is made and marked, the libraries it links
+#: (finalised when added), how it is finalised and optimised, the module its callers link (a _shared_module set
+#: beforehand is used as it is), how a library is cached and loaded, and the run-time resolution of recursive
+#: calls
 METHODS = (
     (typed_passes.BaseNativeLowering, "run_pass"),
+    (codegen.CPUCodeLibrary, "__init__"),
+    (codegen.CPUCodeLibrary, "add_linking_library"),
     (codegen.CPUCodeLibrary, "finalize"),
     (codegen.CPUCodeLibrary, "_optimize_final_module"),
     (codegen.CPUCodeLibrary, "_get_module_for_linking"),
@@ -59,13 +62,14 @@ METHODS = (
     (codegen.RuntimeLinker, "resolve"),
 )
 #: SHA-256 (16 hex digits) of the source of METHODS as this module was written against (numba 0.68.1)
-KNOWN_SOURCES = frozenset({"2ead6f571fce5eab"})
+KNOWN_SOURCES = frozenset({"a3d15ed0ade4cf2c"})
 #: the attribute that marks a library whose code only its callers' libraries optimise
 MARK = "_optimised_by_callers"
 #: the Python functions whose compiled code only their callers' libraries optimise (optimised_by_callers)
 _REGISTERED: set = set()
 #: the pieces optimised once, in their own module (optimised_once): their qualified name -> their symbols' prefixes
 _ONCE: dict[str, set[str]] = {}
+_ONCE_FUNCTIONS: set = set()
 #: the attribute of a caller's library that holds the optimised modules it links after its own optimisation
 _AFTER = "_linked_after_optimisation"
 
@@ -80,6 +84,8 @@ def source_digest() -> str:
 
 def optimised_by_callers(fn):
     """Register fn, a function compiled without a Python or C entry, as one whose code its callers optimise."""
+    if fn in _ONCE_FUNCTIONS:
+        raise ValueError(f"{fn.__qualname__} is registered optimised_once: it cannot be optimised_by_callers too")
     _REGISTERED.add(fn)
     return fn
 
@@ -88,8 +94,11 @@ def optimised_once(fn):
     """Register fn, a piece compiled without a Python or C entry whose own module LLVM optimises: its callers
     link its optimised code after optimising their own, not before (it is not optimised a second time)."""
     ident = f"{fn.__module__}.{fn.__qualname__}"
+    if fn in _REGISTERED:  # its own module is not optimised: linked after its callers', it would stay so
+        raise ValueError(f"{ident} is registered optimised_by_callers: it cannot be optimised_once too")
     prefix = "_Z" + itanium_mangler.mangle_identifier(ident)[:-1]  # Numba's symbol for fn, up to its tags
     _ONCE.setdefault(fn.__qualname__, set()).add(prefix)
+    _ONCE_FUNCTIONS.add(fn)
     return fn
 
 
@@ -203,21 +212,25 @@ def install() -> bool:
 
     @functools.wraps(finalize)
     def finalize_library(self):
-        once = {}
+        once = {}  # library -> (its module, the declarations this library links before its optimisation)
         for lib in dict.fromkeys(self._linking_libraries):
             module = _once_module(lib)
-            if module is not None:
-                once[lib] = module
+            if module is None:
+                continue
+            try:
+                once[lib] = (module, _declarations(module))
+            except Exception:  # noqa: BLE001 (a type the declarations cannot name: link it as Numba does)
+                continue
         if not once:
             return finalize(self)
         # finalize links each library's _shared_module: the declarations while this one is optimised
-        setattr(self, _AFTER, list(once.values()))
+        setattr(self, _AFTER, [module for module, _ in once.values()])
         try:
-            for lib, module in once.items():
-                lib._shared_module = _declarations(module)
+            for lib, (_, declared) in once.items():
+                lib._shared_module = declared
             return finalize(self)
         finally:
-            for lib, module in once.items():
+            for lib, (module, _) in once.items():
                 lib._shared_module = module
             setattr(self, _AFTER, ())
 

@@ -50,6 +50,11 @@ if sys.argv[1] == "lanes":  # a new pair of floor counts (4 + 2), the step cache
     driver.compile_kernel(prep.sysarr, prep.opts, prep.hist, prep.score, "lanes", prep.law_codes_used)
     sig = _contact.signatures[-1]
     print("4+2", len(_contact.signatures), _contact.stats.cache_hits.get(sig, 0), _contact.stats.cache_misses.get(sig, 0))
+    # the step, loaded from the cache, is linked into the kernels after their optimisation (engine/linking.py)
+    from pounding_sweep.engine import linking
+
+    library = piece.overloads[piece.signatures[0]].library
+    print("optimised_once", linking._once_module(library) is not None or not linking._known())
 """
 
 
@@ -71,8 +76,9 @@ _save = caching.IndexDataCacheFile.save
 
 
 def save(self, key, data):
+    _log("saving", os.path.basename(self._index_path), key[0])
     _save(self, key, data)
-    _log("save", os.path.basename(self._index_path), key[0])
+    _log("saved", os.path.basename(self._index_path), key[0])
 
 
 caching.IndexDataCacheFile.save = save
@@ -93,16 +99,23 @@ def _compile_with_an_empty_cache(tmp_path, what: str) -> list[list[str]]:
     assert r.returncode == 0, r.stderr[-3000:]
     events = [line.split("|") for line in log.read_text().splitlines()]
     starts = {pid: float(t) for pid, kind, t, _, _ in events if kind == "start"}
-    saves = [(pid, float(t), index, key) for pid, kind, t, index, key in events if kind == "save"]
+    saves = []  # (pid, began, ended, index, key): a process saves one entry at a time
+    for pid, kind, t, index, key in events:
+        if kind == "saving":
+            saves.append([pid, float(t), None, index, key])
+        elif kind == "saved":
+            [entry] = [e for e in saves if e[0] == pid and e[2] is None]
+            entry[2] = float(t)
     parent = min(starts, key=starts.get)
-    children = {pid for pid, _, _, _ in saves} - {parent}
+    children = {e[0] for e in saves} - {parent}
     assert children, "this process saved every entry"
     for child in children:
-        mine = [(t, index, key) for pid, t, index, key in saves if pid == child]
-        until = max(t for t, _, _ in mine)
-        during = [(index, key) for pid, t, index, key in saves if pid == parent and starts[child] <= t <= until]
-        for index, key in during:
-            assert all(k == key for _, i, k in mine if i == index), (index, key, mine)
+        mine = [e for e in saves if e[0] == child]
+        until = max(e[2] for e in mine)  # its last save ended: it writes nothing after
+        # a save of this process that overlaps the child's life, from its start to its last save's end
+        during = [e for e in saves if e[0] == parent and e[1] <= until and e[2] >= starts[child]]
+        for _, _, _, index, key in during:
+            assert all(k == key for _, _, _, i, k in mine if i == index), (index, key, mine)
     return [line.split() for line in r.stdout.splitlines()]
 
 
@@ -120,7 +133,7 @@ def test_the_lane_kernel_loads_the_step_the_second_process_compiled(tmp_path):
     then, for a new pair of floor counts with the step cached, its contact loop (groups._contact_signature against
     _integrate_groups' call): compiled for the first pair here, for the second loaded from the cache."""
     got = _compile_with_an_empty_cache(tmp_path, "lanes")
-    assert got == [["classic", "1", "1", "0"], ["4+2", "2", "1", "0"]]
+    assert got == [["classic", "1", "1", "0"], ["4+2", "2", "1", "0"], ["optimised_once", "True"]]
 
 
 def test_nothing_to_leave_aside_without_scoring():

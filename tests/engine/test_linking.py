@@ -99,6 +99,27 @@ def test_registered_pieces():
     assert "_quiet" not in linking._ONCE and "_time_loop" not in linking._ONCE
 
 
+def test_a_piece_is_optimised_once_or_by_its_callers_not_both():
+    """Registered both ways, a piece's unoptimised module would be linked after its callers' optimisation."""
+
+    def both(x):
+        return x
+
+    linking.optimised_by_callers(both)
+    with pytest.raises(ValueError, match="optimised_by_callers"):
+        linking.optimised_once(both)
+    linking._REGISTERED.discard(both)
+
+    def other(x):
+        return x
+
+    linking.optimised_once(other)
+    with pytest.raises(ValueError, match="optimised_once"):
+        linking.optimised_by_callers(other)
+    linking._ONCE.pop(other.__qualname__, None)
+    linking._ONCE_FUNCTIONS.discard(other)
+
+
 @installed
 def test_an_optimised_once_piece_is_linked_after_its_callers_optimisation(monkeypatch):
     """A piece registered optimised_once keeps its own module pipeline; its caller optimises its own code with
@@ -127,6 +148,13 @@ def test_an_optimised_once_piece_is_linked_after_its_callers_optimisation(monkey
     assert f'@"{symbol}"' in caller_ir or f"@{symbol}" in caller_ir  # ... and called, not inlined
     # a caller's own callers link its module as before (the piece's code with it)
     assert not caller_cres.library._get_module_for_linking().get_function(symbol).is_declaration
+
+
+def test_installed_where_the_methods_are_known():
+    """install() says whether the patch is in place; it is, exactly where the digest is known."""
+    known = linking.source_digest() in linking.KNOWN_SOURCES
+    assert linking.install() == known
+    assert getattr(typed_passes.BaseNativeLowering.run_pass, "marks_libraries", False) == known
 
 
 @installed
@@ -213,32 +241,33 @@ ONCE_TOY = TOY.replace("@linking.optimised_by_callers", "@linking.optimised_once
 assert ONCE_TOY != TOY
 
 RUN_ONCE = """
+import sys
 import numpy as np
 import toy
-value = toy.caller1(np.arange(1.0, 6.0))
-sig = toy.caller1.signatures[0]
-print(value, len(toy.piece.signatures), toy.caller1.stats.cache_hits.get(sig, 0), toy.caller1.stats.cache_misses.get(sig, 0))
+caller = getattr(toy, sys.argv[1])
+value = caller(np.arange(1.0, 6.0))
+sig = caller.signatures[0]
+print(value, len(toy.piece.signatures), caller.stats.cache_hits.get(sig, 0), caller.stats.cache_misses.get(sig, 0))
 """
 
 
 @installed
 def test_a_cached_caller_of_an_optimised_once_piece_runs_alone(tmp_path):
-    """A caller of an optimised_once piece, loaded from the disk cache by a later process that never loads the
-    piece, runs: its cached code holds the piece's (a call to a symbol no library in that process defined
-    crashed the process before the piece's code was linked into the caller)."""
+    """The piece compiled with a first caller; a second caller compiled in a new process against the piece loaded
+    from the disk cache (its library unserialised: the module to link from the cache); that second caller
+    loaded from the cache by a third process that never loads the piece, and run: its cached code holds the
+    piece's (a call to a symbol no library in that process defined crashed the process before the piece's code
+    was linked into its callers)."""
     (tmp_path / "toy.py").write_text(ONCE_TOY)
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), PYTHONPATH=str(tmp_path))
     got = []
-    for _ in range(2):
-        r = subprocess.run([sys.executable, "-c", RUN_ONCE], env=env, cwd=tmp_path, capture_output=True, text=True)
+    for caller in ("caller1", "caller2", "caller2"):
+        r = subprocess.run(
+            [sys.executable, "-c", RUN_ONCE, caller], env=env, cwd=tmp_path, capture_output=True, text=True
+        )
         assert r.returncode == 0, r.stderr[-2000:]
         got.append(r.stdout.split())
-    assert got[0] == ["56.0", "1", "0", "1"]  # the piece compiled in the first process ...
-    assert got[1] == ["56.0", "0", "1", "0"]  # ... not even loaded in the second: its cached caller runs its code
-
-
-def test_installed_where_the_methods_are_known():
-    """install() says whether the patch is in place; it is, exactly where the digest is known."""
-    known = linking.source_digest() in linking.KNOWN_SOURCES
-    assert linking.install() == known
-    assert getattr(typed_passes.BaseNativeLowering.run_pass, "marks_libraries", False) == known
+    # 1 + 4 + 9 + 16 + 25 = 55: sums of small integers, exact in binary
+    assert got[0] == ["56.0", "1", "0", "1"]  # the piece and caller1 compiled in the first process
+    assert got[1] == ["110.0", "1", "0", "1"]  # caller2 compiled in the second, the piece loaded from the cache
+    assert got[2] == ["110.0", "0", "1", "0"]  # caller2 loaded in the third, the piece not even loaded

@@ -7,7 +7,8 @@ about 5 s of the README scene's 19 s compile) and the lane kernel's scalar step 
 kernel's typing reaches their call, Numba finds them there (numba/core/dispatcher.py `Dispatcher.compile`
 looks in the cache before compiling).
 
-It starts only where it can help: a second CPU, a disk cache, and the piece not cached yet. When this
+It starts only where it can help: a second CPU (its time, too: a cgroup quota of one CPU counts as one), a disk
+cache, and the piece not cached yet. When this
 process needs a piece the second one is still compiling, it waits for it, then loads the piece from the cache.
 If the second process failed, this one compiles the piece itself; the code is the same either way. The
 second process is a plain child, killed when this one is done. `python -m pounding_sweep.engine.aside` is
@@ -24,16 +25,65 @@ import pickle
 import subprocess
 import sys
 from collections.abc import Callable
+from pathlib import Path
 
 from numba.core import sigutils
 from numba.core.caching import NullCache
 
 
-def _cpus() -> int:
+def _quota_cpus(cgroups: Path = Path("/proc/self/cgroup"), root: Path = Path("/sys/fs/cgroup")) -> float | None:
+    """The CPUs a CFS quota gives this process's cgroup and its ancestors (the least of them), None where there is
+    none or it cannot be read: cgroup v2 `cpu.max` ("max" or "QUOTA PERIOD"), v1 `cpu.cfs_quota_us` over
+    `cpu.cfs_period_us` (-1: none). A container limited to one CPU's time may still see every core."""
     try:
-        return len(os.sched_getaffinity(0))
+        lines = cgroups.read_text().splitlines()
+    except OSError:
+        return None
+    found = []
+    for line in lines:
+        if line.count(":") < 2:
+            continue
+        _, controllers, path = line.split(":", 2)
+        if controllers == "":  # v2, at the root or under unified/ beside v1's (hybrid)
+            bases, names = [root, root / "unified"], ("cpu.max",)
+        elif "cpu" in controllers.split(","):
+            bases, names = [root / controllers, root / "cpu"], ("cpu.cfs_quota_us", "cpu.cfs_period_us")
+        else:
+            continue
+        for base in bases:
+            folder = base / path.lstrip("/")
+            while True:
+                cpus = _read_quota(folder, names)
+                if cpus is not None:
+                    found.append(cpus)
+                if folder == base or folder == folder.parent:  # (a path with "..": never past the root)
+                    break
+                folder = folder.parent
+    return min(found) if found else None
+
+
+def _read_quota(folder: Path, names: tuple) -> float | None:
+    """One cgroup folder's quota in CPUs (see _quota_cpus), None for none."""
+    try:
+        if len(names) == 1:
+            quota, period = (folder / names[0]).read_text().split()[:2]
+        else:
+            quota, period = ((folder / n).read_text().strip() for n in names)
+        if quota == "max" or int(quota) <= 0 or int(period) <= 0:
+            return None
+        return int(quota) / int(period)
+    except (OSError, ValueError):
+        return None
+
+
+def _cpus() -> int:
+    """The CPUs this process may run on: its affinity, less where a cgroup quota gives it fewer CPUs' time."""
+    try:
+        n = len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
+        n = os.cpu_count() or 1
+    quota = _quota_cpus()
+    return n if quota is None else max(1, min(n, int(quota)))
 
 
 def _args(sig) -> tuple:

@@ -160,6 +160,51 @@ def test_one_cpu_starts_no_second_process(monkeypatch):
     assert aside.start(lambda: bookkeeping.score_pieces(spec)) is None
 
 
+def _cgroup(tmp_path, membership: str, files: dict) -> tuple:
+    """A /proc/self/cgroup and a /sys/fs/cgroup tree with the files given (path under the tree -> text)."""
+    tmp_path.mkdir(parents=True, exist_ok=True)
+    proc = tmp_path / "cgroup"
+    proc.write_text(membership)
+    root = tmp_path / "sys"
+    for rel, text in files.items():
+        (root / rel).parent.mkdir(parents=True, exist_ok=True)
+        (root / rel).write_text(text)
+    return proc, root
+
+
+def test_a_cgroup_cpu_quota_counts_as_fewer_cpus(tmp_path):
+    """A container given one CPU's time may see every core: the quota (cgroup v2 cpu.max, v1 cfs quota and period,
+    the least of the process's cgroup and its ancestors) is what a second process could use."""
+    v2 = _cgroup(tmp_path / "a", "0::/job\n", {"job/cpu.max": "150000 100000\n", "cpu.max": "max 100000\n"})
+    assert aside._quota_cpus(*v2) == 1.5
+    none = _cgroup(tmp_path / "b", "0::/\n", {"cpu.max": "max 100000\n"})
+    assert aside._quota_cpus(*none) is None
+    v1 = _cgroup(
+        tmp_path / "c",
+        "3:cpuset:/\n2:cpu,cpuacct:/box\n",
+        {
+            "cpu,cpuacct/box/cpu.cfs_quota_us": "400000\n",
+            "cpu,cpuacct/box/cpu.cfs_period_us": "100000\n",
+            "cpu,cpuacct/cpu.cfs_quota_us": "100000\n",
+            "cpu,cpuacct/cpu.cfs_period_us": "100000\n",
+        },
+    )
+    assert aside._quota_cpus(*v1) == 1.0  # the parent's quota binds
+    unlimited = _cgroup(
+        tmp_path / "d", "1:cpu:/\n", {"cpu/cpu.cfs_quota_us": "-1\n", "cpu/cpu.cfs_period_us": "100000\n"}
+    )
+    assert aside._quota_cpus(*unlimited) is None
+    assert aside._quota_cpus(tmp_path / "missing", tmp_path / "sys") is None
+
+
+def test_one_cpu_of_quota_starts_no_second_process(monkeypatch):
+    """_cpus() takes the quota: one CPU's time, whatever the cores, starts nothing."""
+    monkeypatch.setattr(aside, "_quota_cpus", lambda: 1.0)
+    assert aside._cpus() == 1
+    monkeypatch.setattr(aside, "_quota_cpus", lambda: None)
+    assert aside._cpus() == len(os.sched_getaffinity(0))
+
+
 @numba.njit(cache=True)
 def _plus_one(x):
     return x + 1.0

@@ -24,10 +24,11 @@ from pathlib import Path
 
 import numba
 
-from pounding_sweep.engine import inlining, linking
+from pounding_sweep.engine import cache_lock, inlining, linking
 
 inlining.install()  # Numba's IR inliner without its quadratic copy (the same code, a shorter compile)
 linking.install()  # pieces without an entry are optimised once, in their kernel (the same code, a shorter compile)
+cache_lock.install()  # processes sharing the cache cannot mix up its entries
 
 HERE = Path(__file__).resolve().parent
 #: engine modules that compile nothing (plain Python driving or choosing the kernels), by their path in the
@@ -39,6 +40,7 @@ NOT_COMPILED = (
     "registry.py",
     "inlining.py",
     "aside.py",
+    "cache_lock.py",
     "lanes/__init__.py",
     "lanes/eligibility.py",
     "lanes/model.py",

@@ -87,9 +87,9 @@ caching.IndexDataCacheFile.save = save
 
 def _compile_with_an_empty_cache(tmp_path, what: str) -> list[list[str]]:
     """Compile in a fresh process with an empty cache; its lines. A second process must have saved entries, and no
-    function's index may be written by this process and a second one with different keys while that one runs:
-    Numba's index save (caching.py IndexDataCacheFile.save) is not safe against two processes adding different
-    keys at once."""
+    function's index may be written by this process and a second one with different keys while that one runs: the two
+    share no work (engine/cache_lock.py makes such saves safe; Numba's own, caching.py IndexDataCacheFile.save, is
+    not)."""
     (tmp_path / "site").mkdir()
     (tmp_path / "site" / "sitecustomize.py").write_text(SITE)
     log = tmp_path / "saves.log"

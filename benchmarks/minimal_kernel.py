@@ -12,7 +12,8 @@ per mode (dq = cq q + cr r + cf fsum, r = dt/2 q'), the Kelvin-Voigt force of ea
 with the contact set that agrees with the end state (the implicit scheme's active set: from the set of the
 step's start; a set already tried means it cycles, then the union of the last two: the engine instead takes
 such a step as its event scheme does, located switches, which a minimal kernel leaves out).
-The runs' 8 lanes are one SIMD value (engine/simd.py, as in the engine's vector steps) and the floor and pair
+The runs' lanes are one SIMD value of the target's width (engine/simd.py VW: 8 with AVX-512, else 4; the engine's
+vector steps take its groups of 8 runs VW at a time) and the floor and pair
 counts are fixed at compile time (as in the engine); a lane's set of pairs is a bit mask, its forces come from
 (I + diag(kappa) W)_SS^-1 of its set (NumPy inverts it for every set S before the runs), and only a lane
 whose set changes leaves the vector code.
@@ -49,12 +50,12 @@ REPO = Path(__file__).resolve().parents[1]
 from pounding_sweep.engine import driver
 from pounding_sweep.engine import layout as L
 from pounding_sweep.engine.lanes import excitation_profiles
-from pounding_sweep.engine.simd import many, mconst, vfma, vload, vsel, vsplat, vstore
+from pounding_sweep.engine.simd import VW, many, mconst, vfma, vload, vsel, vsplat, vstore
 from pounding_sweep.model.modal import modal_arrays
 from pounding_sweep.scene import Axis, load_scene
 from pounding_sweep.sweep.prepare import prepare
 
-LANES = 8  # = engine.simd.VW: one SIMD value
+LANES = VW  # one SIMD value of the target's width
 MAX_ITER = 16
 
 

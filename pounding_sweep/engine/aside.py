@@ -102,10 +102,13 @@ def _in_cache(dispatcher, args: tuple) -> bool:
     return cache._index_key(args, dispatcher.targetctx.codegen()) in cache._cache_file._load_index()
 
 
-def _wanted(pieces) -> list:
-    """The pieces a second process should compile: cached, importable by name, not compiled or cached yet."""
-    out = []
+def _wanted(pieces, limit: int | None = None) -> list:
+    """The pieces a second process should compile: cached, importable by name, not compiled or cached yet; the
+    first `limit` of them (each cache index is read only until that many are found)."""
+    out: list = []
     for dispatcher, sig in pieces:
+        if limit is not None and len(out) >= limit:
+            break
         args = _args(sig)
         if isinstance(dispatcher._cache, NullCache) or args in dispatcher.overloads:
             continue
@@ -171,7 +174,7 @@ def start(pieces: Callable[[], tuple]) -> Aside | None:
     if jit.CACHE_DIR is None or _cpus() < 2 or not sys.executable or getattr(sys, "frozen", False):
         return None  # no disk cache, no CPU to spare, or no Python to start (an embedding or frozen program)
     try:
-        wanted = _wanted(pieces())[:1]
+        wanted = _wanted(pieces(), limit=1)
     except Exception:  # noqa: BLE001 (see the docstring)
         return None
     if not wanted:

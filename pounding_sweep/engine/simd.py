@@ -8,7 +8,11 @@ vectoriser's heuristics decide: earlier versions of the lane kernel saw it leave
 after innocuous edits, and turn kept-or-updated values into masked stores, which are microcoded and
 slow on AMD Zen.
 
-VW = 8: two AVX2 registers per value (two independent instruction streams), one AVX-512 register.
+VW, float64 lanes per value, follows the CPU Numba compiles for: 8 (one register) where it has AVX-512, 4 (one
+AVX2 register) elsewhere. On a Zen 3 (AVX2) the lane kernel took 0.92-0.94 of the time with 4 lanes that it took
+with 8, two registers per value, whose state does not fit the 16 registers (docs/explanation/performance.md).
+A lane's arithmetic is the same instructions at either width, so the results are the same bit for bit
+(benchmarks/check_identity.py).
 """
 
 from __future__ import annotations
@@ -22,8 +26,21 @@ from numba.core.imputils import lower_builtin
 from numba.core.typing.templates import AbstractTemplate, infer_global, signature
 from numba.extending import intrinsic, models, register_model
 
-#: float64 lanes per vector value (two AVX2 registers, one AVX-512 register)
-VW = 8
+
+def target_width(features: str | None = None) -> int:
+    """float64 lanes per vector value for a CPU feature string (LLVM's "+avx2,-avx512f,..."; default: the one
+    Numba compiles for, as numba/core/codegen.py reads it: NUMBA_CPU_FEATURES, "" under NUMBA_CPU_NAME=generic,
+    else the host's): 8 with AVX-512 (one register), else 4."""
+    if features is None:
+        from numba.core import config
+        from numba.core.codegen import get_host_cpu_features
+
+        features = config.CPU_FEATURES if config.CPU_FEATURES is not None else get_host_cpu_features()
+    return 8 if "+avx512f" in features.split(",") else 4
+
+
+#: float64 lanes per vector value (one register of the target: AVX-512 or AVX2)
+VW = target_width()
 _VT = ir.VectorType(ir.DoubleType(), VW)
 _MT = ir.VectorType(ir.IntType(64), VW)
 _I32 = ir.IntType(32)

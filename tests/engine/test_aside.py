@@ -16,6 +16,7 @@ import sys
 
 import numba
 import numpy as np
+import pytest
 from conftest import SWEEPS
 
 from pounding_sweep.engine import aside, bookkeeping
@@ -221,6 +222,23 @@ def test_pieces_compiled_here_or_not_importable_are_left_out():
     _plus_one(1.0)
     assert aside._wanted([(_plus_one, (numba.float64,))]) == []
     assert aside._wanted([(local, (numba.float64,))]) == []
+
+
+def test_only_the_pieces_a_second_process_takes_are_looked_up():
+    """start() takes one piece: the pieces after it are not looked at (their cache index not read)."""
+
+    class Untouchable:
+        @property
+        def _cache(self):
+            raise AssertionError("looked up")
+
+    def pieces():
+        yield _plus_one, (numba.int16,)  # never compiled: wanted
+        yield Untouchable(), (numba.float64,)
+
+    assert aside._wanted(pieces(), limit=1) == [(_plus_one, (numba.int16,))]
+    with pytest.raises(AssertionError, match="looked up"):
+        aside._wanted(pieces())
 
 
 def test_the_second_process_skips_a_piece_whose_cache_is_elsewhere():

@@ -198,3 +198,20 @@ def test_constants_splat_and_the_scratch_buffer():
     out = np.empty_like(a)
     _scratch(a, out)
     assert same(out, a.reshape(-1, VW)[::-1].ravel())
+
+
+def test_the_width_follows_the_target():
+    """8 lanes (one register) where the target has AVX-512, 4 (one AVX2 register) elsewhere, read from the feature
+    string Numba compiles with; CI runs this file again for plain x86-64 (NUMBA_CPU_NAME=generic: 4 lanes), so both
+    widths are tested on an AVX-512 machine."""
+    from numba.core import config
+    from numba.core.codegen import get_host_cpu_features
+
+    from pounding_sweep.engine.simd import target_width
+
+    assert target_width("+sse2,+avx,+avx2,+fma,-avx512f,-avx512fp16") == 4
+    assert target_width("+avx2,+avx512f,+avx512dq") == 8
+    assert target_width("") == 4  # NUMBA_CPU_NAME=generic: no features
+    assert target_width("+avx512fp16,-avx512f") == 4  # a feature named like it is not it
+    features = config.CPU_FEATURES if config.CPU_FEATURES is not None else get_host_cpu_features()
+    assert VW == target_width(features) == (8 if "+avx512f" in features.split(",") else 4)

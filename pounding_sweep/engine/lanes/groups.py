@@ -64,8 +64,8 @@ class Group(NamedTuple):
 
 
 def _aligned_zeros(n: int, align: int = 64) -> np.ndarray:
-    """n float64 zeros starting at a multiple of `align` bytes (a vector of VW lanes is one 64-byte cache line:
-    NumPy's 16-byte alignment would split every vector load across two lines)."""
+    """n float64 zeros starting at a multiple of `align` bytes (a vector of VW lanes is 32 or 64 bytes, inside
+    one 64-byte cache line: NumPy's 16-byte alignment would split vector loads across two lines)."""
     buf = np.zeros(n + align // 8)
     start = (-buf.ctypes.data % align) // 8
     return buf[start : start + n]

@@ -78,6 +78,11 @@ def _scoring_pieces(chunk: Chunk) -> tuple:
     return score_pieces(chunk.score)
 
 
+def _lane_pieces(chunk: Chunk) -> tuple:
+    """The lane kernel's pieces a second process may compile: its scalar step, else its contact loop."""
+    return lanes.step_pieces(chunk.sys, chunk.opts, chunk.law)
+
+
 def _lanes_why_not(chunk: Chunk) -> str | None:
     why = lanes.lane_modes(chunk.sys, chunk.hist, chunk.opts, chunk.score, chunk.law)
     return why if isinstance(why, str) else None
@@ -92,7 +97,7 @@ KERNELS = (
         lanes.integrate_lanes,
         lanes.LAWS,
         _lanes_why_not,
-        lambda chunk: lanes.step_pieces(chunk.sys, chunk.opts, chunk.law),
+        _lane_pieces,
     ),
     Kernel(
         "scalar",

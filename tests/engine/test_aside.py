@@ -2,7 +2,7 @@
 
 The second process compiles the scoring code, or the lane kernel's scalar step, into the disk cache; the
 kernel's own compile must then find it there, so the signature must be exactly the one the kernels call it
-with (bookkeeping.score_run_signature, lane_step.lane_step_signature). This process waits for the second one when
+with (bookkeeping.score_run_signature, groups._lane_step_signature). This process waits for the second one when
 it needs the piece first, so the checks do not depend on which process is faster. And the second process
 starts only where it can help.
 """
@@ -130,7 +130,7 @@ def test_both_scalar_kernels_load_the_scoring_code_the_second_process_compiled(t
 
 
 def test_the_lane_kernel_loads_the_step_the_second_process_compiled(tmp_path):
-    """The same for the lane kernel's scalar step (lane_step.lane_step_signature against groups._scalar_steps' call);
+    """The same for the lane kernel's scalar step (groups._lane_step_signature against groups._scalar_steps' call);
     then, for a new pair of floor counts with the step cached, its contact loop (groups._contact_signature against
     _integrate_groups' call): compiled for the first pair here, for the second loaded from the cache."""
     got = _compile_with_an_empty_cache(tmp_path, "lanes")

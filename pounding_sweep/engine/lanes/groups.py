@@ -16,7 +16,7 @@ from pounding_sweep.engine.bookkeeping import median_inplace
 from pounding_sweep.engine.clock import _monotonic_ns
 from pounding_sweep.engine.inputs import LaneWork, RunArrays
 from pounding_sweep.engine.jit import inline, njit_lanes, njit_step
-from pounding_sweep.engine.lanes.lane_step import end_phase, lane_step, lane_step_signature
+from pounding_sweep.engine.lanes.lane_step import end_phase, lane_step
 from pounding_sweep.engine.lanes.model import lane_model
 from pounding_sweep.engine.lanes.rows import (
     BR,
@@ -458,8 +458,32 @@ def step_pieces(sys, opts, law) -> tuple:
     runs = RunArrays.one_at_rest(sys.i1.size, law)
     gw = group_work(model, opts.max_iter)
     return (
-        (lane_step, lane_step_signature(model, opts, runs, gw)),
+        (lane_step, _lane_step_signature(model, opts, runs, gw)),
         (_contact, _contact_signature(model, opts, runs, gw)),
+    )
+
+
+def _lane_step_signature(model, opts, runs, gw) -> tuple:
+    """The argument types _scalar_steps calls lane_step with for this model (LaneModel), options,
+    runs (RunArrays) and work arrays (group_work): W, the lane, bufs = (src, dst, step), the run, ctx,
+    modal, cdash and work. So a second process can compile it for them (engine/aside.py;
+    tests/engine/test_aside.py checks that the kernel finds it)."""
+    from numba import typeof, types
+
+    N, N1, P, _rows = gw.sizes
+    harmonic = runs.exc_kind[0] == EXC_HARMONIC
+    ctx = (model.dt, opts.scheme, runs.law[0], opts.max_iter, harmonic, runs.exc_amp[0], runs.exc_omega[0], N, N1, P)
+    i64 = types.int64
+    modal = (model.phi, model.psi, model.W)
+    return (
+        typeof(gw.W),
+        i64,
+        types.UniTuple(i64, 3),
+        i64,
+        typeof(ctx),
+        typeof(modal),
+        typeof(runs.cdash),
+        typeof(gw.lane),
     )
 
 

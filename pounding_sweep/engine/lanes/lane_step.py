@@ -26,7 +26,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from pounding_sweep.codes import EXC_HARMONIC, LAW_NO_TENSION, SCHEME_EVENT
+from pounding_sweep.codes import LAW_NO_TENSION, SCHEME_EVENT
 from pounding_sweep.engine import layout as ML
 from pounding_sweep.engine.bookkeeping import force_extremes
 from pounding_sweep.engine.events import (
@@ -660,27 +660,3 @@ def lane_step(W, l, bufs, run, ctx, modal, cdash, work):
     if _mask(pr.active) != start:
         _lane_factors(W, st, Wm, dt, row_offsets(N, P)[10])
     return True
-
-
-def lane_step_signature(model, opts, runs, gw) -> tuple:
-    """The argument types groups._scalar_steps calls lane_step with for this model (LaneModel), options,
-    runs (RunArrays) and work arrays (groups.group_work): W, the lane, bufs = (src, dst, step), the run, ctx,
-    modal, cdash and work. So a second process can compile it for them (engine/aside.py;
-    tests/engine/test_aside.py checks that the kernel finds it)."""
-    from numba import typeof, types
-
-    N, N1, P, _rows = gw.sizes
-    harmonic = runs.exc_kind[0] == EXC_HARMONIC
-    ctx = (model.dt, opts.scheme, runs.law[0], opts.max_iter, harmonic, runs.exc_amp[0], runs.exc_omega[0], N, N1, P)
-    i64 = types.int64
-    modal = (model.phi, model.psi, model.W)
-    return (
-        typeof(gw.W),
-        i64,
-        types.UniTuple(i64, 3),
-        i64,
-        typeof(ctx),
-        typeof(modal),
-        typeof(runs.cdash),
-        typeof(gw.lane),
-    )

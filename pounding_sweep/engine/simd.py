@@ -9,7 +9,7 @@ after innocuous edits, and turn kept-or-updated values into masked stores, which
 slow on AMD Zen.
 
 VW, float64 lanes per value, follows the CPU Numba compiles for: 8 (one register) where it has AVX-512, 4 (one
-AVX2 register) elsewhere. On a Zen 3 (AVX2) the lane kernel took 0.92-0.94 of the time with 4 lanes that it took
+AVX2 register) elsewhere. On a Zen 3 (AVX2) the lane kernel took 0.82-0.94 of the time with 4 lanes that it took
 with 8, two registers per value, whose state does not fit the 16 registers (docs/explanation/performance.md).
 A lane's arithmetic is the same instructions at either width, so the results are the same bit for bit
 (benchmarks/check_identity.py).
@@ -36,7 +36,8 @@ def target_width(features: str | None = None) -> int:
         from numba.core.codegen import get_host_cpu_features
 
         features = config.CPU_FEATURES if config.CPU_FEATURES is not None else get_host_cpu_features()
-    return 8 if "+avx512f" in features.split(",") else 4
+    said = [f for f in features.split(",") if f in ("+avx512f", "-avx512f")]
+    return 8 if said and said[-1] == "+avx512f" else 4  # LLVM takes a feature's last mention
 
 
 #: float64 lanes per vector value (one register of the target: AVX-512 or AVX2)
@@ -319,7 +320,7 @@ def scratch(typingctx):
     let SROA promote it to registers but measured 4-9 % slower (more spills) on this Zen 1."""
 
     def codegen(context, builder, sig, args):
-        # not cgutils.alloca_once: it zero-fills the buffer (a 10 KB memset at every call)
+        # not cgutils.alloca_once: it zero-fills the buffer (a memset of the whole buffer at every call)
         with builder.goto_entry_block():
             arr = builder.alloca(ir.ArrayType(_VT, SCRATCH))
         return builder.bitcast(arr, _VT.as_pointer())

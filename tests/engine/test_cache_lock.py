@@ -67,19 +67,26 @@ def test_a_save_while_another_has_read_the_index_takes_another_data_file(tmp_pat
 
 
 WRITER = """
+import os
 import sys
+import time
 from numba.core import caching
 from pounding_sweep.engine import jit  # installs the lock
-index = caching.IndexDataCacheFile(sys.argv[1], "fn", "stamp")
-for i in range(int(sys.argv[3])):
-    index.save((sys.argv[2], i), (sys.argv[2], i))
+folder, who, n = sys.argv[1], sys.argv[2], int(sys.argv[3])
+index = caching.IndexDataCacheFile(folder, "fn", "stamp")
+open(os.path.join(folder, "ready-" + who), "w").close()
+while len([f for f in os.listdir(folder) if f.startswith("ready-")]) < 2:
+    time.sleep(0.001)  # both started: the saves overlap however long each took to start
+for i in range(n):
+    index.save((who, i), (who, i))
 """
 
 
 def test_processes_adding_entries_at_once_keep_every_entry(tmp_path):
     """Two processes, each adding its own entries of one function's index at the same time (as two test workers
-    or Dask workers compiling new types do): every entry is in the index with its own data file and data."""
-    n = 60
+    or Dask workers compiling new types do; a barrier starts their saves together): every entry is in the index
+    with its own data file and data."""
+    n = 200
     procs = [
         subprocess.Popen([sys.executable, "-c", WRITER, str(tmp_path), who, str(n)], stderr=subprocess.PIPE, text=True)
         for who in ("p", "q")
@@ -93,6 +100,56 @@ def test_processes_adding_entries_at_once_keep_every_entry(tmp_path):
     for key in names:
         assert reader.load(key) == key
     assert not [f for f in os.listdir(tmp_path) if ".tmp." in f]
+
+
+def test_the_index_names_an_entry_only_once_its_data_is_written(tmp_path):
+    """A load between the save's two writes finds no entry (Numba's own order, index first, would hand it a data
+    file not written yet, or a stale one of that name)."""
+    index = _index(tmp_path)
+    index.save(("old",), "old")
+    stale = tmp_path / index._data_name(2)
+    stale.write_bytes(pickle.dumps("stale"))  # left by an earlier index of that name
+    seen: list = []
+    write_data = index._save_data
+
+    def save_data_then_look(name, data):
+        seen.append(_index(tmp_path).load(("new",)))  # before the data
+        write_data(name, data)
+        seen.append(_index(tmp_path).load(("new",)))  # after the data, before the index
+
+    index._save_data = save_data_then_look
+    index.save(("new",), "new")
+    assert seen == [None, None]
+    assert _index(tmp_path).load(("new",)) == "new" and _index(tmp_path).load(("old",)) == "old"
+
+
+def test_the_save_is_the_one_written_against_this_numba():
+    """Installed only where Numba's methods are the ones it was written against (else Numba's save, locked); a new
+    Numba shows here first."""
+    assert cache_lock.source_digest() in cache_lock.KNOWN_SOURCES
+    assert caching.IndexDataCacheFile.save.__code__ is cache_lock._save.__code__
+
+
+@pytest.mark.skipif(not hasattr(os, "fork") or cache_lock.fcntl is None, reason="no fork or no fcntl here")
+def test_a_child_forked_during_a_save_does_not_keep_the_lock(tmp_path):
+    """A process forked while a save holds the lock closes its copy of the lock, so the parent's next save does not
+    wait for the child."""
+    import fcntl
+
+    r, w = os.pipe()
+    with cache_lock.folder_lock(str(tmp_path)):
+        pid = os.fork()
+        if pid == 0:  # the child: is the lock free once the parent lets go? wait for the parent's word, then try
+            os.read(r, 1)
+            fd = os.open(tmp_path / cache_lock.LOCK_NAME, os.O_RDONLY)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                os._exit(0)
+            except BlockingIOError:
+                os._exit(1)
+    os.write(w, b"x")  # the parent has released the lock
+    _, status = os.waitpid(pid, 0)
+    assert os.waitstatus_to_exitcode(status) == 0, "the forked child kept the lock"
 
 
 def test_a_folder_that_cannot_be_locked_saves_as_numba_does(tmp_path, monkeypatch):

@@ -147,8 +147,9 @@ class Aside:
 
     def stop(self) -> None:
         """Kill the second process if it is still running (this one is done and did not need the rest of its
-        work; cut short while saving, it may leave an index entry without its data, which Numba reads as not
-        cached, or a temporary file) and put the caches' loading back as it was."""
+        work; cut short while saving, it may leave a data file no index names yet (engine/cache_lock.py writes the
+        data first), which the next save of that function overwrites, or a temporary file) and put the caches'
+        loading back as it was."""
         try:
             if self.proc.poll() is None:
                 self.proc.kill()

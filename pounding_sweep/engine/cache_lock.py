@@ -22,12 +22,12 @@ from __future__ import annotations
 
 import contextlib
 import functools
-import hashlib
-import inspect
 import itertools
 import os
 
 from numba.core import caching
+
+from pounding_sweep.engine import numba_source
 
 try:
     import fcntl
@@ -79,10 +79,7 @@ def folder_lock(folder: str):
 
 def source_digest() -> str:
     """The digest KNOWN_SOURCES holds, of this Numba's IndexDataCacheFile methods the save relies on."""
-    h = hashlib.sha256()
-    for name in _METHODS:
-        h.update(inspect.getsource(inspect.unwrap(getattr(caching.IndexDataCacheFile, name))).encode())
-    return h.hexdigest()[:16]
+    return numba_source.digest((caching.IndexDataCacheFile, name) for name in _METHODS)
 
 
 def _save(self, key, data) -> None:

@@ -25,11 +25,11 @@ from __future__ import annotations
 
 import copy
 import functools
-import hashlib
-import inspect
 
 from numba.core import ir
 from numba.core.inline_closurecall import InlineWorker
+
+from pounding_sweep.engine import numba_source
 
 #: SHA-256 (16 hex digits) of the source of InlineWorker.inline_function, run_untyped_passes and inline_ir as
 #: this module was written against (numba 0.68.1)
@@ -48,10 +48,7 @@ def _copy_sharing_scope(block, memo):
 
 def inliner_source_digest() -> str:
     """The digest KNOWN_SOURCES holds, of this Numba's inliner (its own methods, not the installed wrapper)."""
-    h = hashlib.sha256()
-    for name in ("inline_function", "run_untyped_passes", "inline_ir"):
-        h.update(inspect.getsource(inspect.unwrap(getattr(InlineWorker, name))).encode())
-    return h.hexdigest()[:16]
+    return numba_source.digest((InlineWorker, name) for name in ("inline_function", "run_untyped_passes", "inline_ir"))
 
 
 def _layout_known() -> bool:

@@ -41,6 +41,7 @@ NOT_COMPILED = (
     "inlining.py",
     "aside.py",
     "cache_lock.py",
+    "numba_source.py",
     "lanes/__init__.py",
     "lanes/eligibility.py",
     "lanes/model.py",

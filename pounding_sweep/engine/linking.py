@@ -38,11 +38,11 @@ docs/explanation/performance.md.
 from __future__ import annotations
 
 import functools
-import hashlib
-import inspect
 
 from llvmlite import binding as ll
 from numba.core import codegen, itanium_mangler, typed_passes
+
+from pounding_sweep.engine import numba_source
 
 #: the Numba methods this module relies on: where a library is made and marked, the libraries it links
 #: (finalised when added), how it is finalised and optimised, the module its callers link (a _shared_module set
@@ -76,10 +76,7 @@ _AFTER = "_linked_after_optimisation"
 
 def source_digest() -> str:
     """The digest KNOWN_SOURCES holds, of this Numba's METHODS (their own source, not the installed wrappers)."""
-    h = hashlib.sha256()
-    for owner, name in METHODS:
-        h.update(inspect.getsource(inspect.unwrap(getattr(owner, name))).encode())
-    return h.hexdigest()[:16]
+    return numba_source.digest(METHODS)
 
 
 def optimised_by_callers(fn):

@@ -1,7 +1,7 @@
 """A minimal lane-batched Newmark kernel of the engine's model and implicit scheme, and the engine against it.
 
     python benchmarks/minimal_kernel.py [--quick] [--duration S] [--threads 2] [--rounds 3] [--groups ...]
-        [--group-costs]
+        [--group-costs] [--columns]
 
 The minimal kernel keeps only what a sweep for the peak pounding force needs: per run the peak contact force
 and the peak displacement of each building's top floor. Everything else the engine does per step (every
@@ -28,6 +28,11 @@ peaks equal the engine's implicit ones on the grid's runs where no step's set cy
 printed); then each scheme's contact_unsettled count, and the implicit scheme's peaks against the event
 scheme's on the runs with cycling steps and on the others. `--group-costs`: instead of the
 rounds, the engine with no metric group, each group alone, and all (CPU seconds, the least of the rounds).
+`--columns` (with `--groups none`): a fourth kernel, the minimal one also keeping what the engine computes with
+no metric group (every floor's peak displacement with its time and peak absolute acceleration; each pair's contact
+time, largest penetration, peak force with its time, least force), checked against the engine's columns and
+timed in the rounds: whether the engine's distance to the minimal kernel is the work of its columns or its own
+overhead (events leave the vector code, per-step exits, the scalar steps).
 Works for any version of the package on the path (PYTHONPATH=OTHER_CHECKOUT; without metric groups there).
 """
 
@@ -110,18 +115,98 @@ def _lane_set(l, s, R, RL, Y, PF, W, seen, ncyc):
     return s
 
 
+#: `--columns`: what the engine computes per floor and per pair with no metric group (engine/layout.py's names)
+COLUMNS_PER_FLOOR = ("peak_disp_b{b}f{f}_m", "peak_disp_time_b{b}f{f}_s", "peak_abs_acc_b{b}f{f}_m_s2")
+COLUMNS_PER_PAIR = (
+    "contact_time_f{j}_s",
+    "max_penetration_f{j}_m",
+    "peak_force_f{j}_N",
+    "peak_force_time_f{j}_s",
+    "min_force_f{j}_N",
+)
+
+
+def column_names(n1: int, n: int, p: int) -> list[str]:
+    """ext's columns in order: COLUMNS_PER_FLOOR of every floor, then COLUMNS_PER_PAIR of every pair."""
+    floors = [(1, i + 1) if i < n1 else (2, i - n1 + 1) for i in range(n)]
+    return [c.format(b=b, f=f) for c in COLUMNS_PER_FLOOR for b, f in floors] + [
+        c.format(j=j + 1) for c in COLUMNS_PER_PAIR for j in range(p)
+    ]
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _columns(X, UA, Q, QA, F, ACT, gpv, phi, psi, t, dt, n1, N, P):
+    """One step's update of the --columns values: every floor's peak |u| with its time and peak |absolute
+    acceleration| from Phi q and Phi q''; each pair's contact time, largest penetration, peak force with its time
+    and least force while in its step's contact set. A peak is tested in registers and stored only in the steps
+    where it grows in some lane (UA: the floors' u and a of the step), as the engine does."""
+    vt = vsplat(t)
+    grow = mconst(False)
+    for i in range(N):
+        lo = 0 if i < n1 else n1
+        hi = n1 if i < n1 else N
+        u = vsplat(0.0)
+        a = vsplat(0.0)
+        for k in range(lo, hi):
+            u = vfma(vsplat(phi[i, k]), vload(Q, k * LANES), u)
+            a = vfma(vsplat(phi[i, k]), vload(QA, k * LANES), a)
+        u = abs(u)
+        a = abs(a)
+        vstore(UA, i * LANES, u)
+        vstore(UA, (N + i) * LANES, a)
+        grow = grow | (u > vload(X, i * LANES)) | (a > vload(X, (2 * N + i) * LANES))
+    if many(grow):
+        for i in range(N):
+            u = vload(UA, i * LANES)
+            pu = vload(X, i * LANES)
+            up = u > pu
+            vstore(X, i * LANES, vsel(up, u, pu))
+            vstore(X, (N + i) * LANES, vsel(up, vt, vload(X, (N + i) * LANES)))
+            a = vload(UA, (N + i) * LANES)
+            pa = vload(X, (2 * N + i) * LANES)
+            vstore(X, (2 * N + i) * LANES, vsel(a > pa, a, pa))
+    base = 3 * N
+    for j in range(P):
+        act = vload(ACT, j * LANES) > 0.5
+        if not many(act):
+            continue
+        pen = -gpv
+        for k in range(N):
+            pen = vfma(vsplat(psi[k, j]), vload(Q, k * LANES), pen)
+        f = vload(F, j * LANES)
+        o = (base + j) * LANES
+        vstore(X, o, vsel(act, vload(X, o) + dt, vload(X, o)))
+        o = (base + P + j) * LANES
+        up = act & (pen > vload(X, o))
+        if many(up):
+            vstore(X, o, vsel(up, pen, vload(X, o)))
+        o = (base + 2 * P + j) * LANES
+        up = act & (f > vload(X, o))
+        if many(up):
+            vstore(X, o, vsel(up, f, vload(X, o)))
+            o2 = (base + 3 * P + j) * LANES
+            vstore(X, o2, vsel(up, vt, vload(X, o2)))
+        o = (base + 4 * P + j) * LANES
+        up = act & (f < vload(X, o))
+        if many(up):
+            vstore(X, o, vsel(up, f, vload(X, o)))
+
+
 @numba.njit(nogil=True, cache=True, error_model="numpy")
-def minimal_group(lanes_in, nsteps, ks, cd, gap, coef, prof, modal, sizes, Rrun, out):
+def minimal_group(lanes_in, nsteps, ks, cd, gap, coef, prof, modal, sizes, Rrun, out, ext):
     """The runs lanes_in (LANES of them; -1: an empty lane) for nsteps steps; out[run] = (peak force [N],
     peak |top displacement| of building 1 and of building 2 [m], steps whose set cycled). Rrun: set_inverses' R of every run.
-    modal = (phi, psi, W, cq, cr, cf, gam, dt, n1)
-    (model/modal.py; n1: building 1's floors); sizes = (a tuple of N zeros, one of P zeros): the floor and
-    pair counts fixed at compile time, as the engine's lane kernel has them (its loops unrolled). The lanes
+    modal = (phi, psi, W, cq, cr, cf, gam, dt, n1, dmp, om2)
+    (model/modal.py; n1: building 1's floors); sizes = (a tuple of N zeros, one of P zeros, (0,) or ()): the floor
+    and pair counts fixed at compile time, as the engine's lane kernel has them (its loops unrolled), and whether
+    the kernel also keeps the columns the engine computes with no metric group (the third tuple not empty:
+    `--columns`; ext[run] = COLUMNS' values, plain vector selects and stores every step). The lanes
     are one SIMD value (engine/simd.py, as the engine's vector steps); a lane whose set of pairs in contact
     changes is settled alone in scalar code."""
-    phi, psi, W, cq, cr, cf, gam, dt, n1 = modal
+    phi, psi, W, cq, cr, cf, gam, dt, n1, dmp, om2 = modal
     N = len(sizes[0])
     P = len(sizes[1])
+    full = len(sizes[2]) > 0
     top1, top2 = n1 - 1, N - 1
     Q = np.zeros(N * LANES)  # modal displacement q
     RR = np.zeros(N * LANES)  # r = dt/2 q'
@@ -142,6 +227,11 @@ def minimal_group(lanes_in, nsteps, ks, cd, gap, coef, prof, modal, sizes, Rrun,
     seen = np.zeros(MAX_ITER + 1, np.int64)
     ncyc = np.zeros(LANES, np.int64)  # steps whose set cycled, per lane
     R = np.zeros((1 << P, P, P, LANES))  # the lanes' set inverses, lane last
+    QA = np.zeros(N * LANES)  # (--columns) modal absolute accelerations: -w^2 q - 2 zeta w q' - Psi F
+    UA = np.zeros(2 * N * LANES)  # (--columns) the step's |floor displacements| and |absolute accelerations|
+    X = np.zeros(len(COLUMNS_PER_FLOOR) * N * LANES + len(COLUMNS_PER_PAIR) * P * LANES)  # (--columns) their values
+    for z in range(P * LANES):
+        X[(3 * N + 4 * P) * LANES + z] = np.inf  # the least force starts above any force
     for l in range(LANES):
         run = lanes_in[l]
         if run >= 0:
@@ -220,6 +310,11 @@ def minimal_group(lanes_in, nsteps, ks, cd, gap, coef, prof, modal, sizes, Rrun,
             vstore(RR, o, vload(RF, o) - corr)
             u1 = vfma(vsplat(phi[top1, k]), q, u1)
             u2 = vfma(vsplat(phi[top2, k]), q, u2)
+            if full:
+                rn = vload(RF, o) - corr
+                vstore(QA, o, vfma(vsplat((-2.0 / dt) * dmp[k]), rn, vsplat(-om2[k]) * q) - gk)
+        if full:
+            _columns(X, UA, Q, QA, F, ACT, gpv, phi, psi, step * dt, dt, n1, N, P)
         fm = vload(F, 0)
         for j in range(1, P):
             fj = vload(F, j * LANES)
@@ -237,20 +332,26 @@ def minimal_group(lanes_in, nsteps, ks, cd, gap, coef, prof, modal, sizes, Rrun,
             for z in range(3):
                 out[lanes_in[l], z] = PK[z * LANES + l]
             out[lanes_in[l], 3] = ncyc[l]
+            if full:
+                for z in range(ext.shape[1]):
+                    ext[lanes_in[l], z] = X[z * LANES + l]
 
 
-def run_minimal(prep, runs, rec, threads: int) -> np.ndarray:
+def run_minimal(prep, runs, rec, threads: int, columns: bool = False):
     """The minimal kernel on every run (one contact law, one length, harmonic): (runs, 4): the peaks and
-    the steps whose set cycled."""
+    the steps whose set cycled; with `columns`, (that, (runs, len(column_names)): the engine's columns with no
+    metric group)."""
     n1 = int(prep.sysarr.i2[0])
     ma = modal_arrays(prep.sysarr, n1)
     coef, pid, prof = excitation_profiles(runs, rec, prep.dt)
     if np.unique(pid).size != 1 or np.unique(runs.nsteps).size != 1:
         raise SystemExit("the minimal kernel runs one excitation profile and one run length")
     nst = int(runs.nsteps[0])
-    modal = (ma.phi, ma.psi, ma.W, ma.cq, ma.cr, ma.cf, ma.gam, float(prep.dt), n1)
+    modal = (ma.phi, ma.psi, ma.W, ma.cq, ma.cr, ma.cf, ma.gam, float(prep.dt), n1, ma.dmp, ma.om2)
     out = np.zeros((runs.n, 4))
-    sizes = ((0,) * ma.phi.shape[0], (0,) * ma.psi.shape[1])
+    N, P = ma.phi.shape[0], ma.psi.shape[1]
+    ext = np.zeros((runs.n, len(column_names(n1, N, P)) if columns else 0))
+    sizes = ((0,) * N, (0,) * P, (0,) if columns else ())
     R = set_inverses(runs.ks, runs.cdash, ma.W, float(prep.dt))
     groups = [
         np.array(list(range(s, min(s + LANES, runs.n))) + [-1] * max(0, s + LANES - runs.n), np.int64)
@@ -258,11 +359,11 @@ def run_minimal(prep, runs, rec, threads: int) -> np.ndarray:
     ]
 
     def work(lanes_in):
-        minimal_group(lanes_in, nst, runs.ks, runs.cdash, runs.gap, coef, prof[pid[0]], modal, sizes, R, out)
+        minimal_group(lanes_in, nst, runs.ks, runs.cdash, runs.gap, coef, prof[pid[0]], modal, sizes, R, out, ext)
 
     with ThreadPoolExecutor(max_workers=threads) as pool:
         list(pool.map(work, groups))
-    return out
+    return (out, ext) if columns else out
 
 
 def grid(quick: bool, duration: float | None = None):
@@ -355,6 +456,11 @@ def main(argv=None) -> int:
     ap.add_argument(
         "--group-costs", action="store_true", help="instead of the rounds: each metric group's cost in the engine"
     )
+    ap.add_argument(
+        "--columns",
+        action="store_true",
+        help="also time the minimal kernel keeping the engine's columns with no metric group (with --groups none)",
+    )
     args = ap.parse_args(argv)
     scene = grid(args.quick, args.duration)
     print(f"CPU: {cpu_name()}; {os.cpu_count()} CPUs, {args.threads} threads; load average {load()}")
@@ -395,6 +501,33 @@ def main(argv=None) -> int:
         f"{int(cycled.sum())} runs have steps whose set cycles ({int(mini[:, 3].sum())} steps: the minimal kernel "
         f"takes the union set, the engine the event scheme's located step)"
     )
+    if args.columns:
+        names = column_names(n1, n1 + n2, P)
+        _, ext = run_minimal(prep, runs, rec, args.threads, columns=True)
+        eng_x = eng[:, [cols.index(c) for c in names]]
+        touched = ok & (eng[:, [cols.index(f"contact_time_f{j}_s") for j in range(1, P + 1)]] > 0).all(axis=1)
+        rel, differ = [], []
+        for z, c in enumerate(names):
+            a, b = ext[touched, z], eng_x[touched, z]
+            if "time" in c:  # an instant: equal, or a near tie of two steps' values (rounding picks either)
+                differ.append(float(np.mean(a != b)))
+                continue
+            scale = b  # a force against its pair's peak force (the least force is near zero)
+            if "force" in c:
+                scale = eng_x[touched, names.index("peak_force_" + c.rsplit("_", 2)[1] + "_N")]
+            rel.append(np.abs(a - b) / np.maximum(np.abs(scale), 1e-300))
+        rel = np.array(rel)  # (columns, runs)
+        far = (rel > 1e-9).any(axis=0)
+        near = rel[:, ~far].max() if (~far).any() else float("nan")
+        print(
+            f"minimal kernel with the columns against the engine on the {int(touched.sum())} of those runs where "
+            f"every pair made contact: largest relative difference over the {len(rel)} value columns (forces against "
+            f"the pair's peak force) {near:.1e} on {int((~far).sum())} runs, up to {rel.max():.1e} on "
+            f"{int(far.sum())} (a response that rounding changes over the run: the engine's scalar kernel differs from "
+            f"its lane kernel there as much); instants that differ (a peak's time or the contact time: a steady "
+            f"response peaks alike in every cycle, and rounding picks the cycle): at most {max(differ):.1%} of runs "
+            f"in a column"
+        )
     rows = {}
     for name, (p, r_, c_) in preps.items():
         m, _ = driver.run_chunk_lanes(p.sysarr, r_, c_, p.opts, args.threads)
@@ -415,24 +548,30 @@ def main(argv=None) -> int:
     )
     ratios = {"event": [], "implicit": []}
     ratios_cpu = {"event": [], "implicit": []}
+    kernels = ["minimal", "event", "implicit"] + (["columns"] if args.columns else [])
+    against = {"event": [], "implicit": []}  # the engine's wall time over the columns kernel's
     for k in range(args.rounds):
-        order = ["minimal", "event", "implicit"] if k % 2 == 0 else ["implicit", "event", "minimal"]
+        order = kernels if k % 2 == 0 else kernels[::-1]
         got = {}
         for name in order:
             if name == "minimal":
                 got[name] = timed(lambda: run_minimal(prep, runs, rec, args.threads))[:2]
+            elif name == "columns":
+                got[name] = timed(lambda: run_minimal(prep, runs, rec, args.threads, columns=True))[:2]
             else:
                 p, r_, c_ = preps[name]
                 got[name] = timed(
                     lambda p=p, r_=r_, c_=c_: driver.run_chunk_lanes(p.sysarr, r_, c_, p.opts, args.threads)
                 )[:2]
-        for name in ("minimal", "event", "implicit"):
+        for name in kernels:
             w, c = got[name]
             x = got["minimal"][0] / w
             xc = got["minimal"][1] / c
-            if name != "minimal":
+            if name in ratios:
                 ratios[name].append(x)
                 ratios_cpu[name].append(xc)
+                if args.columns:
+                    against[name].append(got["columns"][0] / w)
             print(
                 f"{k + 1:5d}  {name:16s} {w:9.2f} {steps / w / 1e6:10.0f} {c:8.2f} {steps / c / 1e6:14.0f}"
                 f" {x:17.2f} {xc:16.2f}   {load()}"
@@ -443,6 +582,9 @@ def main(argv=None) -> int:
             f"{name}: x minimal {min(rs):.2f} .. {max(rs):.2f} (wall), {min(rc):.2f} .. {max(rc):.2f} (CPU time)"
             f" over {len(rs)} rounds"
         )
+    for name, rs in against.items():
+        if rs:
+            print(f"{name}: x minimal kernel with the columns {min(rs):.2f} .. {max(rs):.2f} (wall)")
     return 0
 
 

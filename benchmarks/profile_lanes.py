@@ -238,7 +238,7 @@ def _profile(a, perf: str, tmp: Path, pmap: Path) -> None:
     print(
         f"\ninstruction mix of {hot_name} ({total} samples; stack frame "
         f"{int(frame.group(1), 16) if frame else 0:,} bytes; {len(binf.read_bytes()):,} bytes read as its code, up to "
-        "the next symbol)"
+        "the next symbol or MAX_FUNCTION_BYTES)"
     )
     print("share of samples   class   (instructions of that class in the code)")
     for c, n in by_class.most_common():

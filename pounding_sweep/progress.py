@@ -47,12 +47,17 @@ class Progress:
         self.t0 = time.perf_counter()
         self.base = done
 
-    def compiling(self, kernel: str, label: str, estimate_s: float, measured_here: bool) -> Callable[[float], None]:
-        """Say that `label` is being compiled for this machine, once, and about how long it takes; on a
-        terminal tick the seconds every second. Returns the function to call (with the seconds taken) when done."""
+    def compiling(
+        self, kernel: str, label: str, estimate_s: tuple[float, float], measured_here: bool
+    ) -> Callable[[float], None]:
+        """Say that `label` is being compiled for this machine, once, and about how long it takes (estimate_s:
+        the least and most seconds expected); on a terminal tick the seconds every second. Returns the function
+        to call (with the seconds taken) when done."""
         if not self.announce:
             return lambda seconds: None
-        about = f"about {estimate_s:.0f} s" + (" here last time" if measured_here else " on a 2-core machine")
+        least, most = (f"{x:.0f}" for x in estimate_s)
+        span = least if least == most else f"{least}-{most}"
+        about = f"about {span} s" + (" here last time" if measured_here else " on a 2-core machine")
         sys.stderr.write(f"compiling {label} for this machine (once; {about}; later runs load it from the cache)\n")
         sys.stderr.flush()
         if not self.enabled:

@@ -261,8 +261,9 @@ def run_chunk_lanes(
 
 
 #: announce(kernel, label, estimate_s, measured_here) -> end(seconds): told when Numba starts compiling a kernel
-#: (not when it loads one from the cache), so a caller can say so and show the time passing
-Announce = Callable[[str, str, float, bool], Callable[[float], None]]
+#: (not when it loads one from the cache), so a caller can say so and show the time passing; estimate_s: the
+#: least and most seconds expected (engine/compile_times.py)
+Announce = Callable[[str, str, tuple[float, float], bool], Callable[[float], None]]
 
 
 @contextlib.contextmanager
@@ -272,7 +273,7 @@ def _announced(kernel: str, label: str, announce: Announce | None, pieces: Calla
     compiling the kernel's self-contained pieces (what `pieces()` returns) in a second process (engine/aside.py)."""
     from numba.core import event
 
-    from pounding_sweep.engine.jit import compile_estimate, record_compile
+    from pounding_sweep.engine.compile_times import compile_estimate, record_compile
 
     started: list = []
     helpers: list = []

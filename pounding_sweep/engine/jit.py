@@ -16,7 +16,6 @@ can be written, Numba's own cache beside the sources is used.
 from __future__ import annotations
 
 import hashlib
-import json
 import os
 import re
 import shutil
@@ -36,6 +35,7 @@ HERE = Path(__file__).resolve().parent
 #: kernel (tests/engine/test_jit.py checks that no module listed here holds compiled code). linking.py is not
 #: one: it decides what a cached piece holds (a module to link, no machine code)
 NOT_COMPILED = (
+    "compile_times.py",
     "driver.py",
     "registry.py",
     "inlining.py",
@@ -100,41 +100,6 @@ def _cache_dir() -> Path | None:
 
 
 CACHE_DIR = _cache_dir()
-
-#: how long compiling a kernel took on a 2-core x86-64 machine (benchmarks/bench_compile.py; wall time, with
-#: engine/aside.py's second process), for the first compile on a machine; later ones say how long the last one
-#: took here (COMPILE_TIMES)
-TYPICAL_COMPILE_S = {"lanes": 24.0, "scalar": 13.0, "scalar_scored": 14.0, "nonlinear": 15.0, "nonlinear_scored": 16.0}
-COMPILE_TIMES = "compile_times.json"
-
-
-def compile_estimate(kernel: str) -> tuple[float, bool]:
-    """(seconds, measured here): how long compiling `kernel` ('lanes', 'scalar', 'scalar_scored', 'nonlinear', ...) took on
-    this machine the last time, else the typical time on a 2-core machine."""
-    try:
-        last = json.loads((_root() / COMPILE_TIMES).read_text())[kernel]
-        if isinstance(last, (int, float)) and last > 0:
-            return float(last), True
-    except (OSError, ValueError, KeyError, TypeError):
-        pass
-    return TYPICAL_COMPILE_S.get(kernel, 20.0), False
-
-
-def record_compile(kernel: str, seconds: float) -> None:
-    """Remember how long compiling `kernel` took here (best effort: a cache that cannot be written is fine)."""
-    path = _root() / COMPILE_TIMES
-    try:
-        try:
-            times = json.loads(path.read_text())
-            times = times if isinstance(times, dict) else {}
-        except (OSError, ValueError):
-            times = {}
-        times[kernel] = round(float(seconds), 2)
-        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-        tmp.write_text(json.dumps(times, sort_keys=True))
-        os.replace(tmp, path)
-    except OSError:
-        pass
 
 
 def _cached(decorate):

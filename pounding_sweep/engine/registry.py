@@ -39,7 +39,7 @@ class Chunk(NamedTuple):
 class Kernel:
     """A kernel: what runs a chunk on it and when it cannot."""
 
-    name: str  # its compile-time record's key (engine/jit.py TYPICAL_COMPILE_S)
+    name: str  # its compile-time record's key (engine/compile_times.py TYPICAL_COMPILE_S)
     label: str  # what a first run calls it while it compiles
     lanes: bool  # LANES runs side by side (engine/lanes) or one at a time (start, stop, records...)
     entry: Callable  # its entry point (lanes.integrate_lanes; scalar.integrate_batch: picks the compiled variant)

@@ -1,0 +1,55 @@
+"""How long a kernel's first compile takes: the range measured on 2-core machines, and the last time on this one.
+
+The command line says it when a compile starts (progress.py); the record lives beside the kernel cache
+(engine/jit.py `_root`). Compiles nothing (engine/jit.py NOT_COMPILED): editing a figure here does not make every
+user compile the kernels again.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+
+from pounding_sweep.engine import jit
+
+#: how long compiling a kernel took on quiet 2-core x86-64 machines, (fastest, slowest) of those measured: AMD Zen 4
+#: and Zen 3 (benchmarks/bench_compile.py; wall time, with engine/aside.py's second process; Zen 3 compiles about
+#: twice as slowly), for the first compile on a machine; later ones say how long the last one took here
+#: (COMPILE_TIMES)
+TYPICAL_COMPILE_S = {
+    "lanes": (24.0, 47.0),
+    "scalar": (13.0, 26.0),
+    "scalar_scored": (14.0, 30.0),
+    "nonlinear": (15.0, 18.0),
+    "nonlinear_scored": (16.0, 21.0),
+}
+COMPILE_TIMES = "compile_times.json"
+
+
+def compile_estimate(kernel: str) -> tuple[tuple[float, float], bool]:
+    """((least, most) seconds, measured here): how long compiling `kernel` ('lanes', 'scalar', 'scalar_scored',
+    'nonlinear', ...) took on this machine the last time (least = most), else the range on 2-core machines."""
+    try:
+        last = json.loads((jit._root() / COMPILE_TIMES).read_text())[kernel]
+        if isinstance(last, (int, float)) and last > 0:
+            return (float(last), float(last)), True
+    except (OSError, ValueError, KeyError, TypeError):
+        pass
+    return TYPICAL_COMPILE_S.get(kernel, (20.0, 50.0)), False
+
+
+def record_compile(kernel: str, seconds: float) -> None:
+    """Remember how long compiling `kernel` took here (best effort: a cache that cannot be written is fine)."""
+    path = jit._root() / COMPILE_TIMES
+    try:
+        try:
+            times = json.loads(path.read_text())
+            times = times if isinstance(times, dict) else {}
+        except (OSError, ValueError):
+            times = {}
+        times[kernel] = round(float(seconds), 2)
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+        tmp.write_text(json.dumps(times, sort_keys=True))
+        os.replace(tmp, path)
+    except OSError:
+        pass

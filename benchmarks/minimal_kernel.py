@@ -463,6 +463,8 @@ def main(argv=None) -> int:
         help="also time the minimal kernel keeping the engine's columns with no metric group (with --groups none)",
     )
     args = ap.parse_args(argv)
+    if args.rounds < 1:
+        ap.error(f"--rounds {args.rounds}: at least 1")
     scene = grid(args.quick, args.duration)
     print(f"CPU: {cpu_name()}; {os.cpu_count()} CPUs, {args.threads} threads; load average {load()}")
     preps = {}

@@ -115,23 +115,17 @@ def _lane_set(l, s, R, RL, Y, PF, W, seen, ncyc):
     return s
 
 
-#: `--columns`: what the engine computes per floor and per pair with no metric group (engine/layout.py's names)
-COLUMNS_PER_FLOOR = ("peak_disp_b{b}f{f}_m", "peak_disp_time_b{b}f{f}_s", "peak_abs_acc_b{b}f{f}_m_s2")
-COLUMNS_PER_PAIR = (
-    "contact_time_f{j}_s",
-    "max_penetration_f{j}_m",
-    "peak_force_f{j}_N",
-    "peak_force_time_f{j}_s",
-    "min_force_f{j}_N",
-)
+#: `--columns`: what the engine computes per floor and per pair with no metric group, as the starts of its column
+#: names (engine/layout.py metric_columns; a start picks one column per floor or per pair)
+COLUMNS_PER_FLOOR = ("peak_disp_b", "peak_disp_time_b", "peak_abs_acc_b")
+COLUMNS_PER_PAIR = ("contact_time_f", "max_penetration_f", "peak_force_f", "peak_force_time_f", "min_force_f")
 
 
 def column_names(n1: int, n: int, p: int) -> list[str]:
-    """ext's columns in order: COLUMNS_PER_FLOOR of every floor, then COLUMNS_PER_PAIR of every pair."""
-    floors = [(1, i + 1) if i < n1 else (2, i - n1 + 1) for i in range(n)]
-    return [c.format(b=b, f=f) for c in COLUMNS_PER_FLOOR for b, f in floors] + [
-        c.format(j=j + 1) for c in COLUMNS_PER_PAIR for j in range(p)
-    ]
+    """ext's columns in order: each COLUMNS_PER_FLOOR kind for every floor, then each COLUMNS_PER_PAIR kind for
+    every pair (the engine's names, in its floor and pair order)."""
+    names = L.metric_columns((n1, n - n1), p)
+    return [c for kind in COLUMNS_PER_FLOOR + COLUMNS_PER_PAIR for c in names if c.startswith(kind)]
 
 
 @numba.njit(inline="always", error_model="numpy")

@@ -9,6 +9,7 @@ import sys
 import threading
 
 import pytest
+from gates import SAFETY_S
 from numba.core import caching
 
 from pounding_sweep.engine import cache_lock, jit  # noqa: F401 (importing jit installs the lock)
@@ -53,10 +54,10 @@ def test_a_save_while_another_has_read_the_index_takes_another_data_file(tmp_pat
 
     thread = threading.Thread(target=save_first)
     thread.start()
-    assert read.wait(60), "the first save never read the index"
+    assert read.wait(SAFETY_S), "the first save never read the index"
     second.save(("b",), {"entry": "b"})
     second_done.set()
-    thread.join(60)
+    thread.join(SAFETY_S)
     assert not errors and not thread.is_alive()
     reader = _index(tmp_path)
     names = reader._load_index()
@@ -92,7 +93,7 @@ def test_processes_adding_entries_at_once_keep_every_entry(tmp_path):
         for who in ("p", "q")
     ]
     for p in procs:
-        _, err = p.communicate(timeout=600)
+        _, err = p.communicate(timeout=SAFETY_S)
         assert p.returncode == 0, err[-2000:]
     reader = _index(tmp_path)
     names = reader._load_index()

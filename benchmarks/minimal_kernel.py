@@ -29,8 +29,8 @@ printed); then each scheme's contact_unsettled count, and the implicit scheme's 
 scheme's on the runs with cycling steps and on the others. `--group-costs`: instead of the
 rounds, the engine with no metric group, each group alone, and all (CPU seconds, the least of the rounds).
 `--columns` (with `--groups none`): a fourth kernel, the minimal one also keeping what the engine computes with
-no metric group (every floor's peak displacement with its time and peak absolute acceleration; each pair's contact
-time, largest penetration, peak force with its time, least force), checked against the engine's columns and
+no metric group (every floor's peak displacement with its time; each pair's contact time, largest penetration, peak
+force with its time, least force), checked against the engine's columns and
 timed in the rounds: whether the engine's distance to the minimal kernel is the work of its columns or its own
 overhead (events leave the vector code, per-step exits, the scalar steps).
 Works for any version of the package on the path (PYTHONPATH=OTHER_CHECKOUT; without metric groups there).
@@ -117,7 +117,7 @@ def _lane_set(l, s, R, RL, Y, PF, W, seen, ncyc):
 
 #: `--columns`: what the engine computes per floor and per pair with no metric group, as the starts of its column
 #: names (engine/layout.py metric_columns; a start picks one column per floor or per pair)
-COLUMNS_PER_FLOOR = ("peak_disp_b", "peak_disp_time_b", "peak_abs_acc_b")
+COLUMNS_PER_FLOOR = ("peak_disp_b", "peak_disp_time_b")
 COLUMNS_PER_PAIR = ("contact_time_f", "max_penetration_f", "peak_force_f", "peak_force_time_f", "min_force_f")
 
 
@@ -129,26 +129,22 @@ def column_names(n1: int, n: int, p: int) -> list[str]:
 
 
 @numba.njit(inline="always", error_model="numpy")
-def _columns(X, UA, Q, QA, F, ACT, gpv, phi, t, te, dt, n1, N, P):
-    """One step's update of the --columns values: every floor's peak |u| with its time (t) and peak |absolute
-    acceleration| from Phi q and Phi q''; each pair's contact time, largest penetration (from the floors' u), peak
+def _columns(X, UA, Q, F, ACT, gpv, phi, t, te, dt, n1, N, P):
+    """One step's update of the --columns values: every floor's peak |u| with its time (t) from Phi q; each pair's
+    contact time, largest penetration (from the floors' u), peak
     force with its time (te: the engine's step end, (step - 1) dt + dt) and least force while in its step's contact
     set. A peak is tested in registers and stored only in the steps where it grows in some lane, as the engine
-    does (UA: the step's signed floor displacements and their absolute accelerations' size)."""
+    does (UA: the step's signed floor displacements)."""
     vt = vsplat(t)
     grow = mconst(False)
     for i in range(N):
         lo = 0 if i < n1 else n1
         hi = n1 if i < n1 else N
         u = vsplat(0.0)
-        a = vsplat(0.0)
         for k in range(lo, hi):
             u = vfma(vsplat(phi[i, k]), vload(Q, k * LANES), u)
-            a = vfma(vsplat(phi[i, k]), vload(QA, k * LANES), a)
         vstore(UA, i * LANES, u)
-        a = abs(a)
-        vstore(UA, (N + i) * LANES, a)
-        grow = grow | (abs(u) > vload(X, i * LANES)) | (a > vload(X, (2 * N + i) * LANES))
+        grow = grow | (abs(u) > vload(X, i * LANES))
     if many(grow):
         for i in range(N):
             u = abs(vload(UA, i * LANES))
@@ -156,10 +152,7 @@ def _columns(X, UA, Q, QA, F, ACT, gpv, phi, t, te, dt, n1, N, P):
             up = u > pu
             vstore(X, i * LANES, vsel(up, u, pu))
             vstore(X, (N + i) * LANES, vsel(up, vt, vload(X, (N + i) * LANES)))
-            a = vload(UA, (N + i) * LANES)
-            pa = vload(X, (2 * N + i) * LANES)
-            vstore(X, (2 * N + i) * LANES, vsel(a > pa, a, pa))
-    base = 3 * N
+    base = 2 * N
     for j in range(P):
         act = vload(ACT, j * LANES) > 0.5
         if not many(act):
@@ -188,14 +181,14 @@ def _columns(X, UA, Q, QA, F, ACT, gpv, phi, t, te, dt, n1, N, P):
 def minimal_group(lanes_in, nsteps, ks, cd, gap, coef, prof, modal, sizes, Rrun, out, ext):
     """The runs lanes_in (LANES of them; -1: an empty lane) for nsteps steps; out[run] = (peak force [N],
     peak |top displacement| of building 1 and of building 2 [m], steps whose set cycled). Rrun: set_inverses' R of every run.
-    modal = (phi, psi, W, cq, cr, cf, gam, dt, n1, dmp, om2)
+    modal = (phi, psi, W, cq, cr, cf, gam, dt, n1)
     (model/modal.py; n1: building 1's floors); sizes = (a tuple of N zeros, one of P zeros, (0,) or ()): the floor
     and pair counts fixed at compile time, as the engine's lane kernel has them (its loops unrolled), and whether
     the kernel also keeps the columns the engine computes with no metric group (the third tuple not empty:
     `--columns`; ext[run] = COLUMNS' values, _columns). The lanes
     are one SIMD value (engine/simd.py, as the engine's vector steps); a lane whose set of pairs in contact
     changes is settled alone in scalar code."""
-    phi, psi, W, cq, cr, cf, gam, dt, n1, dmp, om2 = modal
+    phi, psi, W, cq, cr, cf, gam, dt, n1 = modal
     N = len(sizes[0])
     P = len(sizes[1])
     full = len(sizes[2]) > 0
@@ -219,11 +212,10 @@ def minimal_group(lanes_in, nsteps, ks, cd, gap, coef, prof, modal, sizes, Rrun,
     seen = np.zeros(MAX_ITER + 1, np.int64)
     ncyc = np.zeros(LANES, np.int64)  # steps whose set cycled, per lane
     R = np.zeros((1 << P, P, P, LANES))  # the lanes' set inverses, lane last
-    QA = np.zeros(N * LANES)  # (--columns) modal absolute accelerations: -w^2 q - 2 zeta w q' - Psi F
-    UA = np.zeros(2 * N * LANES)  # (--columns) the step's floor displacements and |absolute accelerations|
+    UA = np.zeros(N * LANES)  # (--columns) the step's floor displacements
     X = np.zeros(len(COLUMNS_PER_FLOOR) * N * LANES + len(COLUMNS_PER_PAIR) * P * LANES)  # (--columns) their values
     for z in range(P * LANES):
-        X[(3 * N + 4 * P) * LANES + z] = np.inf  # the least force starts above any force
+        X[(2 * N + 4 * P) * LANES + z] = np.inf  # the least force starts above any force
     for l in range(LANES):
         run = lanes_in[l]
         if run >= 0:
@@ -300,14 +292,11 @@ def minimal_group(lanes_in, nsteps, ks, cd, gap, coef, prof, modal, sizes, Rrun,
             q = vload(QF, o) - corr
             vstore(Q, o, q)
             vstore(RR, o, vload(RF, o) - corr)
-            if full:
-                rn = vload(RF, o) - corr
-                vstore(QA, o, vfma(vsplat((-2.0 / dt) * dmp[k]), rn, vsplat(-om2[k]) * q) - gk)
-            else:
+            if not full:
                 u1 = vfma(vsplat(phi[top1, k]), q, u1)
                 u2 = vfma(vsplat(phi[top2, k]), q, u2)
         if full:  # every floor's u, the top floors' among them
-            _columns(X, UA, Q, QA, F, ACT, gpv, phi, step * dt, (step - 1) * dt + dt, dt, n1, N, P)
+            _columns(X, UA, Q, F, ACT, gpv, phi, step * dt, (step - 1) * dt + dt, dt, n1, N, P)
             u1 = vload(UA, top1 * LANES)
             u2 = vload(UA, top2 * LANES)
         fm = vload(F, 0)
@@ -342,7 +331,7 @@ def run_minimal(prep, runs, rec, threads: int, columns: bool = False):
     if np.unique(pid).size != 1 or np.unique(runs.nsteps).size != 1:
         raise SystemExit("the minimal kernel runs one excitation profile and one run length")
     nst = int(runs.nsteps[0])
-    modal = (ma.phi, ma.psi, ma.W, ma.cq, ma.cr, ma.cf, ma.gam, float(prep.dt), n1, ma.dmp, ma.om2)
+    modal = (ma.phi, ma.psi, ma.W, ma.cq, ma.cr, ma.cf, ma.gam, float(prep.dt), n1)
     out = np.zeros((runs.n, 4))
     N, P = ma.phi.shape[0], ma.psi.shape[1]
     ext = np.zeros((runs.n, len(column_names(n1, N, P)) if columns else 0))

@@ -58,8 +58,15 @@ GROUP_ENERGY = 1  # the energy balance (RUN_E_*) and STATUS_ENERGY
 GROUP_DRIFT = 2  # each story's peak interstory drift (DOF_PEAK_DRIFT)
 GROUP_CLOSEST = 4  # each pair's closest approach and its time (PAIR_CLOSEST, PAIR_CLOSEST_TIME)
 GROUP_PHASES = 8  # compressive phases: compression time, count, median duration; STATUS_MEDIAN_TRUNCATED
-GROUPS = {"energy": GROUP_ENERGY, "drift": GROUP_DRIFT, "closest": GROUP_CLOSEST, "phases": GROUP_PHASES}
-GROUPS_ALL = GROUP_ENERGY | GROUP_DRIFT | GROUP_CLOSEST | GROUP_PHASES
+GROUP_ACCEL = 16  # each floor's peak absolute acceleration (DOF_PEAK_ABS_ACC): Phi applied to the modal accelerations
+GROUPS = {
+    "energy": GROUP_ENERGY,
+    "drift": GROUP_DRIFT,
+    "closest": GROUP_CLOSEST,
+    "phases": GROUP_PHASES,
+    "accel": GROUP_ACCEL,
+}
+GROUPS_ALL = GROUP_ENERGY | GROUP_DRIFT | GROUP_CLOSEST | GROUP_PHASES | GROUP_ACCEL
 DIVERGED_M = 1.0e3  # a displacement beyond a kilometre is a numerical blow-up, not physics
 MEDIAN_BUFFER = 4096  # compressive phases kept per pair for the median duration
 
@@ -106,6 +113,8 @@ def left_out_slots(n_dof: int, n_pairs: int, groups: int) -> list[int]:
     out: list[int] = []
     if not groups & GROUP_DRIFT:
         out += [dof_slot(i, DOF_PEAK_DRIFT) for i in range(n_dof)]
+    if not groups & GROUP_ACCEL:
+        out += [dof_slot(i, DOF_PEAK_ABS_ACC) for i in range(n_dof)]
     for j in range(n_pairs):
         if not groups & GROUP_CLOSEST:
             out += [pair_slot(n_dof, j, PAIR_CLOSEST), pair_slot(n_dof, j, PAIR_CLOSEST_TIME)]

@@ -3,7 +3,7 @@ cannot import the engine; tests/sweep/test_metric_groups.py checks that the two 
 
 from __future__ import annotations
 
-METRIC_GROUPS = ("energy", "drift", "closest", "phases")
+METRIC_GROUPS = ("energy", "drift", "closest", "phases", "accel")
 
 
 def metric_group_names(metrics: tuple[str, ...] | None) -> tuple[str, ...]:

@@ -7,8 +7,11 @@ Who reads a group's columns (found with grep on the columns engine/layout.left_o
 - the no-contact warning (sweep/checks.py ContactTally) reads closest approach only to say how near the floors
   came: when the group is left out it says so rather than turning the group on (the warning's finding, that no
   run made contact, comes from impacts_f*, which is always computed);
+- the risk study's consequence table reads the top floors' peak absolute accelerations (accel);
 - scoring, ranking, refinement and calibration read no group: the scores come from the kernel's score spec and
-  the calibration fits histories, and the best table takes only parameters, scores and status;
+  the calibration fits histories, and the best table takes only parameters, scores and status. One exception:
+  the scale check after a grid (sweep/checks.py check_scale) compares a scored acceleration channel's measured
+  peak with the runs' peak absolute accelerations, so a scene scoring one computes accel (sweep_groups);
 - one run in memory (simulate: the figures' captions read compression phases, the accuracy study the energy
   balance and its flag), the gap study and the benchmarks call prepare() without a mask: every group. (The gap
   study reads closest approach and drift of a dozen runs per record: leaving the other groups out would save a
@@ -19,6 +22,7 @@ from __future__ import annotations
 
 from pounding_sweep.engine import layout as L
 from pounding_sweep.scene import Scene
+from pounding_sweep.scene.channels import ACC_PREFIX
 from pounding_sweep.scene.groups import METRIC_GROUPS
 
 #: reader -> (the groups it needs, why). A study asks for its readers' groups (study_metrics); the sweep then
@@ -30,9 +34,10 @@ READERS = {
         "closest approach (closest_approach_f*_m)",
     ),
     "risk_consequences": (
-        ("drift",),
-        "risk/analysis.py consequence_table: the largest story drift of a contact run over the same motion's "
-        "contact-free one (peak_drift_b*s*_m of both)",
+        ("drift", "accel"),
+        "risk/analysis.py consequence_table: the largest story drift and the top floor's peak absolute "
+        "acceleration of a contact run over the same motion's contact-free one (peak_drift_b*s*_m and "
+        "peak_abs_acc_b*f*_m_s2 of both)",
     ),
 }
 
@@ -42,8 +47,13 @@ KEY = "[output] metrics"
 
 def sweep_groups(scene: Scene) -> int:
     """The bit mask (engine/layout.py GROUP_*) of the groups a sweep of `scene` computes: those its [output]
-    metrics names (default: all)."""
-    return L.groups_mask(scene.output.metrics or ("all",))
+    metrics names (default: all), and accel where the scene scores an acceleration channel (its scale check
+    reads the runs' peak absolute accelerations)."""
+    mask = L.groups_mask(scene.output.metrics or ("all",))
+    x = scene.experiment
+    if x is not None and any(str(code).startswith(ACC_PREFIX) for code in (x.channels or {}).values()):
+        mask |= L.GROUP_ACCEL
+    return mask
 
 
 def reader_groups(*readers: str) -> tuple[str, ...]:

@@ -461,7 +461,7 @@ def test_metric_groups_left_out_change_no_other_column(law, scheme):
     hands the diverging run of test_uneven_lengths_... to the scalar kernel too (its row checked here)."""
     prep, runs, rec, lanes_all, scalar_all = harmonic_grid(law, scheme)
     n_dof, n_pairs = sum(prep.model.floors), prep.model.n_pairs
-    for groups in (0, L.GROUP_ENERGY, L.GROUP_DRIFT, L.GROUP_CLOSEST, L.GROUP_PHASES, L.GROUPS_ALL ^ L.GROUP_ENERGY):
+    for groups in (0, *L.GROUPS.values(), L.GROUPS_ALL ^ L.GROUP_ENERGY, L.GROUPS_ALL ^ L.GROUP_ACCEL):
         opts = prep.opts._replace(groups=groups)
         got, _ = driver.run_chunk_lanes(prep.sysarr, runs, rec, opts, 2)
         want = lanes_all.copy()

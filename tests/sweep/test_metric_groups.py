@@ -23,7 +23,7 @@ from pounding_sweep.engine import layout as L
 from pounding_sweep.errors import ConfigError
 from pounding_sweep.scene import load_scene, validate
 from pounding_sweep.scene.groups import METRIC_GROUPS
-from pounding_sweep.sweep.metricgroups import left_out_columns
+from pounding_sweep.sweep.metricgroups import left_out_columns, sweep_groups
 from pounding_sweep.sweep.results import COLUMN_DOCS, GROUP_FLAGS, read_metadata
 from pounding_sweep.sweep.run import run_scene
 
@@ -31,6 +31,17 @@ from pounding_sweep.sweep.run import run_scene
 def test_the_scene_knows_the_engines_groups():
     """The scene layer cannot import the engine: its list of group names is checked against the engine's here."""
     assert METRIC_GROUPS == tuple(L.GROUPS)
+
+
+def test_a_scene_scoring_an_acceleration_computes_the_peak_accelerations():
+    """The scale check after a grid (sweep/checks.py check_scale) reads the runs' peak absolute accelerations
+    for a scored acceleration channel: such a scene computes accel whatever [output] metrics says."""
+    for name, acc in (("real_northridge.toml", True), ("scored_6hz.toml", False)):
+        s = load_scene(SWEEPS / name)
+        for metrics in (("none",), ("drift",), None):
+            s = dataclasses.replace(s, output=dataclasses.replace(s.output, metrics=metrics))
+            asked = L.groups_mask(metrics or ("all",))
+            assert sweep_groups(s) == (asked | L.GROUP_ACCEL if acc else asked), (name, metrics)
 
 
 def six_hz(tmp_path, metrics, scheme: str = "event", name: str = "s"):

@@ -74,6 +74,10 @@ def test_accelerations_in_g_read_as_metres_per_second_squared_are_named(tmp_path
         assert line.endswith("is the table in g ([experiment] acc_units = 'g', not 'm/s2')?")
     best = pd.read_parquet(tmp_path / "g.best.parquet").set_index("criterion")
     assert best.loc["rel_rms_abs_acc_b1f3_pct", "error_pct"] > 100.0  # the criterion, as it held here
+    # every metric group left out: the runs' peak accelerations the check reads are computed all the same
+    lean = scored(tmp_path, in_g, channels, use="acceleration")
+    lean = dataclasses.replace(lean, output=dataclasses.replace(lean.output, metrics=("none",)))
+    assert warnings_of(lean, tmp_path / "lean.parquet")["scale"].splitlines() == lines
     # told, the same table scores as the right one did
     said = warnings_of(scored(tmp_path, in_g, channels, use="acceleration", acc_units="g"), tmp_path / "told.parquet")
     assert "scale" not in said

@@ -150,8 +150,8 @@ def _floor_acc(T, i, N, N1, t_qa, Cv, c_phi):
 
 @inline
 def _floor_peaks(W, c, T, N, N1, P, t_u, t_qa, r_met, Cv, c_phi, vt, gap, ok_mask, groups):
-    """Per-floor peaks of |u| (and its time), of |absolute acceleration| and (metric group drift) of
-    |interstory drift| (the story below the floor), and (group closest) each pair's closest approach
+    """Per-floor peaks of |u| (and its time), (metric group accel) of |absolute acceleration|, (group drift)
+    of |interstory drift| (the story below the floor), and (group closest) each pair's closest approach
     gap - (u1 - u2) (and its time). One test for all floors and pairs; rows are written only in the rare
     steps where some extreme grows in some lane of `ok_mask`. Returns the lanes that diverged (|u| >=
     DIVERGED_M or |a| >= 1e300; a NaN never grows a peak and is caught by the energy rows, or without the
@@ -159,6 +159,7 @@ def _floor_peaks(W, c, T, N, N1, P, t_u, t_qa, r_met, Cv, c_phi, vt, gap, ok_mas
     pbase = r_met + ML.PER_DOF * N
     drifts = (groups & ML.GROUP_DRIFT) != 0
     closest = (groups & ML.GROUP_CLOSEST) != 0
+    accel = (groups & ML.GROUP_ACCEL) != 0
     grow = mconst(False)
     for i in range(N):
         base = r_met + ML.PER_DOF * i
@@ -167,7 +168,8 @@ def _floor_peaks(W, c, T, N, N1, P, t_u, t_qa, r_met, Cv, c_phi, vt, gap, ok_mas
         if drifts:
             drift = u if i == 0 or i == N1 else u - sget(T, t_u + i - 1)
             grow = grow | (abs(drift) > _row(W, base + ML.DOF_PEAK_DRIFT, c))
-        grow = grow | (abs(_floor_acc(T, i, N, N1, t_qa, Cv, c_phi)) > _row(W, base + ML.DOF_PEAK_ABS_ACC, c))
+        if accel:
+            grow = grow | (abs(_floor_acc(T, i, N, N1, t_qa, Cv, c_phi)) > _row(W, base + ML.DOF_PEAK_ABS_ACC, c))
     if closest:
         for j in range(P):
             near = gap - (sget(T, t_u + j) - sget(T, t_u + N1 + j))
@@ -186,10 +188,11 @@ def _floor_peaks(W, c, T, N, N1, P, t_u, t_qa, r_met, Cv, c_phi, vt, gap, ok_mas
                 dr = abs(u if i == 0 or i == N1 else u - sget(T, t_u + i - 1))
                 up = (dr > _row(W, base + ML.DOF_PEAK_DRIFT, c)) & ok_mask
                 _keep(W, base + ML.DOF_PEAK_DRIFT, c, up, dr)
-            aa = abs(_floor_acc(T, i, N, N1, t_qa, Cv, c_phi))
-            up = (aa > _row(W, base + ML.DOF_PEAK_ABS_ACC, c)) & ok_mask
-            _keep(W, base + ML.DOF_PEAK_ABS_ACC, c, up, aa)
-            bad = bad | (up & (aa >= 1e300))
+            if accel:
+                aa = abs(_floor_acc(T, i, N, N1, t_qa, Cv, c_phi))
+                up = (aa > _row(W, base + ML.DOF_PEAK_ABS_ACC, c)) & ok_mask
+                _keep(W, base + ML.DOF_PEAK_ABS_ACC, c, up, aa)
+                bad = bad | (up & (aa >= 1e300))
         for j in range(P):
             if not closest:
                 break
@@ -369,7 +372,8 @@ def _quiet_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, lay, groups
             sset(T, t_dq + k, qn)
             pin = vfma(_cv(Cv, C_GAM * N + k), dq, pin)
             dsum = vfma(_cv(Cv, C_DH * N + k) * dq, dq, dsum)
-            sset(T, t_qa + k, vfma(_cv(Cv, C_NDA * N + k), rn, _cv(Cv, C_NW2 * N + k) * qn))
+            if groups & ML.GROUP_ACCEL:
+                sset(T, t_qa + k, vfma(_cv(Cv, C_NDA * N + k), rn, _cv(Cv, C_NW2 * N + k) * qn))
         _floors(T, N, N1, t_u, t_dq, Cv, c_phi)
         ok, ne, nb = _events_energy_peaks(W, c, T, dst, True, s, pin, dsum, vt, law, scheme, N, N1, P, Cv, lay, groups)
         nevt += ne
@@ -471,7 +475,8 @@ def _contact_step(W, T, src, dst, step, dt, scheme, law, N, N1, P, Cv, pon, lay,
             sset(T, t_dq + k, qn)
             pin = vfma(_cv(Cv, C_GAM * N + k), dq, pin)
             dsum = vfma(_cv(Cv, C_DH * N + k) * dq, dq, dsum)
-            sset(T, t_qa + k, vfma(_cv(Cv, C_NDA * N + k), rn, _cv(Cv, C_NW2 * N + k) * qn) - g)
+            if groups & ML.GROUP_ACCEL:
+                sset(T, t_qa + k, vfma(_cv(Cv, C_NDA * N + k), rn, _cv(Cv, C_NW2 * N + k) * qn) - g)
         _floors(T, N, N1, t_u, t_dq, Cv, c_phi)
         ok, ne, nb = _events_energy_peaks(W, c, T, dst, False, s, pin, dsum, vt, law, scheme, N, N1, P, Cv, lay, groups)
         nevt += ne

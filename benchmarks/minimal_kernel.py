@@ -34,6 +34,9 @@ force with its time, least force), checked against the engine's columns and
 timed in the rounds: whether the engine's distance to the minimal kernel is the work of its columns or its own
 overhead (events leave the vector code, per-step exits, the scalar steps).
 Works for any version of the package on the path (PYTHONPATH=OTHER_CHECKOUT; without metric groups there).
+Before 6cae336 the engine computed every floor's peak absolute acceleration with no metric group (it is the accel
+group since), so `--groups none` times more engine work on a checkout from before it: compare such ratios across
+versions only with that in mind.
 """
 
 from __future__ import annotations

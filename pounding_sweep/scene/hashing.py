@@ -89,11 +89,14 @@ def canonical(scene) -> dict:
 def _output(out: dict) -> dict:
     """[output] as hashed: no path (where results go changes none of them); metrics, added later, absent at its
     default (every group) as before it existed, else the groups it names in one order (another order computes
-    the same)."""
+    the same). The peak accelerations became a group (accel) after the key existed, and every run computed them
+    before: a scene computing accel hashes as it did then (its results resume), one leaving it out is marked
+    "no_accel" (results from before, which hold the accelerations, do not resume into it)."""
     out = {k: v for k, v in out.items() if k != "path"}
     metrics = out.pop("metrics", None)
     if metrics is not None:
-        out["metrics"] = list(metric_group_names(tuple(metrics)))
+        names = list(metric_group_names(tuple(metrics)))
+        out["metrics"] = [g for g in names if g != "accel"] if "accel" in names else [*names, "no_accel"]
     return out
 
 

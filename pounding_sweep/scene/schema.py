@@ -252,8 +252,8 @@ class OutputConfig:
     metrics: tuple[str, ...] | None = _f(
         "the metric groups each run computes: energy (the energy balance, energy_residual flag), drift (peak story "
         "drifts), closest (closest approach), phases (compression time, phases, median phase, median_truncated "
-        "flag), accel (peak absolute floor accelerations), or 'all' / 'none'; a group left out is NaN in its columns and skipped by the lane kernel's steps. "
-        "What a study reads is computed whatever this says",
+        "flag), accel (peak absolute floor accelerations), or 'all' / 'none'; a group left out is NaN in its "
+        "columns and skipped by the lane kernel's steps. What a study reads is computed whatever this says",
         None,
         when="default: all; a risk study's runs: only the groups the study reads",
     )

@@ -3,7 +3,8 @@ the ones a study that reads its results needs, whatever that key says. This is t
 reader needs which group, and why.
 
 Who reads a group's columns (found with grep on the columns engine/layout.left_out_slots names):
-- the risk study (risk/analysis.py) reads closest approach and story drift; READERS below lists them;
+- the risk study (risk/analysis.py) reads closest approach, story drift and the top floors' peak absolute
+  accelerations; READERS below lists them;
 - the no-contact warning (sweep/checks.py ContactTally) reads closest approach only to say how near the floors
   came: when the group is left out it says so rather than turning the group on (the warning's finding, that no
   run made contact, comes from impacts_f*, which is always computed);
@@ -14,8 +15,9 @@ Who reads a group's columns (found with grep on the columns engine/layout.left_o
   peak with the runs' peak absolute accelerations, so a scene scoring one computes accel (sweep_groups);
 - one run in memory (simulate: the figures' captions read compression phases, the accuracy study the energy
   balance and its flag), the gap study and the benchmarks call prepare() without a mask: every group. (The gap
-  study reads closest approach and drift of a dozen runs per record: leaving the other groups out would save a
-  few per cent of seconds and cost a first compile of the lane kernel's other variant, engine/driver.py.)
+  study reads closest approach, drift and the top floors' peak accelerations of a dozen runs per record: leaving
+  the other groups out would save a few per cent of seconds and cost a first compile of the lane kernel's other
+  variant, engine/driver.py.)
 """
 
 from __future__ import annotations

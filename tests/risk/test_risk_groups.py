@@ -1,7 +1,7 @@
 """The risk study's runs compute only the metric groups the study reads (sweep/metricgroups.py READERS: closest
-approach of the contact-free runs, story drifts and peak absolute accelerations of both kinds for the consequences), whatever [output] metrics
-says; its tables are those of a study computing every group, exactly (the kept columns are the same kernel's same
-arithmetic: tests/sweep/test_metric_groups.py says why bit for bit)."""
+approach of the contact-free runs, story drifts and peak absolute accelerations of both kinds for the
+consequences), whatever [output] metrics says; its tables are those of a study computing every group, exactly (the
+kept columns are the same kernel's same arithmetic: tests/sweep/test_metric_groups.py says why bit for bit)."""
 
 from __future__ import annotations
 

@@ -44,6 +44,22 @@ def test_a_scene_scoring_an_acceleration_computes_the_peak_accelerations():
             assert sweep_groups(s) == (asked | L.GROUP_ACCEL if acc else asked), (name, metrics)
 
 
+def test_the_accel_group_keeps_earlier_hashes_where_it_computes_what_they_did(tmp_path):
+    """Every run computed the peak accelerations before accel was a group (6cae336): a scene computing it hashes
+    [output] metrics as before (the groups then named: earlier results resume), one leaving it out is marked
+    (earlier parts hold accelerations its new parts would not). Measured with the export of eaf6e55, the commit
+    before: the 6 Hz scene with metrics ("drift",) hashed a8fb3dc5..., as ("drift", "accel") does here."""
+    from pounding_sweep.scene.hashing import _output
+
+    assert _output({"metrics": ("all",)}) == {"metrics": ["energy", "drift", "closest", "phases"]}
+    assert _output({"metrics": ("drift", "accel")}) == {"metrics": ["drift"]}
+    assert _output({"metrics": ("drift",)}) == {"metrics": ["drift", "no_accel"]}
+    assert _output({"metrics": ("none",)}) == {"metrics": ["no_accel"]}
+    assert _output({"metrics": None}) == {}
+    h = {m: six_hz(tmp_path, m).config_hash() for m in (None, ("all",), ("drift", "accel"), ("drift",), ("none",))}
+    assert len(set(h.values())) == len(h)
+
+
 def six_hz(tmp_path, metrics, scheme: str = "event", name: str = "s"):
     """The paper's 6 Hz grid, 0.3 s of it (every pair pounds), with [output] metrics (None: not given)."""
     s = load_scene(SWEEPS / "paper_6hz.toml")

@@ -154,7 +154,7 @@ def _floor_peaks(W, c, T, N, N1, P, t_u, t_qa, r_met, Cv, c_phi, vt, gap, ok_mas
     of |interstory drift| (the story below the floor), and (group closest) each pair's closest approach
     gap - (u1 - u2) (and its time). One test for all floors and pairs; rows are written only in the rare
     steps where some extreme grows in some lane of `ok_mask`. Returns the lanes that diverged (|u| >=
-    DIVERGED_M or |a| >= 1e300; a NaN never grows a peak and is caught by the energy rows, or without the
+    DIVERGED_M or, with accel, |a| >= 1e300; a NaN never grows a peak and is caught by the energy rows, or without the
     energy group by _nonfinite, instead)."""
     pbase = r_met + ML.PER_DOF * N
     drifts = (groups & ML.GROUP_DRIFT) != 0

@@ -8,7 +8,6 @@ Who reads a group's columns (found with grep on the columns engine/layout.left_o
 - the no-contact warning (sweep/checks.py ContactTally) reads closest approach only to say how near the floors
   came: when the group is left out it says so rather than turning the group on (the warning's finding, that no
   run made contact, comes from impacts_f*, which is always computed);
-- the risk study's consequence table reads the top floors' peak absolute accelerations (accel);
 - scoring, ranking, refinement and calibration read no group: the scores come from the kernel's score spec and
   the calibration fits histories, and the best table takes only parameters, scores and status. One exception:
   the scale check after a grid (sweep/checks.py check_scale) compares a scored acceleration channel's measured

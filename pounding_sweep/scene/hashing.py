@@ -13,7 +13,7 @@ import hashlib
 import json
 from pathlib import Path
 
-from pounding_sweep.scene.groups import metric_group_names
+from pounding_sweep.scene.groups import SPLIT_LATER, metric_group_names
 
 #: [experiment] keys added after scenes were first hashed (acceleration channels), with the values they had
 #: before they existed: at these values they are left out of the canonical form, so a scene that does not
@@ -89,14 +89,13 @@ def canonical(scene) -> dict:
 def _output(out: dict) -> dict:
     """[output] as hashed: no path (where results go changes none of them); metrics, added later, absent at its
     default (every group) as before it existed, else the groups it names in one order (another order computes
-    the same). The peak accelerations became a group (accel) after the key existed, and every run computed them
-    before: a scene computing accel hashes as it did then (its results resume), one leaving it out is marked
-    "no_accel" (results from before, which hold the accelerations, do not resume into it)."""
+    the same); the groups split off later (scene/groups.py SPLIT_LATER) named only where left out, as no_<group>."""
     out = {k: v for k, v in out.items() if k != "path"}
     metrics = out.pop("metrics", None)
     if metrics is not None:
-        names = list(metric_group_names(tuple(metrics)))
-        out["metrics"] = [g for g in names if g != "accel"] if "accel" in names else [*names, "no_accel"]
+        names = metric_group_names(tuple(metrics))
+        kept = [g for g in names if g not in SPLIT_LATER]
+        out["metrics"] = kept + [f"no_{g}" for g in SPLIT_LATER if g not in names]
     return out
 
 

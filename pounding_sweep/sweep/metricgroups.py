@@ -52,7 +52,7 @@ def sweep_groups(scene: Scene) -> int:
     reads the runs' peak absolute accelerations)."""
     mask = L.groups_mask(scene.output.metrics or ("all",))
     x = scene.experiment
-    if x is not None and any(str(code).startswith(ACC_PREFIX) for code in (x.channels or {}).values()):
+    if x is not None and any(code.startswith(ACC_PREFIX) for code in (x.channels or {}).values()):
         mask |= L.GROUP_ACCEL
     return mask
 

@@ -102,6 +102,24 @@ def _in_cache(dispatcher, args: tuple) -> bool:
     return cache._index_key(args, dispatcher.targetctx.codegen()) in cache._cache_file._load_index()
 
 
+def first_cached(pieces: Callable[[], tuple]) -> bool:
+    """Whether the first of a kernel's pieces (its largest: the lane kernel's step) is compiled or cached already:
+    then the kernel's compile is only what depends on more than that piece's types (the lane kernel: a new pair of
+    floor counts), and its time is recorded apart (engine/compile_times.py AGAIN). False where the pieces cannot be
+    listed, as start() does."""
+    try:
+        listed = pieces()
+        if not listed:
+            return False
+        dispatcher, sig = listed[0]
+        args = _args(sig)
+        return args in dispatcher.overloads or (
+            not isinstance(dispatcher._cache, NullCache) and _in_cache(dispatcher, args)
+        )
+    except Exception:  # noqa: BLE001 (called inside Numba's compile, as start() is)
+        return False
+
+
 def _wanted(pieces, limit: int | None = None) -> list:
     """The pieces a second process should compile: cached, importable by name, not compiled or cached yet; the
     first `limit` of them (each cache index is read only until that many are found)."""

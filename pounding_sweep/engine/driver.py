@@ -269,20 +269,23 @@ Announce = Callable[[str, str, tuple[float, float], bool], Callable[[float], Non
 @contextlib.contextmanager
 def _announced(kernel: str, label: str, announce: Announce | None, pieces: Callable[[], tuple] = tuple):
     """Call `announce` when Numba starts compiling inside (a cache miss: Numba's 'numba:compile' event
-    fires only then), its return value when done; remember how long the compile took here. Then too, start
-    compiling the kernel's self-contained pieces (what `pieces()` returns) in a second process (engine/aside.py)."""
+    fires only then), its return value when done; remember how long the compile took here (apart when the kernel's
+    largest piece was cached: compile_times.AGAIN). Then too, start compiling the kernel's self-contained pieces
+    (what `pieces()` returns) in a second process (engine/aside.py)."""
     from numba.core import event
 
-    from pounding_sweep.engine.compile_times import compile_estimate, record_compile
+    from pounding_sweep.engine import compile_times
 
     started: list = []
     helpers: list = []
+    keys: list = []
 
     class _Listener(event.Listener):
         def on_start(self, ev):
             if not started:
                 started.append(time.perf_counter())
-                est, here = compile_estimate(kernel)
+                keys.append(compile_times.key(kernel, aside.first_cached(pieces)))
+                est, here = compile_times.compile_estimate(keys[0])
                 started.append(announce(kernel, label, est, here) if announce is not None else None)
                 helpers.append(aside.start(pieces))
 
@@ -301,7 +304,7 @@ def _announced(kernel: str, label: str, announce: Announce | None, pieces: Calla
         finally:
             if started:
                 took = time.perf_counter() - started[0]
-                record_compile(kernel, took)
+                compile_times.record_compile(keys[0], took)
                 if started[1] is not None:
                     started[1](took)
 

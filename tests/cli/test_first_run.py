@@ -67,6 +67,36 @@ def test_a_real_compile_is_announced_once_and_timed(tmp_path, monkeypatch):
     assert len(heard) == 1
 
 
+def test_a_compile_with_its_largest_piece_cached_is_estimated_and_recorded_apart(tmp_path, monkeypatch):
+    """The lane kernel for a new pair of floor counts, its step cached, compiles in a third of a first compile's
+    time: it has a range of its own and its own record; the first compile's record is left as it was."""
+    monkeypatch.setattr(jit, "_root", lambda: tmp_path)
+    heard = []
+
+    def announce(kernel, label, estimate_s, measured_here):
+        heard.append((kernel, estimate_s, measured_here))
+        return lambda seconds: None
+
+    @numba.njit(cache=False)
+    def piece(x):
+        return x * 2.0
+
+    @numba.njit(cache=False)
+    def kernel(x):
+        return piece(x) + 1.0
+
+    piece(1.0)  # the largest piece, compiled already
+    compile_times.record_compile("lanes", 40.0)
+    with driver._announced("lanes", "the lane kernel", announce, lambda: ((piece, (numba.float64,)),)):
+        kernel(1.0)
+    assert heard == [("lanes", compile_times.TYPICAL_COMPILE_S["lanes_again"], False)]
+    assert compile_times.compile_estimate("lanes") == ((40.0, 40.0), True)
+    (least, most), here = compile_times.compile_estimate("lanes_again")
+    assert here and least == most < 40.0
+    # a key with no range of its own falls back to the first compile's
+    assert compile_times.compile_estimate("nonlinear_again") == (compile_times.TYPICAL_COMPILE_S["nonlinear"], False)
+
+
 def test_the_compile_line_and_the_clock(monkeypatch):
     err = io.StringIO()
     monkeypatch.setattr(sys, "stderr", err)

@@ -56,6 +56,11 @@ if sys.argv[1] == "lanes":  # a new pair of floor counts (4 + 2), the step cache
 
     library = piece.overloads[piece.signatures[0]].library
     print("optimised_once", linking._once_module(library) is not None or not linking._known())
+    # the two compiles' times are remembered apart: the second, the step cached, is shorter (compile_times.AGAIN)
+    import json
+    from pounding_sweep.engine import compile_times, jit
+
+    print("recorded", *sorted(json.loads((jit._root() / compile_times.COMPILE_TIMES).read_text())))
 """
 
 
@@ -132,9 +137,15 @@ def test_both_scalar_kernels_load_the_scoring_code_the_second_process_compiled(t
 def test_the_lane_kernel_loads_the_step_the_second_process_compiled(tmp_path):
     """The same for the lane kernel's scalar step (groups._lane_step_signature against groups._scalar_steps' call);
     then, for a new pair of floor counts with the step cached, its contact loop (groups._contact_signature against
-    _integrate_groups' call): compiled for the first pair here, for the second loaded from the cache."""
+    _integrate_groups' call): compiled for the first pair here, for the second loaded from the cache. The second
+    compile's time is recorded apart from the first's (engine/compile_times.py AGAIN)."""
     got = _compile_with_an_empty_cache(tmp_path, "lanes")
-    assert got == [["classic", "1", "1", "0"], ["4+2", "2", "1", "0"], ["optimised_once", "True"]]
+    assert got == [
+        ["classic", "1", "1", "0"],
+        ["4+2", "2", "1", "0"],
+        ["optimised_once", "True"],
+        ["recorded", "lanes", "lanes_again"],
+    ]
 
 
 def test_nothing_to_leave_aside_without_scoring():

@@ -28,7 +28,7 @@ from pounding_sweep.accuracy import accuracy_ladder  # the dt-ladder study; figu
 from pounding_sweep.errors import ResultError
 from pounding_sweep.scene import scene_from_dict
 from pounding_sweep.scene.axes import STRUCTURE_AXES
-from pounding_sweep.scene.channels import ACC_PREFIX
+from pounding_sweep.scene.channels import ACC_PREFIX, is_acceleration
 from pounding_sweep.scene.parameters import PARAMETERS, channel_offset, is_log, member
 from pounding_sweep.scene.validate import FITTABLE
 from pounding_sweep.sweep.prepare import with_structure
@@ -407,7 +407,7 @@ def peak_difference_table(
     `peaks` (from `experiment_peaks`) adds the experimental peak's time to the headers; without it
     the experimental peak is recovered from the columns. `r_values` / `ks_values` pick a subset.
     """
-    codes = [c for c in score_codes(df) if not c.startswith(ACC_PREFIX)]  # Table 4: displacements
+    codes = [c for c in score_codes(df) if not is_acceleration(c)]  # Table 4: displacements
     if not codes:
         raise ValueError("peak_difference_table: the result file was not scored against a displacement")
     if layout not in ("long", "paper"):
@@ -578,7 +578,7 @@ def history_figures(
     disp_codes = list(exp.displacements) if exp is not None else []
     tops = [f"b{b}f{n}" for b, n in zip((1, 2), floors) if n]
     shown = tops + [c for c in disp_codes if c not in tops]
-    model_of = {c: c if c.startswith(ACC_PREFIX) else f"disp_{c}" for c in codes}
+    model_of = {c: c if is_acceleration(c) else f"disp_{c}" for c in codes}
     channels = list(dict.fromkeys([f"disp_{c}" for c in shown] + [model_of[c] for c in codes]))
     run_scene, params = _run(scene, pick)
     hist, m = simulate(run_scene, channels=channels + ([f"force_f{top}"] if top else []), **params)
@@ -738,7 +738,7 @@ def measured_residuals(scene, pick: dict, md: dict, hist=None, exp=None) -> dict
         xe = exp.channels[code][keep]
         ts = sample_times(scene, pick, exp, code)[keep]
         model = hist[history_column(code)].to_numpy()
-        if code.startswith(ACC_PREFIX):
+        if is_acceleration(code):
             xm = acceleration_at(sensor, model, float(t[1] - t[0]), ts, sos)
             xe = sosfilt(sos, xe) if sos.shape[0] else xe
         else:
@@ -817,14 +817,14 @@ def measured_figure(scene, pick: dict, label: str, md: dict, noise: dict | None 
 def channel_quantity(code: str) -> tuple[str, str, float]:
     """(quantity, unit shown, factor from SI) of an experiment channel: displacements in mm, absolute
     accelerations in m/s^2 (each in its own quantity, as the messages show them: scene/channels.shown_value)."""
-    if code.startswith(ACC_PREFIX):
+    if is_acceleration(code):
         return "absolute acceleration", "m/s^2", 1.0
     return "displacement", "mm", 1e3
 
 
 def history_column(code: str) -> str:
     """The simulate() history column of an experiment channel's model side."""
-    return f"{code}_m_s2" if code.startswith(ACC_PREFIX) else f"disp_{code}_m"
+    return f"{code}_m_s2" if is_acceleration(code) else f"disp_{code}_m"
 
 
 # ----------------------------------------------------------------------------- error against run time

@@ -35,6 +35,11 @@ def floor_dof(code: str, floors: tuple[int, int], key: str, value: str | None = 
 ACC_PREFIX = "abs_acc_"
 
 
+def is_acceleration(code: str) -> bool:
+    """Whether an experiment channel's model side ('b1f3', 'abs_acc_b1f3') is a floor's absolute acceleration."""
+    return code.startswith(ACC_PREFIX)
+
+
 def experiment_channel(code: str, floors: tuple[int, int], key: str) -> tuple[int, int]:
     """An [experiment] channel's model side -> (codes.H_DISP or codes.H_ABS_ACC, its DOF): 'b1f3' is the
     floor's displacement relative to the table, 'abs_acc_b1f3' its absolute acceleration."""
@@ -43,7 +48,7 @@ def experiment_channel(code: str, floors: tuple[int, int], key: str) -> tuple[in
             f"{key} = {code!r}: an experiment channel is a floor's displacement relative to the table, "
             "b<building>f<floor> (e.g. 'b1f3'), or its absolute acceleration, abs_acc_b<building>f<floor>"
         )
-    if code.startswith(ACC_PREFIX):
+    if is_acceleration(code):
         return codes.H_ABS_ACC, floor_dof(code[len(ACC_PREFIX) :], floors, key, code)
     return codes.H_DISP, floor_dof(code, floors, key)
 
@@ -72,11 +77,11 @@ def parse_channel(name: str, floors: tuple[int, int]) -> tuple[int, int, str]:
 def channel_unit(code: str) -> tuple[str, str]:
     """An experiment channel's SI unit and its name in keys: ('m', 'm') for a displacement 'b1f3', ('m/s^2',
     'm_s2') for an absolute acceleration 'abs_acc_b1f3'."""
-    return ("m/s^2", "m_s2") if code.startswith(ACC_PREFIX) else ("m", "m")
+    return ("m/s^2", "m_s2") if is_acceleration(code) else ("m", "m")
 
 
 def shown_value(code: str, value_si: float) -> str:
     """A channel's value in its own quantity, for a message: displacements in mm, accelerations in m/s^2."""
-    if code.startswith(ACC_PREFIX):
+    if is_acceleration(code):
         return f"{value_si:.4g} m/s^2"
     return f"{value_si * 1e3:.4g} mm"

@@ -189,7 +189,7 @@ def check_calibration(prep) -> None:
     GLOBAL_STAGE_BYTES."""
     from pounding_sweep.errors import ConfigError, ExperimentError
     from pounding_sweep.model.experiment import NOISE_MIN_DIFFERENCES, noise_floor
-    from pounding_sweep.scene.channels import ACC_PREFIX
+    from pounding_sweep.scene.channels import is_acceleration
     from pounding_sweep.sweep.scoring import score_spec
 
     scene, exp = prep.scene, prep.experiment
@@ -222,7 +222,7 @@ def check_calibration(prep) -> None:
     for i, code in enumerate(prep.score_codes):
         if weights is not None and weights[i] == 0:
             continue
-        acc = code.startswith(ACC_PREFIX)
+        acc = is_acceleration(code)
         rows += 1 if acc else 2
         if code in getattr(exp, "noise", {}) or (cal.noise_m is not None and not acc):
             continue  # given: [experiment] noise or noise_window_s, or [calibrate] noise_m for a displacement
@@ -275,7 +275,7 @@ def check_scene(prep) -> None:
     an ExperimentError (its units are wrong); warnings for an r axis the elastic Hertz law ignores (identical runs)
     and a low-pass filter below the buildings' first modes (it removes the response it scores)."""
     from pounding_sweep.errors import ExperimentError
-    from pounding_sweep.scene.channels import ACC_PREFIX
+    from pounding_sweep.scene.channels import is_acceleration
 
     scene = prep.scene
     r_values = scene.axis_values("r")
@@ -290,7 +290,7 @@ def check_scene(prep) -> None:
     if exp is None:
         return
     for code, values in exp.channels.items():
-        acc = code.startswith(ACC_PREFIX)
+        acc = is_acceleration(code)
         kind = "acceleration" if acc else "displacement"
         peak = float(np.nanmax(np.abs(values), initial=0.0))
         if peak > MEASURED_LIMITS[kind] or not np.isfinite(peak):
@@ -328,7 +328,7 @@ def check_scale(tally: ContactTally, prep, best) -> None:
     when the measured peak, rescaled by one unit factor (g for m/s^2, mm for m, or back), falls among the runs' peaks
     (within a factor 2), naming that unit: data 9.8 or 1000 times too large score just under 100 % (every run is
     about zero beside them), too small far above it."""
-    from pounding_sweep.scene.channels import ACC_PREFIX
+    from pounding_sweep.scene.channels import ACC_PREFIX, is_acceleration
 
     exp, x = prep.experiment, prep.scene.experiment
     if exp is None or best is None or best.empty:
@@ -339,7 +339,7 @@ def check_scale(tally: ContactTally, prep, best) -> None:
         error = float(rows.error_pct.iloc[0]) if len(rows) else math.nan
         if not error > POOR_FIT_PCT:
             continue
-        acc = code.startswith(ACC_PREFIX)
+        acc = is_acceleration(code)
         floor = code.removeprefix(ACC_PREFIX)
         lo, hi = tally.peaks.get(f"peak_abs_acc_{floor}_m_s2" if acc else f"peak_disp_{floor}_m", (math.nan, math.nan))
         measured = float(np.nanmax(np.abs(exp.channels[code][inside]), initial=0.0))

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from pounding_sweep.engine import layout as L
 from pounding_sweep.scene import Scene
-from pounding_sweep.scene.channels import ACC_PREFIX
+from pounding_sweep.scene.channels import is_acceleration
 from pounding_sweep.scene.groups import METRIC_GROUPS
 
 #: reader -> (the groups it needs, why). A study asks for its readers' groups (study_metrics); the sweep then
@@ -52,7 +52,7 @@ def sweep_groups(scene: Scene) -> int:
     reads the runs' peak absolute accelerations)."""
     mask = L.groups_mask(scene.output.metrics or ("all",))
     x = scene.experiment
-    if x is not None and any(code.startswith(ACC_PREFIX) for code in (x.channels or {}).values()):
+    if x is not None and any(is_acceleration(code) for code in (x.channels or {}).values()):
         mask |= L.GROUP_ACCEL
     return mask
 

@@ -11,7 +11,7 @@ import numpy as np
 import pyarrow as pa
 
 from pounding_sweep.engine.score import ACC_SCORE_NAMES, S_REL_RMS_PCT, SCORE_NAMES
-from pounding_sweep.scene.channels import ACC_PREFIX
+from pounding_sweep.scene.channels import is_acceleration
 from pounding_sweep.scene.parameters import BEST, is_log, names
 
 if TYPE_CHECKING:  # pandas costs 0.3 s to import: only where a table is built
@@ -26,7 +26,7 @@ PARAM_COLUMNS = ("run_id", "contact_law", *names(BEST))
 def score_names(code: str) -> tuple[tuple[str, str], ...]:
     """The score columns' name templates and meanings of one channel: a displacement's ('b1f3') or an
     absolute acceleration's ('abs_acc_b1f3', its peak in m/s^2)."""
-    return ACC_SCORE_NAMES if code.startswith(ACC_PREFIX) else SCORE_NAMES
+    return ACC_SCORE_NAMES if is_acceleration(code) else SCORE_NAMES
 
 
 def score_columns(codes: list[str]) -> list[tuple[str, str]]:

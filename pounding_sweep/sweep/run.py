@@ -31,7 +31,7 @@ from pounding_sweep.model.excitation import Excitation
 from pounding_sweep.model.grid import Grid
 from pounding_sweep.scene import Scene
 from pounding_sweep.scene.axes import STRUCTURE_AXES
-from pounding_sweep.scene.channels import ACC_PREFIX
+from pounding_sweep.scene.channels import is_acceleration
 from pounding_sweep.scene.hashing import hash_of
 from pounding_sweep.sweep.best import best_table, stored_refinement
 from pounding_sweep.sweep.checks import (
@@ -388,7 +388,7 @@ def _acceleration_facts(prep: Prepared) -> dict:
     for a scene that uses none of them: its metadata stays as it was)."""
     x, comb = prep.scene.experiment, prep.combination
     out = {}
-    if any(c.startswith(ACC_PREFIX) for c in prep.score_codes):
+    if any(is_acceleration(c) for c in prep.score_codes):
         out["acc_units"] = x.acc_units
         if x.lowpass_Hz is not None:
             out["lowpass"] = {
@@ -396,7 +396,7 @@ def _acceleration_facts(prep: Prepared) -> dict:
                 "cutoff_Hz": x.lowpass_Hz,
                 "order": x.lowpass_order,
                 "sos": prep.score.sos.tolist(),
-                "applied_to": [c for c in prep.score_codes if c.startswith(ACC_PREFIX)],
+                "applied_to": [c for c in prep.score_codes if is_acceleration(c)],
             }
         if prep.sensor is not None:
             out["sensor"] = prep.sensor.describe()

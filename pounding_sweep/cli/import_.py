@@ -146,9 +146,11 @@ def _summary(im, out: Path) -> None:
     print("\n".join(im.summary()))
     floors = [n for n in im.sensors if n != im.reference]
     chans = ", ".join(f'{im.column(n)} = "abs_acc_{n}"' for n in floors)
+    q0, q1 = im.settings["quiet_s"]
     print(
         f"written: {out}/table.parquet, {out}/record.csv, {out}/provenance.md\n"
         "in a scene (floor sensors named b<building>f<floor>):\n"
         f'  [excitation] type = "record"; record = "{out}/record.csv"; units = "m/s2"\n'
-        f'  [experiment] table = "{out}/table.parquet"; acc_units = "m/s2"; channels = {{ {chans} }}'
+        f'  [experiment] table = "{out}/table.parquet"; acc_units = "m/s2"; channels = {{ {chans} }}; '
+        f"noise_window_s = [{q0:.3f}, {q1:.3f}]   # the quiet window: each channel's noise"
     )

@@ -66,9 +66,9 @@ class Imported:
         s = self.settings
         out = [
             f"imported {len(self.sensors)} sensors, reference {self.reference}: {self.time_s.size} samples at "
-            f"{s['rate_Hz']:.6g} Hz ({self.time_s[-1]:.3f} s); first resonance {s['first_resonance_Hz']:.4g} Hz, "
-            f"band {s['band_Hz'][0]:.3g}-{s['band_Hz'][1]:.3g} Hz; quiet window {s['quiet_s'][0]:.3f}-"
-            f"{s['quiet_s'][1]:.3f} s"
+            f"{s['rate_Hz']:.6g} Hz ({self.time_s[-1]:.3f} s); first resonance {s['first_resonance_Hz']:.4g} Hz "
+            f"(the lowest transmissibility peak: {_peaks(self)}), band {s['band_Hz'][0]:.3g}-{s['band_Hz'][1]:.3g} Hz; "
+            f"quiet window {s['quiet_s'][0]:.3f}-{s['quiet_s'][1]:.3f} s"
         ]
         for n, i in self.sensors.items():
             lag = f", lag found {1e3 * i['lag_found_s']:+.2f} ms" if "lag_found_s" in i else ""
@@ -76,7 +76,7 @@ class Imported:
             out.append(
                 f"  {n}: axis {i['axis']}, sign {'+1' if i['sign'] > 0 else '-1 (reversed)'}{corr}, offset "
                 f"{i['offset_removed_m_s2']:+.4f} m/s^2, noise {i['noise_m_s2']:.4f} m/s^2; {i['alignment']}"
-                f", clock offset {i['clock_offset_s']:.6f} s{lag}"
+                f", clock offset {_seconds(i['clock_offset_s'])}{lag}"
             )
         return out
 
@@ -153,12 +153,20 @@ def import_sensors(
     fs = ref.rate_Hz
     # the first resonance and the rigid band, from the spectra alone (no alignment needed)
     durations = {n: float(sf.time_s[-1] - sf.time_s[0]) for n, sf in sens.items()}
-    top = max((n for n in sens if n != reference), key=lambda n: info[n]["axis_std_m_s2"], default=None)
+    floors = [n for n in sens if n != reference]
+    f1_from = ""
     if band_Hz is None:
-        if top is None:
+        if not floors:
             raise SensorError(f"{ref.path}: one sensor only: give --band for sign and alignment checks")
-        m = min(series[reference].size, series[top].size)
-        f1 = first_resonance(series[reference][:m], series[top][:m], min(fs, sens[top].rate_Hz))
+        # each floor's transmissibility peak: the top floor's is the first mode, a lower floor's may be a higher
+        # one (its strongest response), and no floor's lies below the first: the lowest of them
+        for n in floors:
+            m = min(series[reference].size, series[n].size)
+            info[n]["transmissibility_peak_Hz"] = first_resonance(
+                series[reference][:m], series[n][:m], min(fs, sens[n].rate_Hz)
+            )
+        f1_from = min(floors, key=lambda n: info[n]["transmissibility_peak_Hz"])
+        f1 = info[f1_from]["transmissibility_peak_Hz"]
         band = rigid_band(f1, min(durations.values()), min(sf.rate_Hz for sf in sens.values()))
     else:
         f1, band = float("nan"), tuple(band_Hz)
@@ -301,6 +309,7 @@ def import_sensors(
         "quiet_window": how,
         "band_Hz": [float(band[0]), float(band[1])],
         "first_resonance_Hz": f1,
+        "first_resonance_from": f1_from,  # the sensor whose transmissibility peak it is ('': --band given)
         "rate_Hz": fs,
         "span_on_reference_clock_s": [float(grid[0]), float(grid[-1])],
     }
@@ -319,6 +328,20 @@ def _moving_std(x: np.ndarray, m: int) -> np.ndarray:
 PROVENANCE_HEAD = "# Imported by python -m pounding_sweep import"
 
 
+def _seconds(x: float) -> str:
+    """A clock offset in s to the microsecond, without a minus sign on a rounded zero."""
+    v = round(float(x), 6)
+    return f"{v if v != 0.0 else 0.0:.6f} s"
+
+
+def _peaks(im: Imported) -> str:
+    """Each floor sensor's transmissibility peak, as the summary and the provenance note give them."""
+    got = [
+        f"{n} {i['transmissibility_peak_Hz']:.4g} Hz" for n, i in im.sensors.items() if "transmissibility_peak_Hz" in i
+    ]
+    return ", ".join(got) if got else "--band given"
+
+
 def provenance_text(im: Imported, command: str) -> str:
     """The provenance note: what was read, found and done, sensor by sensor (Markdown)."""
     s = im.settings
@@ -330,8 +353,9 @@ def provenance_text(im: Imported, command: str) -> str:
         f"- reference (the shaking table): `{im.reference}`; one time grid, its samples at {s['rate_Hz']:.6g} Hz over "
         f"{s['span_on_reference_clock_s'][0]:.6f} .. {s['span_on_reference_clock_s'][1]:.6f} s of its clock, "
         f"written from t_s = 0 ({im.time_s.size} samples, {im.time_s[-1]:.3f} s)",
-        f"- first resonance from the spectra (top floor / table): {s['first_resonance_Hz']:.4g} Hz; band of sign and "
-        f"alignment {s['band_Hz'][0]:.4g}-{s['band_Hz'][1]:.4g} Hz (below half of it the floors follow the table)",
+        f"- first resonance from the spectra (the lowest of the floors' transmissibility peaks, floor / table: "
+        f"{_peaks(im)}): {s['first_resonance_Hz']:.4g} Hz; band of sign and alignment "
+        f"{s['band_Hz'][0]:.4g}-{s['band_Hz'][1]:.4g} Hz (below half of it the floors follow the table)",
         f"- quiet window {s['quiet_s'][0]:.3f}-{s['quiet_s'][1]:.3f} s ({s['quiet_window']}): its mean subtracted "
         "from each channel (the offset), its standard deviation the channel's noise",
         "",
@@ -344,7 +368,7 @@ def provenance_text(im: Imported, command: str) -> str:
         corr = f" ({i['sign_correlation']:+.3f})" if "sign_correlation" in i else " (reference)"
         lines.append(
             f"| {n} | {i['file']} | {i['device']} | {i['axis']} ({i['gravity_axis']}, mean "
-            f"{i['gravity_axis_mean_m_s2']:.3f}) | {i['alignment']} | {i['clock_offset_s']:.6f} | "
+            f"{i['gravity_axis_mean_m_s2']:.3f}) | {i['alignment']} | {_seconds(i['clock_offset_s'])[:-2]} | "
             f"{1e3 * i.get('lag_found_s', 0.0):+.2f} | {sign}{corr} | {i['offset_removed_m_s2']:+.5f} | "
             f"{i['noise_m_s2']:.5f} | {i['resampled']} |"
         )

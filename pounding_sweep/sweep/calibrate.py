@@ -71,7 +71,7 @@ from pounding_sweep.scene import Scene
 from pounding_sweep.scene.channels import channel_unit, shown_value
 from pounding_sweep.scene.parameters import channel_offset, default_profiled, is_log, member
 from pounding_sweep.sweep.fitchecks import reversed_channel_warnings
-from pounding_sweep.sweep.fitstats import gauss_newton, interval, local_fit, misfit_of
+from pounding_sweep.sweep.fitstats import NO_CONTACT, fit_label, gauss_newton, interval, local_fit, misfit_of, on_bound
 from pounding_sweep.sweep.globalsearch import find_basin
 from pounding_sweep.sweep.lawcompare import compare_laws as compare_on_one_basis
 from pounding_sweep.sweep.lawcompare import information_criteria
@@ -81,7 +81,6 @@ from pounding_sweep.sweep.uncertainty import model_error_intervals
 from pounding_sweep.warn import warn
 
 CHI2_1_95 = 3.841458820694124  # chi^2 quantile, 1 degree of freedom, 0.95
-BOUND_FRACTION = 1e-3  # a fitted value this close to a bound (fraction of the fit-coordinate range) is on it
 #: forward-difference step of the Jacobian, as a share of each fit coordinate's range (Problem.jac). Its error is
 #: about h |r''| / 2 + 2 eps / h (eps: the residuals' own noise: rounding, event location). Measured against
 #: central differences on the stiff 6 Hz test (k_s/k 10, r 0.8; tests/sweep/test_globalsearch.py's case), the
@@ -433,7 +432,6 @@ def _hermite(u: np.ndarray, v: np.ndarray, dt: float, t: np.ndarray) -> np.ndarr
 
 
 #: the law label of a single-building scene's fit (no contact; Fit.law, the contact_law column of its rows)
-NO_CONTACT = "none"
 
 
 def law_label(scene: Scene) -> str:
@@ -578,7 +576,7 @@ def _calibrate_one(scene: Scene, names: list[str], threads: int, best_cell: dict
         fit.warnings += reversed_channel_warnings(fit)  # named (sweep/fitchecks.py); intervals with its error
         model_error_intervals(fit, prob, cal.max_evals)
         if progress is not None:
-            progress(f"calibration ({law_label(scene)}): model-error intervals from {len(fit.windows)} windows")
+            progress(f"{fit_label(law_label(scene))}: model-error intervals from {len(fit.windows)} windows")
     # profiles
     profiled = (list(cal.profile) or default_profiled(names)) if cal.profile_points > 0 else []
     for n in profiled:
@@ -655,32 +653,44 @@ def _crossings(x: np.ndarray, y: np.ndarray, x_opt: float) -> tuple[float, float
 
 
 def _warnings(fit: Fit, z_opt, lo, hi, cal) -> None:
-    law = fit.law
-    for j, n in enumerate(fit.names):
-        rng = hi[j] - lo[j]
-        for side, edge in (("lower", lo[j]), ("upper", hi[j])):
-            if abs(z_opt[j] - edge) <= BOUND_FRACTION * rng:
-                b = fit.bounds[n][0 if side == "lower" else 1]
-                fit.warnings.append(
-                    f"calibration ({law}): {n} = {fit.estimate[n]:.4g} is on its {side} bound {b:g}: the data "
-                    "want a value outside the bounds, or the model cannot fit them; widen the bound or check the model"
-                )
+    who = fit_label(fit.law)
+    for n, side in zip(fit.names, on_bound(z_opt, lo, hi)):
+        if side:
+            b = fit.bounds[n][0 if side < 0 else 1]
+            fit.warnings.append(
+                f"{who}: {n} = {fit.estimate[n]:.4g} is on its {'lower' if side < 0 else 'upper'} "
+                f"bound {b:g}: the data want a value outside the bounds, or the model cannot fit them; widen the "
+                "bound or check the model"
+            )
     if fit.misfit_ratio > cal.misfit_factor:
         fit.warnings.append(
-            f"calibration ({law}): the best fit's residual is {fit.misfit_ratio:.1f} times the noise floor "
+            f"{who}: the best fit's residual is {fit.misfit_ratio:.1f} times the noise floor "
             f"({', '.join(f'{c} {shown_value(c, fit.rms_m[c])} vs {shown_value(c, fit.noise_m[c])}' for c in fit.rms_m)}): "
             "the model cannot explain the data; the fitted values are not to be trusted as measurements"
         )
     if fit.quote == "model_error":
+        nw = len(fit.windows)
+
+        def quoted(n, a, b):
+            vals = [w[n] for w in fit.windows if w.get(f"identified_{n}")]
+            if len(vals) < 2:
+                why = f"the bounds: {len(vals)} of {nw} windows identify it, 2 are needed"
+            else:
+                lo_b, hi_b = fit.bounds[n]
+                ends = [e for e, hit in (("lower", a <= lo_b), ("upper", b >= hi_b)) if hit]
+                clipped = f"; clipped at the {' and '.join(ends)} bound{'s' if len(ends) > 1 else ''}" if ends else ""
+                why = f"{len(vals)} windows: {min(vals):.4g} .. {max(vals):.4g}{clipped}"
+            return f"{n} {fit.estimate[n]:.4g} in [{a:.4g}, {b:.4g}] ({why})"
+
         fit.warnings.append(
-            f"calibration ({law}): intervals with the model's error (fits of {len(fit.windows)} windows of the record; "
+            f"{who}: intervals with the model's error (fits of {nw} windows of the record; "
             "quote these, not the noise-based ones): "
-            + ", ".join(f"{n} {fit.estimate[n]:.4g} in [{a:.4g}, {b:.4g}]" for n, (a, b) in fit.ci95_model.items())
+            + ", ".join(quoted(n, a, b) for n, (a, b) in fit.ci95_model.items())
         )
     for n, (ok, a, b) in fit.identified.items():
         if not ok:
             fit.warnings.append(
-                f"calibration ({law}): {n} is not identified by this data: any value in [{a:.4g}, {b:.4g}] fits "
+                f"{who}: {n} is not identified by this data: any value in [{a:.4g}, {b:.4g}] fits "
                 "within the noise (profile likelihood, 95 %)"
             )
     for w in fit.warnings:
@@ -721,6 +731,8 @@ def fit_table(fits: list[Fit]):
                     "ci95_high": f.ci95[n][1],
                     "ci95_model_low": ma,
                     "ci95_model_high": mb,
+                    # the windows behind ci95_model that identify the parameter (fewer than 2: it is the bounds)
+                    "model_error_windows": sum(bool(w.get(f"identified_{n}")) for w in f.windows),
                     "quote": f.quote,
                     "lower_bound": f.bounds[n][0],
                     "upper_bound": f.bounds[n][1],

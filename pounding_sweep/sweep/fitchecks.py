@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pounding_sweep.sweep.fitstats import local_fit, misfit_of
+from pounding_sweep.sweep.fitstats import fit_label, local_fit, misfit_of
 
 #: a negated channel's own residual must fall below this fraction of what it was (a sign fault is not a nuance)
 IMPROVEMENT = 0.5
@@ -71,7 +71,7 @@ def reversed_channel_warnings(fit) -> list[str]:
     for code, rho, misfit, params in reversed_channels(fit):
         shown = ", ".join(f"{n} {v:.4g}" for n, v in params.items())
         out.append(
-            f"calibration ({fit.law}): channel {code} looks reversed against the model: negated, the fit reaches "
+            f"{fit_label(fit.law)}: channel {code} looks reversed against the model: negated, the fit reaches "
             f"{misfit:.2f} times the noise floor instead of {fit.misfit_ratio:.1f} ({shown}; correlation with the "
             "model at the fit "
             f"{rho:.2f}): check how that sensor was mounted and negate the table's column, or import the raw files "

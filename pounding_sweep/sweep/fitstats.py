@@ -12,6 +12,25 @@ import numpy as np
 
 from pounding_sweep.scene.parameters import is_log
 
+#: the contact law of one building's fit (it has none)
+NO_CONTACT = "none"
+
+
+def fit_label(law: str) -> str:
+    """How a message names a fit: 'calibration (law)', or 'calibration' for one building's (NO_CONTACT)."""
+    return "calibration" if law == NO_CONTACT else f"calibration ({law})"
+
+
+#: a fitted value this close to a bound (fraction of the fit-coordinate range) is on it: the data want a value
+#: outside the bounds, and the noise-based interval there (a normal approximation at an interior optimum) is void
+BOUND_FRACTION = 1e-3
+
+
+def on_bound(z: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Per fit coordinate: -1 where z is on its lower bound, +1 on its upper one, 0 inside (BOUND_FRACTION)."""
+    tol = BOUND_FRACTION * (np.asarray(hi) - np.asarray(lo))
+    return np.where(np.abs(z - lo) <= tol, -1, np.where(np.abs(z - hi) <= tol, 1, 0))
+
 
 def local_fit(prob, z0: np.ndarray, max_nfev: int, free=None, cols=None):
     """Least squares (scipy.optimize.least_squares: trust-region reflective, bounds, the batched forward-difference

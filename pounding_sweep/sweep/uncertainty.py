@@ -11,9 +11,14 @@ Method: a window split of the record (non-overlapping subseries: Carlstein 1986,
 for estimating the variance of a general statistic from a stationary sequence", Ann. Statist. 14:1171). The
 scored window is cut into WINDOWS contiguous windows of equal duration; on each the model is refitted alone
 (least squares from the whole record's optimum, every parameter free, the noise floors of the whole record,
-the simulation from t = 0 to the window's end). Per parameter, the windows whose own noise-based 95 %
-interval spans at most half the bounds' range identify it (a window without impacts does not identify the
-contact); from their K values (fit coordinates, log for stiffnesses) with standard deviation s:
+the simulation from t = 0 to the window's end). A window whose measured data are not above their noise (their RMS
+at most [calibrate] misfit_factor times the noise floor, the factor that says a residual is noise: the table at
+rest before or after the shaking) identifies nothing: a fit there explains noise. Otherwise, per parameter, the
+windows whose own optimum lies inside the bounds (fitstats.on_bound: at a bound the data of that window want a
+value outside them, and the noise-based interval, a normal approximation at an interior optimum, is void) and
+whose noise-based 95 % interval spans at most IDENTIFIED of the bounds' range identify it (a window without
+impacts does not identify the contact); from their K values (fit coordinates, log for stiffnesses) with
+standard deviation s:
 
     half-width h = t_(K-1)(0.975) s sqrt(1 + 1/K)
 
@@ -23,7 +28,7 @@ widened where needed to hold every window's value and the noise-based interval, 
 K <= 8 it holds the window values anyway (Samuelson's inequality: no value of a sample lies more than
 s (K - 1) / sqrt(K) from its mean), so a fit of any union of these windows, which is close to a weighted mean
 of theirs, lies inside it too. With fewer than 2 identifying windows the interval is the bounds: the data
-cannot bound that parameter's model error.
+cannot bound that parameter's model error, and the report says so.
 
 Which to quote: the model-error interval whenever the misfit warning fires (the residual more than
 misfit_factor times the noise floor), the noise-based one otherwise (the window split costs WINDOWS local fits
@@ -37,7 +42,7 @@ import math
 import numpy as np
 
 from pounding_sweep.scene.parameters import is_log
-from pounding_sweep.sweep.fitstats import gauss_newton, interval, local_fit, misfit_of
+from pounding_sweep.sweep.fitstats import gauss_newton, interval, local_fit, misfit_of, on_bound
 
 WINDOWS = 4  # windows of the split (the prediction interval's t quantile grows fast below 4)
 IDENTIFIED = 0.25  # a window identifies a parameter when its 95 % half-width is at most this share of the range
@@ -46,19 +51,24 @@ IDENTIFIED = 0.25  # a window identifies a parameter when its 95 % half-width is
 def fit_window(prob, z0: np.ndarray, window: tuple[float, float], max_nfev: int) -> dict:
     """The model refitted on the samples of `window` (simulation time [s]) alone, from z0 (least squares, every
     parameter free, the whole record's noise floors): per parameter its value, noise-based standard error and
-    whether the window identifies it (95 % half-width at most IDENTIFIED of the range); the misfit, the residual
-    sum of squares and the optimum's fit coordinates ('z')."""
+    whether the window identifies it (data above their noise, its optimum inside the bounds, its 95 % half-width
+    at most IDENTIFIED of the range: module docstring); the data's RMS over the noise floor, the misfit, the
+    residual sum of squares and the optimum's fit coordinates ('z')."""
     lo, hi = prob.z_bounds
     sub = prob.restricted((float(window[0]), float(window[1])))
+    T = sub.target
+    signal = misfit_of(np.concatenate([v / s for v, s in zip(T.values, T.sigma)]), sub.sizes())
     res = local_fit(sub, z0, max_nfev)
     gn = gauss_newton(res.jac, res.fun, sub.sizes(), len(prob.names))
-    ok = gn.tq * gn.se_z <= IDENTIFIED * (hi - lo)
+    ok = (gn.tq * gn.se_z <= IDENTIFIED * (hi - lo)) & (on_bound(res.z, lo, hi) == 0)
+    ok &= signal > prob.scene.calibrate.misfit_factor
     theta = prob.to_theta(res.z)
     prob.evaluations += sub.evaluations
     se = [float(t * s) if is_log(n) else float(s) for n, t, s in zip(prob.names, theta, gn.se_z)]
     return {
         "start_s": float(window[0]),
         "end_s": float(window[1]),
+        "signal_over_noise": signal,
         "misfit_over_noise": misfit_of(res.fun, sub.sizes()),
         "rss": float(res.fun @ res.fun),
         **{n: float(theta[j]) for j, n in enumerate(prob.names)},

@@ -154,6 +154,42 @@ def test_the_small_walkthrough_calibrates_one_building(calibrated):
     assert 7.0 < f1.frequency_Hz[0] < 8.5
 
 
+def test_a_window_whose_optimum_is_on_a_bound_does_not_bound_the_model_error(tmp_path):
+    """The clock offset bounded away from the sensors' true one (about -1.7 ms, docs/tutorials/real-shake-table.md):
+    every window's optimum sits on the lower bound, where the noise-based interval (a normal approximation at an
+    interior optimum) says nothing. No window identifies it, so its model-error interval is the bounds and the
+    report says why, naming the fit without a contact law (one building). The first window (0-2 s) is the table at
+    rest: its data are noise (RMS about the noise floor), and it identifies nothing, whatever its fit's standard
+    errors say. A window counted as identifying lies inside the bounds (sweep/fitstats.py on_bound), and the fit
+    table counts those windows."""
+    from pounding_sweep.scene.schema import CalibrateConfig
+    from pounding_sweep.sweep.calibrate import calibrate, fit_table
+
+    s = small_walkthrough(tmp_path)
+    params = {"stiffness_scale_b1": (0.7, 1.3), "damping_ratio_b1": (0.0005, 0.05), "time_offset_s": (0.005, 0.02)}
+    cal = CalibrateConfig(parameters=params, global_points=8, starts=1, max_evals=60, profile_points=0)
+    with collecting():
+        [fit] = calibrate(dataclasses.replace(s, calibrate=cal), 2)
+    assert fit.quote == "model_error" and len(fit.windows) == 4
+    assert not any(w["identified_time_offset_s"] for w in fit.windows)
+    quiet = fit.windows[0]
+    assert quiet["signal_over_noise"] < 2.0 and not any(quiet[f"identified_{n}"] for n in params)
+    assert all(w["signal_over_noise"] > 50.0 for w in fit.windows[1:])  # the shaking: far above the noise
+    assert fit.ci95_model["time_offset_s"] == (0.005, 0.02)
+    assert fit.estimate["time_offset_s"] == pytest.approx(0.005, abs=1e-3 * 0.015)  # on its bound (BOUND_FRACTION)
+    quoted = next(w for w in fit.warnings if "intervals with the model's error" in w)
+    assert quoted.startswith("calibration: ") and "(the bounds: 0 of 4 windows identify it, 2 are needed)" in quoted
+    for w in fit.windows:
+        for n, (lo, hi) in params.items():
+            if w[f"identified_{n}"]:
+                assert lo < w[n] < hi
+    table = fit_table([fit]).set_index("parameter")
+    assert table.loc["time_offset_s", "model_error_windows"] == 0
+    assert table.loc["stiffness_scale_b1", "model_error_windows"] == sum(
+        w["identified_stiffness_scale_b1"] for w in fit.windows
+    )
+
+
 def test_the_walkthrough_figures_show_the_calibrated_run(calibrated, tmp_path):
     """Every figure drawn or its absence said; the measured-against-model figure is of the calibrated run: its
     residuals are the calibration's (the same samples: linear interpolation between steps at the table's instants,

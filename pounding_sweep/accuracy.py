@@ -326,6 +326,29 @@ def divergence_by_steps(df: pd.DataFrame, scheme: str = "paper", what: str = "di
     return t.sort_index(ascending=False)
 
 
+#: the accuracy figure's window [s]: the first LADDER_S s of a harmonic test; of a record, up to half of it past
+#: the record's strongest sample (at least LADDER_S s), so that the window holds strong motion, not a quiet lead-in
+LADDER_S = 2.0
+
+
+def ladder_duration(scene, record: str | None = None) -> float:
+    """How long the accuracy figure's runs last (LADDER_S); `record`: the name of the run's record (a result's
+    `record` column) where the scene sweeps several, else its first."""
+    e = scene.excitation
+    if e.type != "record":
+        return LADDER_S
+    from pounding_sweep.model.excitation import scene_record
+
+    paths = next((list(a.values) for a in scene.sweep if a.name == "record"), [e.record])
+    recs = [scene_record(scene, p) for p in paths]
+    rec = next((r for r in recs if r.name == record), recs[0])
+    acc = rec.acc_m_s2
+    end = rec.dt_s * (acc.size - 1)
+    if e.duration_s is not None:
+        end = min(end, float(e.duration_s))
+    return min(max(LADDER_S, float(np.argmax(np.abs(acc))) * rec.dt_s + LADDER_S / 2), end)
+
+
 def accuracy_ladder(
     scene,
     dts=None,

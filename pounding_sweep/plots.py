@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from pounding_sweep.accuracy import accuracy_ladder  # the dt-ladder study; figures() draws a small one
+from pounding_sweep.accuracy import accuracy_ladder, ladder_duration  # the dt-ladder study; figures() draws a small one
 from pounding_sweep.errors import ResultError
 from pounding_sweep.scene import scene_from_dict
 from pounding_sweep.scene.axes import STRUCTURE_AXES
@@ -509,7 +509,9 @@ def calibrated_run(best: pd.DataFrame | None) -> tuple[dict, str] | None:
 
 
 def _time_text(t: float) -> str:
-    return f"{t:.2f}".rstrip("0").rstrip(".")
+    """A time [s] to the hundredth, trailing zeros dropped (a rounded zero without its sign: '0', not '-0')."""
+    text = f"{t:.2f}".rstrip("0").rstrip(".")
+    return "0" if text == "-0" else text
 
 
 def zoom_window(scene, t_end: float, exp=None, x=None, width_s: float = 0.5) -> tuple[float, float]:
@@ -941,15 +943,19 @@ def figures(
     ladder_scene, pick = _run(scene, pick)
     pick = {k: v for k, v in pick.items() if k != "time_offset_s"}  # the ladder runs without the experiment
     if accuracy is None:
-        table = accuracy_ladder(ladder_scene, **pick)
+        # one building: the schemes differ only at contact, so one of them (the reference's) says it all
+        schemes = None if scene.contact is not None else ["event"]
+        window = ladder_duration(ladder_scene, pick.get("record"))
+        table = accuracy_ladder(ladder_scene, schemes=schemes, duration_s=window, **pick)
     else:
         table = accuracy if isinstance(accuracy, pd.DataFrame) else read_accuracy_table(accuracy)
     swept = swept_axes(df, md)
     shown = [a for a in ("gap_m", "ks_ratio", "ks_N_per_m", "r") if a in pick and (a in swept or a != "gap_m")]
     what = run_text(pd.Series(pick), shown + [a for a in swept if a in pick and a not in shown])
     dur = table.duration_s.iloc[0] if "duration_s" in table and np.isfinite(table.duration_s.iloc[0]) else None
+    alone = "; one building: without contact every scheme takes the same steps" if scene.contact is None else ""
     out["error_vs_runtime"] = error_vs_runtime_figure(
-        table, f"{scene.name}: error against run time ({what}" + (f", first {dur:g} s)" if dur else ")")
+        table, f"{scene.name}: error against run time ({what}" + (f", first {dur:.4g} s" if dur else "") + f"{alone})"
     )
     return out
 
@@ -959,7 +965,7 @@ def calibration_profile_figure(best_path: str | Path):
     the residual (delta chi^2, the rest refitted) against the parameter, the 95 % threshold 3.84 and the
     fitted value; the law comparison in the title when several laws were calibrated. None when the calibration
     profiled nothing."""
-    from pounding_sweep.sweep.calibrate import CHI2_1_95, read_calibration
+    from pounding_sweep.sweep.calibrate import CHI2_1_95, NO_CONTACT, read_calibration
 
     cal = read_calibration(best_path)
     prof, fits, laws = cal["profiles"], cal["fits"], cal["laws"]
@@ -971,7 +977,8 @@ def calibration_profile_figure(best_path: str | Path):
     for ax, name in zip(axes[0], names):
         for law, rows in prof[prof.parameter == name].groupby("contact_law", sort=False):
             rows = rows.sort_values("value")
-            line = ax.plot(rows.value, np.maximum(rows.delta_chi2, 1e-3), marker="o", ms=3, label=law)[0]
+            shown = "profile" if law == NO_CONTACT else law  # one building's fit has no law
+            line = ax.plot(rows.value, np.maximum(rows.delta_chi2, 1e-3), marker="o", ms=3, label=shown)[0]
             f = fits[(fits.contact_law == law) & (fits.parameter == name)]
             if not f.empty:
                 ax.axvline(f.estimate.iloc[0], color=line.get_color(), lw=0.8, ls=":")

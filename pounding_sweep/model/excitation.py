@@ -33,6 +33,18 @@ from pounding_sweep.scene import Scene
 from pounding_sweep.warn import warn
 
 
+def _similitude(rec: GroundRecord, scene: Scene) -> GroundRecord:
+    """A record as the scene's runs see it: time scaled by [excitation] length_scale (eqs. 17-19)."""
+    scale = scene.excitation.length_scale
+    return similitude_scale(rec, scale) if scale != 1.0 else rec
+
+
+def scene_record(scene: Scene, path: str | None = None) -> GroundRecord:
+    """The record at `path` (default: [excitation] record) read as the scene reads it and similitude-scaled."""
+    e = scene.excitation
+    return _similitude(read_record(path or e.record, format=e.format, units=e.units), scene)
+
+
 @dataclass(frozen=True)
 class Excitation:
     """The scene's excitation at one dt: which kind, and every record it may use, resampled."""
@@ -78,8 +90,7 @@ class Excitation:
         for p in paths:
             rec = read_record(p, format=e.format, units=e.units)
             odd = implausible_timing(rec)
-            if e.length_scale != 1.0:
-                rec = similitude_scale(rec, e.length_scale)
+            rec = _similitude(rec, scene)
             recs.append(rec)
             arrays.append(resample(rec, dt, e.duration_s))
             if odd is not None:

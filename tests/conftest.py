@@ -105,6 +105,8 @@ SLOW = {
         "test_profiles_of_nothing_draw_no_figure",
         "test_the_small_walkthrough_calibrates_one_building",
         "test_the_walkthrough_figures_show_the_calibrated_run",
+        "test_a_window_whose_optimum_is_on_a_bound_does_not_bound_the_model_error",  # a calibration of its own, 8 s
+        "test_a_lower_residual_a_profile_finds_is_where_the_fit_goes_on",  # 30 s of the real Sine 1.5, twice fitted
     ),
     "tests/sweep/test_scoring.py": (
         "test_cli_summary_names_the_best_runs",

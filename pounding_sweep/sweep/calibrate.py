@@ -41,7 +41,10 @@ Method.
   profile rises less than chi^2_1(0.95) = 3.84 above the optimum in units of the inflated residual variance
   are those the data cannot exclude (the profile-likelihood interval, Venzon & Moolgavkar 1988). A profile
   interval that reaches both bounds, or spans more than half of the (log) range, says the parameter is not
-  identified by this data, with that range.
+  identified by this data, with that range. A profile point below the optimum by more than 3.84 (refitting the
+  others with one fixed reaches basins the search's starts missed, on a bound say) means the optimum is not the
+  global one: the fit goes on from that point once (least squares, every parameter free), and its intervals,
+  windows and profiles are made again there; the warnings say so (_lower_profile_point).
 * Model error (sweep/uncertainty.py): when the misfit exceeds misfit_factor, beside each noise-based interval
   one that includes the model's error (a window split of the record: what fits of other parts of it give),
   and that is the one to quote (Fit.quote).
@@ -72,7 +75,7 @@ from pounding_sweep.scene.channels import channel_unit, shown_value
 from pounding_sweep.scene.parameters import channel_offset, default_profiled, is_log, member
 from pounding_sweep.sweep.fitchecks import reversed_channel_warnings
 from pounding_sweep.sweep.fitstats import NO_CONTACT, fit_label, gauss_newton, interval, local_fit, misfit_of, on_bound
-from pounding_sweep.sweep.globalsearch import find_basin
+from pounding_sweep.sweep.globalsearch import Search, find_basin
 from pounding_sweep.sweep.lawcompare import compare_laws as compare_on_one_basis
 from pounding_sweep.sweep.lawcompare import information_criteria
 from pounding_sweep.sweep.prepare import Prepared, history_spec, prepare, structure_groups
@@ -515,14 +518,18 @@ def _start(scene: Scene, prob: Problem, best_cell: dict | None) -> tuple[dict | 
     return start, source
 
 
-def _calibrate_one(scene: Scene, names: list[str], threads: int, best_cell: dict | None, progress) -> Fit:
+def _calibrate_one(
+    scene: Scene, names: list[str], threads: int, best_cell: dict | None, progress, again: tuple | None = None
+) -> Fit:
+    """One law's fit. `again` = (search, note, runs, seconds): the fit continued from a lower residual its first
+    pass's profile found (_lower_profile_point), not searched again."""
     cal = scene.calibrate
     t0 = time.perf_counter()
     prob = Problem(scene, names, cal.parameters, cal.noise_m, threads)
     lo, hi = prob.z_bounds
     p = len(names)
     start, start_source = _start(scene, prob, best_cell)
-    search = find_basin(prob, cal, start, progress)
+    search = find_basin(prob, cal, start, progress) if again is None else again[0]
     z_opt = search.z
     theta = prob.to_theta(z_opt)
     r = search.result.fun
@@ -579,14 +586,58 @@ def _calibrate_one(scene: Scene, names: list[str], threads: int, best_cell: dict
             progress(f"{fit_label(law_label(scene))}: model-error intervals from {len(fit.windows)} windows")
     # profiles
     profiled = (list(cal.profile) or default_profiled(names)) if cal.profile_points > 0 else []
+    s2_eff = gn.s2 * N / gn.n_eff
     for n in profiled:
         j = names.index(n)
-        fit.profiles[n] = _profile(prob, n, z_opt, lo, hi, cal, gn.s2 * N / gn.n_eff, rss, gn.se_z[j])
+        fit.profiles[n] = _profile(prob, n, z_opt, lo, hi, cal, s2_eff, rss, gn.se_z[j])
+    lower = _lower_profile_point(fit, prob)
+    if lower is not None and again is None:  # the search missed a basin: go on from the profile's point
+        name, row, z_from = lower
+        res = local_fit(prob, z_from, cal.max_evals)
+        if 2.0 * res.cost < rss:
+            note = (
+                f"{fit_label(fit.law)}: the search's optimum was not the global one: the profile of {name} found a "
+                f"residual lower by delta chi^2 {-row['delta_chi2']:.3g} at {name} = {row['value']:.4g}; the fit "
+                f"went on from there (residual {fit.misfit_ratio:.3g} -> {misfit_of(res.fun, sizes):.3g} times the "
+                "noise floor)"
+            )
+            if progress is not None:
+                progress(f"{fit_label(fit.law)}: a profile found a lower residual; the fit goes on from there")
+            stages = search.stages + [{"profile_restart": name, "value": row["value"], "misfit": fit.misfit_ratio}]
+            moved = Search(res.z, res, stages, search.restarted)
+            done = (moved, note, prob.evaluations, time.perf_counter() - t0)
+            return _calibrate_one(scene, names, threads, best_cell, progress, done)
+    if again is not None:
+        fit.warnings.insert(0, again[1])
+    if lower is not None:  # still (the fit from there went no lower, or this is the continued fit)
+        name, row, _z = lower
+        fit.warnings.append(
+            f"{fit_label(fit.law)}: the profile of {name} found a residual lower than the optimum's by delta chi^2 "
+            f"{-row['delta_chi2']:.3g} at {name} = {row['value']:.4g}, and the fit went no further: the optimum may "
+            "not be the global one; the intervals are around it"
+        )
     _identify(fit)
     _warnings(fit, z_opt, lo, hi, cal)
-    fit.evaluations = prob.evaluations
-    fit.seconds = time.perf_counter() - t0
+    fit.evaluations = prob.evaluations + (again[2] if again is not None else 0)
+    fit.seconds = time.perf_counter() - t0 + (again[3] if again is not None else 0.0)
     return fit
+
+
+def _lower_profile_point(fit: Fit, prob: Problem) -> tuple[str, dict, np.ndarray] | None:
+    """The profile point whose residual is below the optimum's by more than CHI2_1_95 (a value the data prefer to
+    the optimum, not a rounding of it), the lowest of them: (its parameter, its row, its fit coordinates); None
+    when there is none. A profile refits the other parameters with one fixed, so it reaches basins the search's
+    starts may have missed (on a bound, say)."""
+    best = None
+    for name, rows in fit.profiles.items():
+        for row in rows:
+            if row["delta_chi2"] < -CHI2_1_95 and (best is None or row["rss"] < best[1]["rss"]):
+                best = (name, row)
+    if best is None:
+        return None
+    name, row = best
+    theta = np.array([row["value"] if n == name else row[f"fit_{n}"] for n in prob.names])
+    return name, row, prob.to_z(theta)
 
 
 def _profile(prob: Problem, name, z_opt, lo, hi, cal, s2_eff, rss_opt, se) -> list[dict]:

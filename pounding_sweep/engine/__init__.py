@@ -6,7 +6,7 @@ and the writer), jit (Numba flags and the cache keyed by the engine's sources), 
 each one's entry point, compile label and why it cannot run a chunk), events (the event scheme's located
 step, written once, each kernel supplying its coordinate-specific pieces), floors (those pieces in floor
 coordinates), scalar (one run at a time, floor coordinates, every option, the linear laws), nonlinear
-(the same for the Hertz-type laws), bookkeeping (the metric rows both share), lanes (a package: 8 runs
+(the same for the Hertz-type laws), bookkeeping (the metric rows both share), lanes (a package: a SIMD register's width of runs
 side by side in SIMD lanes, modal coordinates) and simd (its vector type), clock, score (eq. 20 and the
 scores of a run against an experiment), driver (threads; the kernel the registry chooses). docs/explanation/engine.md
 explains them.

@@ -76,7 +76,7 @@ def describe() -> str:
 #: what the engine supports, and the sizes a scene may have (--describe prints it; the README lists it too)
 LIMITS = f"""\
 Limits  what the engine supports
-  floors: at most {MAX_FLOORS:,} per building. The lane kernel (8 runs side by side; metrics only, event or
+  floors: at most {MAX_FLOORS:,} per building. The lane kernel (4 or 8 runs side by side; metrics only, event or
     implicit scheme) takes a model with 6 (N1 + N2) + min(N1, N2) <= 160, i.e. up to 12 + 12 floors; larger
     models, and every chunk with histories, scoring or the paper scheme, run on the scalar kernel, whose cost
     per step grows about as N^3.5 (about 2 minutes per 1 s run at 200 + 200 floors).

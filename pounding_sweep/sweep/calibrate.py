@@ -434,9 +434,6 @@ def _hermite(u: np.ndarray, v: np.ndarray, dt: float, t: np.ndarray) -> np.ndarr
     return h00 * u[k] + h10 * dt * v[k] + h01 * u[k + 1] + h11 * dt * v[k + 1]
 
 
-#: the law label of a single-building scene's fit (no contact; Fit.law, the contact_law column of its rows)
-
-
 def law_label(scene: Scene) -> str:
     """The contact law a fit is for: the scene's, or NO_CONTACT for one building."""
     return NO_CONTACT if scene.contact is None else scene.contact.law

@@ -12,7 +12,7 @@ import numpy as np
 
 from pounding_sweep.scene.parameters import is_log
 
-#: the contact law of one building's fit (it has none)
+#: the law label of a single-building scene's fit (it has no contact; Fit.law, the contact_law column of its rows)
 NO_CONTACT = "none"
 
 

@@ -9,10 +9,15 @@ from __future__ import annotations
 import numpy as np
 
 from pounding_sweep.engine.jit import inline
+from pounding_sweep.engine.simd import VW
 from pounding_sweep.model.modal import ModalArrays
 
-#: runs per group, fixed at compile time (a multiple of simd.VW)
-LANES = 8
+#: runs per group, fixed at compile time: one SIMD value of the target's width (simd.VW: 8 with AVX-512, else 4). A
+#: group leaves its vector loop whenever one of its runs has an event, and pays for the contact step while one is
+#: in contact, so a group no wider than a value does the least such work: on a Zen 3 (AVX2) groups of 4 took 0.96x
+#: (event) and 0.94x (implicit) the time of groups of 8 (benchmarks/compare_checkouts.py --paired 20), the rows
+#: identical (grouping changes no result: tests/engine/test_lanes.py)
+LANES = VW
 
 # energy accumulators of a lane (the scalar step's Z_EN row)
 E_IN, E_ABS, E_DST, E_WSP, E_WDA, E_WREL = range(6)

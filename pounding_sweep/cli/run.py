@@ -147,7 +147,7 @@ def _print_calibration(md: dict, reused: bool) -> None:
     print(f"\ncalibration ({what}; 95 % intervals; stored in the best table's metadata{kept}):")
     for f in lt.itertuples():
         print(
-            f"  {f.contact_law}: relative RMS {f.rel_rms_pct:.3f} %, residual {f.misfit_over_noise:.2f} x the noise "
+            f"  {'the building' if one else f.contact_law}: relative RMS {f.rel_rms_pct:.3f} %, residual {f.misfit_over_noise:.2f} x the noise "
             f"floor, {f.evaluations} runs, {f.seconds:.0f} s"
         )
         for r in ft[ft.contact_law == f.contact_law].itertuples():

@@ -156,7 +156,11 @@ def _print_calibration(md: dict, reused: bool) -> None:
             )
             model = (
                 f"; with model error {r.ci95_model_low:.5g} .. {r.ci95_model_high:.5g}, quote this"
-                + (" (the bounds: too few windows identify it)" if getattr(r, "model_error_windows", 2) < 2 else "")
+                + (
+                    " (the bounds: too few windows identify it)"
+                    if getattr(r, "model_error_windows_identifying", 2) < 2
+                    else ""
+                )
                 if getattr(r, "quote", "noise") == "model_error"
                 else ""
             )

@@ -518,15 +518,19 @@ def _start(scene: Scene, prob: Problem, best_cell: dict | None) -> tuple[dict | 
 def _calibrate_one(
     scene: Scene, names: list[str], threads: int, best_cell: dict | None, progress, again: tuple | None = None
 ) -> Fit:
-    """One law's fit. `again` = (search, note, runs, seconds): the fit continued from a lower residual its first
-    pass's profile found (_lower_profile_point), not searched again."""
+    """One law's fit. `again` = (search, note, runs, seconds, start point, its source): the fit continued from a
+    lower residual its first pass's profile found (_lower_profile_point), not searched again."""
     cal = scene.calibrate
     t0 = time.perf_counter()
     prob = Problem(scene, names, cal.parameters, cal.noise_m, threads)
     lo, hi = prob.z_bounds
     p = len(names)
-    start, start_source = _start(scene, prob, best_cell)
-    search = find_basin(prob, cal, start, progress) if again is None else again[0]
+    if again is None:
+        start, start_source = _start(scene, prob, best_cell)
+        search = find_basin(prob, cal, start, progress)
+    else:  # the continued fit: started where the first pass's profile went lower
+        search, start = again[0], again[4]
+        start_source = {n: again[5] for n in names}
     z_opt = search.z
     theta = prob.to_theta(z_opt)
     r = search.result.fun
@@ -576,12 +580,7 @@ def _calibrate_one(
         start={n: {"value": float(start[n]), "from": w} for n, w in start_source.items()} if start else {},
         problem=prob,
     )
-    if misfit > cal.misfit_factor:  # the model cannot explain the data: a sign fault the fit bent around is
-        fit.warnings += reversed_channel_warnings(fit)  # named (sweep/fitchecks.py); intervals with its error
-        model_error_intervals(fit, prob, cal.max_evals)
-        if progress is not None:
-            progress(f"{fit_label(law_label(scene))}: model-error intervals from {len(fit.windows)} windows")
-    # profiles
+    # profiles (first: a lower point one finds moves the fit, and everything below is made again there)
     profiled = (list(cal.profile) or default_profiled(names)) if cal.profile_points > 0 else []
     s2_eff = gn.s2 * N / gn.n_eff
     for n in profiled:
@@ -602,8 +601,14 @@ def _calibrate_one(
                 progress(f"{fit_label(fit.law)}: a profile found a lower residual; the fit goes on from there")
             stages = search.stages + [{"profile_restart": name, "value": row["value"], "misfit": fit.misfit_ratio}]
             moved = Search(res.z, res, stages, search.restarted)
-            done = (moved, note, prob.evaluations, time.perf_counter() - t0)
+            point = dict(zip(names, prob.to_theta(z_from)))
+            done = (moved, note, prob.evaluations, time.perf_counter() - t0, point, f"the profile of {name}")
             return _calibrate_one(scene, names, threads, best_cell, progress, done)
+    if misfit > cal.misfit_factor:  # the model cannot explain the data: a sign fault the fit bent around is
+        fit.warnings += reversed_channel_warnings(fit)  # named (sweep/fitchecks.py); intervals with its error
+        model_error_intervals(fit, prob, cal.max_evals)
+        if progress is not None:
+            progress(f"{fit_label(law_label(scene))}: model-error intervals from {len(fit.windows)} windows")
     if again is not None:
         fit.warnings.insert(0, again[1])
     if lower is not None:  # still (the fit from there went no lower, or this is the continued fit)
@@ -724,8 +729,10 @@ def _warnings(fit: Fit, z_opt, lo, hi, cal) -> None:
             if len(vals) < 2:
                 why = f"the bounds: {len(vals)} of {nw} windows identify it, 2 are needed"
             else:
-                lo_b, hi_b = fit.bounds[n]
-                ends = [e for e, hit in (("lower", a <= lo_b), ("upper", b >= hi_b)) if hit]
+                j = fit.names.index(n)
+                z = np.log([a, b]) if is_log(n) else np.array([a, b])
+                sides = on_bound(z, np.full(2, lo[j]), np.full(2, hi[j]))
+                ends = [e for e, hit in (("lower", sides[0] < 0), ("upper", sides[1] > 0)) if hit]
                 clipped = f"; clipped at the {' and '.join(ends)} bound{'s' if len(ends) > 1 else ''}" if ends else ""
                 why = f"{len(vals)} windows: {min(vals):.4g} .. {max(vals):.4g}{clipped}"
             return f"{n} {fit.estimate[n]:.4g} in [{a:.4g}, {b:.4g}] ({why})"
@@ -780,7 +787,7 @@ def fit_table(fits: list[Fit]):
                     "ci95_model_low": ma,
                     "ci95_model_high": mb,
                     # the windows behind ci95_model that identify the parameter (fewer than 2: it is the bounds)
-                    "model_error_windows": sum(bool(w.get(f"identified_{n}")) for w in f.windows),
+                    "model_error_windows_identifying": sum(bool(w.get(f"identified_{n}")) for w in f.windows),
                     "quote": f.quote,
                     "lower_bound": f.bounds[n][0],
                     "upper_bound": f.bounds[n][1],

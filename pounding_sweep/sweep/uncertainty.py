@@ -12,19 +12,21 @@ for estimating the variance of a general statistic from a stationary sequence", 
 scored window is cut into WINDOWS contiguous windows of equal duration; on each the model is refitted alone
 (least squares from the whole record's optimum, every parameter free, the noise floors of the whole record,
 the simulation from t = 0 to the window's end). A window whose measured data are not above their noise (their RMS
-at most [calibrate] misfit_factor times the noise floor, the factor that says a residual is noise: the table at
-rest before or after the shaking) identifies nothing: a fit there explains noise. Otherwise, per parameter, the
-windows whose own optimum lies inside the bounds (fitstats.on_bound: at a bound the data of that window want a
-value outside them, and the noise-based interval, a normal approximation at an interior optimum, is void) and
-whose noise-based 95 % interval spans at most IDENTIFIED of the bounds' range identify it (a window without
-impacts does not identify the contact); from their K values (fit coordinates, log for stiffnesses) with
-standard deviation s:
+at most [calibrate] misfit_factor times the noise floor: the table at rest before or after the shaking) says
+nothing: by the rule that calls a residual within that factor noise, the structure at rest would explain it as
+well as any fitted model. In the others, per parameter, the windows whose own optimum lies inside the bounds
+(fitstats.on_bound) and whose noise-based 95 % interval spans at most IDENTIFIED of the bounds' range identify
+it (a window without impacts does not identify the contact); from their K values (fit coordinates, log for
+stiffnesses) with standard deviation s:
 
     half-width h = t_(K-1)(0.975) s sqrt(1 + 1/K)
 
 the normal prediction interval for the value a further window would give (its value and the K known ones
 independent, normal with a common spread). The model-error interval is the whole record's estimate +/- h,
-widened where needed to hold every window's value and the noise-based interval, clipped to the bounds. For
+widened where needed to hold every identifying window's value and the noise-based interval, clipped to the
+bounds. A window whose optimum is on a bound is a censored value (its data want a value beyond the bound, and
+the normal approximation behind its half-width is void there): it takes no part in s, and the interval reaches
+that bound. For
 K <= 8 it holds the window values anyway (Samuelson's inequality: no value of a sample lies more than
 s (K - 1) / sqrt(K) from its mean), so a fit of any union of these windows, which is close to a weighted mean
 of theirs, lies inside it too. With fewer than 2 identifying windows the interval is the bounds: the data
@@ -60,8 +62,9 @@ def fit_window(prob, z0: np.ndarray, window: tuple[float, float], max_nfev: int)
     signal = misfit_of(np.concatenate([v / s for v, s in zip(T.values, T.sigma)]), sub.sizes())
     res = local_fit(sub, z0, max_nfev)
     gn = gauss_newton(res.jac, res.fun, sub.sizes(), len(prob.names))
-    ok = (gn.tq * gn.se_z <= IDENTIFIED * (hi - lo)) & (on_bound(res.z, lo, hi) == 0)
-    ok &= signal > prob.scene.calibrate.misfit_factor
+    moving = signal > prob.scene.calibrate.misfit_factor
+    side = on_bound(res.z, lo, hi) if moving else np.zeros(len(prob.names), int)
+    ok = (gn.tq * gn.se_z <= IDENTIFIED * (hi - lo)) & (side == 0) & moving
     theta = prob.to_theta(res.z)
     prob.evaluations += sub.evaluations
     se = [float(t * s) if is_log(n) else float(s) for n, t, s in zip(prob.names, theta, gn.se_z)]
@@ -74,6 +77,7 @@ def fit_window(prob, z0: np.ndarray, window: tuple[float, float], max_nfev: int)
         **{n: float(theta[j]) for j, n in enumerate(prob.names)},
         **{f"std_error_{n}": se[j] for j, n in enumerate(prob.names)},
         **{f"identified_{n}": bool(ok[j]) for j, n in enumerate(prob.names)},
+        **{f"on_bound_{n}": int(side[j]) for j, n in enumerate(prob.names)},  # -1 lower, +1 upper (data moving)
         "z": res.z,
     }
 
@@ -92,6 +96,7 @@ def model_error_intervals(fit, prob, max_nfev: int, windows: int = WINDOWS) -> N
         ok_all.append([w[f"identified_{n}"] for n in prob.names])
         fit.windows.append(w)
     Z, OK = np.array(z_all), np.array(ok_all)
+    lo, hi = prob.z_bounds
     for j, n in enumerate(prob.names):
         zk = Z[OK[:, j], j]
         if zk.size < 2:
@@ -102,6 +107,9 @@ def model_error_intervals(fit, prob, max_nfev: int, windows: int = WINDOWS) -> N
         noise = [math.log(v) if is_log(n) else v for v in fit.ci95[n]]
         za = min(fit.z_opt[j] - h, float(zk.min()), noise[0])
         zb = max(fit.z_opt[j] + h, float(zk.max()), noise[1])
+        censored = {w[f"on_bound_{n}"] for w in fit.windows}  # windows whose data want a value beyond a bound
+        za = lo[j] if -1 in censored else za
+        zb = hi[j] if 1 in censored else zb
         fit.ci95_model[n] = interval(prob, j, za, zb)
     fit.quote = "model_error"
 

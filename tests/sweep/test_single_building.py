@@ -184,8 +184,8 @@ def test_a_window_whose_optimum_is_on_a_bound_does_not_bound_the_model_error(tmp
             if w[f"identified_{n}"]:
                 assert lo < w[n] < hi
     table = fit_table([fit]).set_index("parameter")
-    assert table.loc["time_offset_s", "model_error_windows"] == 0
-    assert table.loc["stiffness_scale_b1", "model_error_windows"] == sum(
+    assert table.loc["time_offset_s", "model_error_windows_identifying"] == 0
+    assert table.loc["stiffness_scale_b1", "model_error_windows_identifying"] == sum(
         w["identified_stiffness_scale_b1"] for w in fit.windows
     )
 

@@ -22,6 +22,7 @@ Steps, in order (docs/how-to/import-real-sensor-data.md says why each):
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -66,9 +67,8 @@ class Imported:
         s = self.settings
         out = [
             f"imported {len(self.sensors)} sensors, reference {self.reference}: {self.time_s.size} samples at "
-            f"{s['rate_Hz']:.6g} Hz ({self.time_s[-1]:.3f} s); first resonance {s['first_resonance_Hz']:.4g} Hz "
-            f"(the lowest transmissibility peak: {_peaks(self)}), band {s['band_Hz'][0]:.3g}-{s['band_Hz'][1]:.3g} Hz; "
-            f"quiet window {s['quiet_s'][0]:.3f}-{s['quiet_s'][1]:.3f} s"
+            f"{s['rate_Hz']:.6g} Hz ({self.time_s[-1]:.3f} s); {_resonance(self)}, band {s['band_Hz'][0]:.3g}-"
+            f"{s['band_Hz'][1]:.3g} Hz; quiet window {s['quiet_s'][0]:.3f}-{s['quiet_s'][1]:.3f} s"
         ]
         for n, i in self.sensors.items():
             lag = f", lag found {1e3 * i['lag_found_s']:+.2f} ms" if "lag_found_s" in i else ""
@@ -158,14 +158,14 @@ def import_sensors(
     if band_Hz is None:
         if not floors:
             raise SensorError(f"{ref.path}: one sensor only: give --band for sign and alignment checks")
-        # each floor's transmissibility peak: the top floor's is the first mode, a lower floor's may be a higher
-        # one (its strongest response), and no floor's lies below the first: the lowest of them
+        # each floor's transmissibility peak: the top floor's is the first mode, a lower floor's may be a higher one
+        # (its strongest response): the top floors' where the names say which they are, else the lowest of all
         for n in floors:
             m = min(series[reference].size, series[n].size)
             info[n]["transmissibility_peak_Hz"] = first_resonance(
                 series[reference][:m], series[n][:m], min(fs, sens[n].rate_Hz)
             )
-        f1_from = min(floors, key=lambda n: info[n]["transmissibility_peak_Hz"])
+        f1_from = min(_top_floors(floors), key=lambda n: info[n]["transmissibility_peak_Hz"])
         f1 = info[f1_from]["transmissibility_peak_Hz"]
         band = rigid_band(f1, min(durations.values()), min(sf.rate_Hz for sf in sens.values()))
     else:
@@ -328,18 +328,40 @@ def _moving_std(x: np.ndarray, m: int) -> np.ndarray:
 PROVENANCE_HEAD = "# Imported by python -m pounding_sweep import"
 
 
+def _top_floors(floors: list[str]) -> list[str]:
+    """Each building's top floor sensor where every floor sensor is named b<building>f<floor> (as a scene's channels
+    are), else every floor sensor: a floor's own strongest peak can be a higher mode, never a lower one, so their
+    lowest is then the first mode (a spurious low peak of one sensor would win it: name the sensors)."""
+    named = {n: re.fullmatch(r"b(\d+)f(\d+)", n) for n in floors}
+    if not all(named.values()):
+        return floors
+    top: dict[int, tuple[int, str]] = {}
+    for n, m in named.items():
+        b, f = int(m[1]), int(m[2])
+        if b not in top or f > top[b][0]:
+            top[b] = (f, n)
+    return [n for _f, n in top.values()]
+
+
 def _seconds(x: float) -> str:
     """A clock offset in s to the microsecond, without a minus sign on a rounded zero."""
     v = round(float(x), 6)
     return f"{v if v != 0.0 else 0.0:.6f} s"
 
 
+def _resonance(im: Imported) -> str:
+    """The summary's words for the first resonance: where it came from, or that the band was given."""
+    s = im.settings
+    if not s["first_resonance_from"]:
+        return "band given (--band), no resonance looked for"
+    return f"first resonance {s['first_resonance_Hz']:.4g} Hz ({s['first_resonance_from']}'s; peaks {_peaks(im)})"
+
+
 def _peaks(im: Imported) -> str:
     """Each floor sensor's transmissibility peak, as the summary and the provenance note give them."""
-    got = [
+    return ", ".join(
         f"{n} {i['transmissibility_peak_Hz']:.4g} Hz" for n, i in im.sensors.items() if "transmissibility_peak_Hz" in i
-    ]
-    return ", ".join(got) if got else "--band given"
+    )
 
 
 def provenance_text(im: Imported, command: str) -> str:
@@ -353,9 +375,9 @@ def provenance_text(im: Imported, command: str) -> str:
         f"- reference (the shaking table): `{im.reference}`; one time grid, its samples at {s['rate_Hz']:.6g} Hz over "
         f"{s['span_on_reference_clock_s'][0]:.6f} .. {s['span_on_reference_clock_s'][1]:.6f} s of its clock, "
         f"written from t_s = 0 ({im.time_s.size} samples, {im.time_s[-1]:.3f} s)",
-        f"- first resonance from the spectra (the lowest of the floors' transmissibility peaks, floor / table: "
-        f"{_peaks(im)}): {s['first_resonance_Hz']:.4g} Hz; band of sign and alignment "
-        f"{s['band_Hz'][0]:.4g}-{s['band_Hz'][1]:.4g} Hz (below half of it the floors follow the table)",
+        f"- {_resonance(im)}, from the spectra (each floor's transmissibility, floor / table; the top floor's peak is "
+        f"the first mode); band of sign and alignment {s['band_Hz'][0]:.4g}-{s['band_Hz'][1]:.4g} Hz (below half of "
+        "the first resonance the floors follow the table)",
         f"- quiet window {s['quiet_s'][0]:.3f}-{s['quiet_s'][1]:.3f} s ({s['quiet_window']}): its mean subtracted "
         "from each channel (the offset), its standard deviation the channel's noise",
         "",

@@ -13,7 +13,7 @@ with the contact set that agrees with the end state (the implicit scheme's activ
 step's start; a set already tried means it cycles, then the union of the last two: the engine instead takes
 such a step as its event scheme does, located switches, which a minimal kernel leaves out).
 The runs' lanes are one SIMD value of the target's width (engine/simd.py VW: 8 with AVX-512, else 4; the engine's
-vector steps take its groups of 8 runs VW at a time) and the floor and pair
+vector steps take groups of VW runs too, since fb3fde6) and the floor and pair
 counts are fixed at compile time (as in the engine); a lane's set of pairs is a bit mask, its forces come from
 (I + diag(kappa) W)_SS^-1 of its set (NumPy inverts it for every set S before the runs), and only a lane
 whose set changes leaves the vector code.

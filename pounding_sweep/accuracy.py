@@ -337,10 +337,9 @@ def ladder_duration(scene, record: str | None = None) -> float:
     e = scene.excitation
     if e.type != "record":
         return LADDER_S
-    from pounding_sweep.model.excitation import scene_record
+    from pounding_sweep.model.excitation import record_paths, scene_record
 
-    paths = next((list(a.values) for a in scene.sweep if a.name == "record"), [e.record])
-    recs = [scene_record(scene, p) for p in paths]
+    recs = [scene_record(scene, p) for p in record_paths(scene)]
     rec = next((r for r in recs if r.name == record), recs[0])
     acc = rec.acc_m_s2
     end = rec.dt_s * (acc.size - 1)
@@ -355,7 +354,7 @@ def accuracy_ladder(
     schemes=None,
     ref_dt: float | None = None,
     ref_scheme: str | None = None,
-    duration_s: float | None = 2.0,
+    duration_s: float | None = LADDER_S,
     channel: str | None = None,
     repeats: int = 3,
     **params,

@@ -142,3 +142,21 @@ def test_stability_quick_map_invariants(tmp_path):
     b = ba.paper_boundary(df).set_index("ks_ratio")
     assert b.loc[1e4, "smallest_dt_diverged_s"] == 5e-3 and np.isnan(b.loc[1.0, "smallest_dt_diverged_s"])
     assert (tmp_path / "stability_map_quick.png").is_file() and (tmp_path / "stability_map_quick_summary.csv").is_file()
+
+
+def test_the_figure_ladder_of_a_record_holds_its_strong_motion():
+    """The accuracy figure's window (accuracy.ladder_duration): 2 s of a harmonic test; for a record, from rest to
+    past its strongest sample (the shipped real Northridge table's first 8 s are the table at rest, so 2 s would
+    measure sensor noise), at most 1 s past it, and never beyond the record or the scene's duration_s."""
+    from pounding_sweep.model.records import read_record
+    from pounding_sweep.scene import load_scene
+
+    assert ba.ladder_duration(load_scene(SWEEPS / "scored_6hz.toml")) == ba.LADDER_S
+    s = load_scene(SWEEPS / "real_northridge.toml")
+    rec = read_record(s.excitation.record, format=s.excitation.format, units=s.excitation.units)
+    t_peak = float(np.argmax(np.abs(rec.acc_m_s2))) * rec.dt_s
+    assert t_peak > 8.0  # the strong motion starts after the quiet lead-in
+    d = ba.ladder_duration(s)
+    assert t_peak < d <= t_peak + ba.LADDER_S / 2 + 1e-12
+    short = dataclasses.replace(s, excitation=dataclasses.replace(s.excitation, duration_s=5.0))
+    assert ba.ladder_duration(short) == 5.0

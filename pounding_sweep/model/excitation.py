@@ -39,6 +39,15 @@ def _similitude(rec: GroundRecord, scene: Scene) -> GroundRecord:
     return similitude_scale(rec, scale) if scale != 1.0 else rec
 
 
+def record_paths(scene: Scene) -> list[str]:
+    """The records a scene's runs may use: its [sweep] record axis, else [excitation] record."""
+    paths: list[str] = []
+    for a in scene.sweep:
+        if a.name == "record":
+            paths = list(a.values)
+    return paths or [scene.excitation.record]
+
+
 def scene_record(scene: Scene, path: str | None = None) -> GroundRecord:
     """The record at `path` (default: [excitation] record) read as the scene reads it and similitude-scaled."""
     e = scene.excitation
@@ -80,12 +89,7 @@ class Excitation:
                 "stochastic", dt, e.duration_s, (), (), empty, np.zeros(0, np.int64), np.array([n], np.int64),
                 e.intensity, e.scaling, period, None, motion,
             )  # fmt: skip
-        paths = []
-        for a in scene.sweep:
-            if a.name == "record":
-                paths = list(a.values)
-        if not paths:
-            paths = [e.record]
+        paths = record_paths(scene)
         recs, arrays = [], []
         for p in paths:
             rec = read_record(p, format=e.format, units=e.units)

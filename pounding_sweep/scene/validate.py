@@ -17,7 +17,7 @@ from pounding_sweep.codes import (
 )
 from pounding_sweep.errors import ConfigError, shown
 from pounding_sweep.scene.axes import check_ks
-from pounding_sweep.scene.channels import experiment_channel, parse_channel
+from pounding_sweep.scene.channels import experiment_channel, is_acceleration, parse_channel
 from pounding_sweep.scene.groups import METRIC_GROUPS
 from pounding_sweep.scene.parameters import (
     FAMILIES,
@@ -588,7 +588,7 @@ def _check_channel_offset(s: Scene, name: str, key: str) -> None:
         )
 
     def fitted(c: str) -> bool:  # the fit compares channel c (as `use` says)
-        return x.use == "both" or USES.get(x.use) == (codes.H_ABS_ACC if c.startswith("abs_acc_") else codes.H_DISP)
+        return x.use == "both" or USES.get(x.use) == (codes.H_ABS_ACC if is_acceleration(c) else codes.H_DISP)
 
     if not fitted(code):
         raise ConfigError(f"{key}: [experiment] use = {x.use!r} leaves channel {code!r} out of the fit")

@@ -204,7 +204,9 @@ def test_progress_moves_within_a_part(tmp_path, scored):
     assert summary.parts == 1 and summary.runs == 40
     done = [d for d, _ in calls]
     assert done == sorted(done) and done[-1] == 40 and {t for _, t in calls} == {40}
-    assert len([d for d in done if d < 40]) >= 4  # groups of 8 (lanes) or batches (scalar) reported as they finish
+    assert (
+        len([d for d in done if d < 40]) >= 4
+    )  # groups (lanes: 4 or 8 runs) or batches (scalar) reported as they finish
 
 
 # ------------------------------------------------------------------ resuming

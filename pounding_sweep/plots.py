@@ -953,9 +953,10 @@ def figures(
     shown = [a for a in ("gap_m", "ks_ratio", "ks_N_per_m", "r") if a in pick and (a in swept or a != "gap_m")]
     what = run_text(pd.Series(pick), shown + [a for a in swept if a in pick and a not in shown])
     dur = table.duration_s.iloc[0] if "duration_s" in table and np.isfinite(table.duration_s.iloc[0]) else None
-    alone = "; one building: without contact every scheme takes the same steps" if scene.contact is None else ""
+    alone = "; one building: the schemes coincide" if scene.contact is None else ""  # they differ only at contact
     out["error_vs_runtime"] = error_vs_runtime_figure(
-        table, f"{scene.name}: error against run time ({what}" + (f", first {dur:.4g} s" if dur else "") + f"{alone})"
+        table,
+        f"{scene.name}: error against run time" + (f", first {dur:.4g} s" if dur else "") + f"{alone}\n({what})",
     )
     return out
 

@@ -102,6 +102,13 @@ def _in_cache(dispatcher, args: tuple) -> bool:
     return cache._index_key(args, dispatcher.targetctx.codegen()) in cache._cache_file._load_index()
 
 
+def _compiled_or_cached(dispatcher, args: tuple) -> bool:
+    """Whether a piece needs no compile: compiled in this process, or in its disk cache (where it has one)."""
+    return args in dispatcher.overloads or (
+        not isinstance(dispatcher._cache, NullCache) and _in_cache(dispatcher, args)
+    )
+
+
 def first_cached(pieces: Callable[[], tuple]) -> bool:
     """Whether the first of a kernel's pieces (its largest: the lane kernel's step) is compiled or cached already:
     then the kernel's compile is only what depends on more than that piece's types (the lane kernel: a new pair of
@@ -112,10 +119,7 @@ def first_cached(pieces: Callable[[], tuple]) -> bool:
         if not listed:
             return False
         dispatcher, sig = listed[0]
-        args = _args(sig)
-        return args in dispatcher.overloads or (
-            not isinstance(dispatcher._cache, NullCache) and _in_cache(dispatcher, args)
-        )
+        return _compiled_or_cached(dispatcher, _args(sig))
     except Exception:  # noqa: BLE001 (called inside Numba's compile, as start() is)
         return False
 
@@ -128,9 +132,9 @@ def _wanted(pieces, limit: int | None = None) -> list:
         if limit is not None and len(out) >= limit:
             break
         args = _args(sig)
-        if isinstance(dispatcher._cache, NullCache) or args in dispatcher.overloads:
-            continue
-        if "." not in dispatcher.py_func.__qualname__ and not _in_cache(dispatcher, args):
+        if isinstance(dispatcher._cache, NullCache) or "." in dispatcher.py_func.__qualname__:
+            continue  # no disk cache, or not importable by name
+        if not _compiled_or_cached(dispatcher, args):
             out.append((dispatcher, args))
     return out
 

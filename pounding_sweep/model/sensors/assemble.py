@@ -76,7 +76,7 @@ class Imported:
             out.append(
                 f"  {n}: axis {i['axis']}, sign {'+1' if i['sign'] > 0 else '-1 (reversed)'}{corr}, offset "
                 f"{i['offset_removed_m_s2']:+.4f} m/s^2, noise {i['noise_m_s2']:.4f} m/s^2; {i['alignment']}"
-                f", clock offset {_seconds(i['clock_offset_s'])}{lag}"
+                f", clock offset {_seconds(i['clock_offset_s'])} s{lag}"
             )
         return out
 
@@ -344,9 +344,9 @@ def _top_floors(floors: list[str]) -> list[str]:
 
 
 def _seconds(x: float) -> str:
-    """A clock offset in s to the microsecond, without a minus sign on a rounded zero."""
+    """A clock offset [s] to the microsecond, without a minus sign on a rounded zero."""
     v = round(float(x), 6)
-    return f"{v if v != 0.0 else 0.0:.6f} s"
+    return f"{v if v != 0.0 else 0.0:.6f}"
 
 
 def _resonance(im: Imported) -> str:
@@ -390,7 +390,7 @@ def provenance_text(im: Imported, command: str) -> str:
         corr = f" ({i['sign_correlation']:+.3f})" if "sign_correlation" in i else " (reference)"
         lines.append(
             f"| {n} | {i['file']} | {i['device']} | {i['axis']} ({i['gravity_axis']}, mean "
-            f"{i['gravity_axis_mean_m_s2']:.3f}) | {i['alignment']} | {_seconds(i['clock_offset_s'])[:-2]} | "
+            f"{i['gravity_axis_mean_m_s2']:.3f}) | {i['alignment']} | {_seconds(i['clock_offset_s'])} | "
             f"{1e3 * i.get('lag_found_s', 0.0):+.2f} | {sign}{corr} | {i['offset_removed_m_s2']:+.5f} | "
             f"{i['noise_m_s2']:.5f} | {i['resampled']} |"
         )

@@ -49,8 +49,7 @@ from pounding_sweep.scene import load_scene
 from pounding_sweep.scene.parameters import is_log
 from pounding_sweep.scene.schema import CalibrateConfig, ExperimentConfig
 from pounding_sweep.sweep.calibrate import calibrate
-from pounding_sweep.sweep.fitstats import on_bound
-from pounding_sweep.sweep.uncertainty import IDENTIFIED, better_window_fit
+from pounding_sweep.sweep.uncertainty import better_window_fit, identifies
 from pounding_sweep.synthetic import make_ivp_experiment, write_experiment
 from pounding_sweep.warn import collecting
 
@@ -263,15 +262,20 @@ def run_case(name: str, scene, params, noise_m, windows, threads: int) -> list[d
     for n in fit.names:
         lo, hi = fit.ci95[n]
         mlo, mhi = fit.ci95_model.get(n, (np.nan, np.nan))
-        # the windows that identify the parameter (their own 95 % half-width at most IDENTIFIED of the bounds'
-        # range, in the fit's coordinates, and their value inside the bounds: the split's rule; these windows move,
-        # envelope_windows); the others' values say nothing about it
+        # the windows that identify the parameter, by the split's rule (uncertainty.identifies, with the normal
+        # 1.96 for the window calibration's own interval; these windows move: envelope_windows); the others'
+        # values say nothing about it
         b0, b1 = fit.bounds[n]
         z = np.log if is_log(n) else (lambda x: x)
-        width = z(b1) - z(b0)
         ident = {
-            label: 1.96 * w["std_error"][n] / (w["estimate"][n] if is_log(n) else 1.0) <= IDENTIFIED * width
-            and not on_bound(np.array([z(w["estimate"][n])]), np.array([z(b0)]), np.array([z(b1)]))[0]
+            label: bool(
+                identifies(
+                    1.96 * w["std_error"][n] / (w["estimate"][n] if is_log(n) else 1.0),
+                    z(w["estimate"][n]),
+                    z(b0),
+                    z(b1),
+                )
+            )
             for label, w in part.items()
         }
         vals = {label: w["estimate"][n] for label, w in part.items() if ident[label]}

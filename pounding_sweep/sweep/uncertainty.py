@@ -50,6 +50,14 @@ WINDOWS = 4  # windows of the split (the prediction interval's t quantile grows 
 IDENTIFIED = 0.25  # a window identifies a parameter when its 95 % half-width is at most this share of the range
 
 
+def identifies(half_width, z, lo, hi, moving: bool = True) -> np.ndarray:
+    """Per fit coordinate, whether a window's fit identifies the parameter (the rule in one place): its data
+    move (RMS above misfit_factor times their noise: `moving`), its optimum z is inside the bounds (lo, hi),
+    and its 95 % half-width (fit coordinates) is at most IDENTIFIED of the bounds' range."""
+    z, lo, hi = np.asarray(z, float), np.asarray(lo, float), np.asarray(hi, float)
+    return (np.asarray(half_width) <= IDENTIFIED * (hi - lo)) & (on_bound(z, lo, hi) == 0) & bool(moving)
+
+
 def fit_window(prob, z0: np.ndarray, window: tuple[float, float], max_nfev: int) -> dict:
     """The model refitted on the samples of `window` (simulation time [s]) alone, from z0 (least squares, every
     parameter free, the whole record's noise floors): per parameter its value, noise-based standard error and
@@ -64,7 +72,7 @@ def fit_window(prob, z0: np.ndarray, window: tuple[float, float], max_nfev: int)
     gn = gauss_newton(res.jac, res.fun, sub.sizes(), len(prob.names))
     moving = signal > prob.scene.calibrate.misfit_factor
     side = on_bound(res.z, lo, hi) if moving else np.zeros(len(prob.names), int)
-    ok = (gn.tq * gn.se_z <= IDENTIFIED * (hi - lo)) & (side == 0) & moving
+    ok = identifies(gn.tq * gn.se_z, res.z, lo, hi, moving)
     theta = prob.to_theta(res.z)
     prob.evaluations += sub.evaluations
     se = [float(t * s) if is_log(n) else float(s) for n, t, s in zip(prob.names, theta, gn.se_z)]

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -332,15 +333,17 @@ LADDER_S = 2.0
 
 
 def ladder_duration(scene, record: str | None = None) -> float:
-    """How long the accuracy figure's runs last (LADDER_S); `record`: the name of the run's record (a result's
-    `record` column) where the scene sweeps several, else its first."""
+    """How long the accuracy figure's runs last (LADDER_S); `record`: the run's record, its path or its name (a
+    result's `record` column) where the scene sweeps several, else its first."""
     e = scene.excitation
     if e.type != "record":
         return LADDER_S
     from pounding_sweep.model.excitation import record_paths, scene_record
 
-    recs = [scene_record(scene, p) for p in record_paths(scene)]
-    rec = next((r for r in recs if r.name == record), recs[0])
+    paths = record_paths(scene)
+    # the run's record by its path or its name (a result's record column holds the file's stem)
+    path = next((q for q in paths if record is not None and Path(q).stem == Path(record).stem), paths[0])
+    rec = scene_record(scene, path)
     acc = rec.acc_m_s2
     end = rec.dt_s * (acc.size - 1)
     if e.duration_s is not None:
@@ -380,6 +383,10 @@ def accuracy_ladder(
     exc = scene.excitation
     if duration_s is not None:
         exc = dataclasses.replace(exc, duration_s=float(duration_s))
+    if exc.type == "record" and exc.record is None:  # the records are a [sweep] axis only: the run's, else the first
+        from pounding_sweep.model.excitation import record_paths
+
+        exc = dataclasses.replace(exc, record=params.get("record") or record_paths(scene)[0])
     base = dataclasses.replace(scene, experiment=None, calibrate=None, sweep=(), excitation=exc)
     validate(base)
     floors = scene.floors

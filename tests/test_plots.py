@@ -350,3 +350,26 @@ def test_a_separated_scene_gets_no_empty_force_plot(tmp_path):
         "error_vs_runtime.png",
         "heatmaps.png",
     ]
+
+
+def test_a_scene_whose_records_are_only_a_sweep_axis_is_plotted_with_its_ladder(tmp_path):
+    """A helper's trial: `plot` of a valid result whose records are a [sweep] record axis and no [excitation]
+    record stopped at the accuracy ladder ('[excitation] missing key record'), whose scene drops the sweep; the
+    ladder now runs on the shown run's record (by path, or by the result's record name)."""
+    from pounding_sweep.accuracy import ladder_duration
+    from pounding_sweep.sweep.run import run_scene
+
+    recs = [str(SWEEPS / "records" / f"RSN1605_DUZCE_DZC{c}.AT2") for c in ("180", "270")]
+    text = (SWEEPS / "paper_duzce.toml").read_text()
+    text = "\n".join(ln for ln in text.splitlines() if not ln.startswith("record =") and not ln.startswith("path ="))
+    text = text.replace("ks_ratio = [0.1, 1.0, 5.0, 10.0]\nr = [0.2, 0.4, 0.6, 0.8, 1.0]", f"record = {recs!r}")
+    text = text.replace("[excitation]\n", "[excitation]\nduration_s = 2.0\n")
+    (tmp_path / "recaxis.toml").write_text(text)
+    out = tmp_path / "recaxis.parquet"
+    run_scene(load_scene(tmp_path / "recaxis.toml"), out_path=out)
+    skipped = {}
+    figs = plots.figures(out, skipped=skipped)
+    assert "error_vs_runtime" in figs and "displacement_history" in figs
+    scene = plots.scene_of(out)
+    assert scene.excitation.record is None
+    assert ladder_duration(scene, "RSN1605_DUZCE_DZC270") == ladder_duration(scene, recs[1]) <= 2.0

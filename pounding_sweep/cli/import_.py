@@ -143,14 +143,24 @@ def _write(out: Path, im, note: str) -> None:
 
 
 def _summary(im, out: Path) -> None:
+    import re
+
     print("\n".join(im.summary()))
-    floors = [n for n in im.sensors if n != im.reference]
+    others = [n for n in im.sensors if n != im.reference]
+    floors = [n for n in others if re.fullmatch(r"b\d+f\d+", n)]
     chans = ", ".join(f'{im.column(n)} = "abs_acc_{n}"' for n in floors)
+    unnamed = [n for n in others if n not in floors]
     q0, q1 = im.settings["quiet_s"]
     print(
         f"written: {out}/table.parquet, {out}/record.csv, {out}/provenance.md\n"
-        "in a scene (floor sensors named b<building>f<floor>):\n"
-        f'  [excitation] type = "record"; record = "{out}/record.csv"; units = "m/s2"\n'
-        f'  [experiment] table = "{out}/table.parquet"; acc_units = "m/s2"; channels = {{ {chans} }}; '
-        f"noise_window_s = [{q0:.3f}, {q1:.3f}]   # the quiet window: each channel's noise"
+        "in a scene (floor sensors named b<building>f<floor>"
+        + (f"; {', '.join(unnamed)} not so named: not a channel" if unnamed else "")
+        + "):\n"
+        f'  [excitation] type = "record"; record = "{out}/record.csv"; units = "m/s2"'
+        + (
+            f'\n  [experiment] table = "{out}/table.parquet"; acc_units = "m/s2"; channels = {{ {chans} }}; '
+            f"noise_window_s = [{q0:.3f}, {q1:.3f}]   # the quiet window: each channel's noise"
+            if floors
+            else ""
+        )
     )

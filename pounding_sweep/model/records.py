@@ -17,9 +17,12 @@ from pounding_sweep.errors import RecordError
 from pounding_sweep.scene.files import MAX_RECORD_BYTES, read_regular, text_problem
 
 G_STANDARD = 9.80665  # m/s^2
+#: the largest |acceleration| a measurement may hold [m/s^2] (100,000 g): beyond it the units are wrong
+MAX_ACC_M_S2 = 1e6
 
 __all__ = [
     "G_STANDARD",
+    "MAX_ACC_M_S2",
     "RecordError",
     "GroundRecord",
     "read_at2",

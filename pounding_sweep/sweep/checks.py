@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 
+from pounding_sweep.model.records import G_STANDARD, MAX_ACC_M_S2
 from pounding_sweep.scene.parameters import CONTACT, STIFFNESS, names
 from pounding_sweep.warn import warn
 
@@ -258,8 +259,7 @@ def check_calibration(prep) -> None:
 #: the largest |displacement| [m] and |absolute acceleration| [m/s^2] a measured channel may hold: the kernel calls
 #: a run diverged beyond 1 km, and 1e6 m/s^2 is 100,000 g; beyond them a table's units are wrong (its eq. 20 sums
 #: would overflow to NaN scores)
-MEASURED_LIMITS = {"displacement": 1e3, "acceleration": 1e6}
-G_STANDARD = 9.80665  # m/s^2 per g (records.G_STANDARD; the acc_units 'g' factor)
+MEASURED_LIMITS = {"displacement": 1e3, "acceleration": MAX_ACC_M_S2}
 
 
 def _window(prep) -> np.ndarray:

@@ -242,6 +242,23 @@ def combination(exp: Experiment, cfg: ExperimentConfig, spec: ScoreSpec, raw: np
     return Combination(cfg.combine, w, noise)
 
 
+def _sensor_rates(exp: Experiment) -> dict[str, float]:
+    """Channel code -> the sample rate [Hz] of the sensor that made it, where the table is an import's
+    (its 'sensor_import' metadata: cli/import_.py); a sensor slower than the table was interpolated onto it."""
+    import json
+
+    try:
+        sensors = json.loads(exp.metadata.get("sensor_import", "{}")).get("sensors", {})
+    except (TypeError, ValueError, AttributeError):
+        return {}
+    out = {}
+    for code, column in exp.columns.items():
+        rate = sensors.get(column.removesuffix("_acc_m_s2"), {}).get("rate_Hz") if isinstance(sensors, dict) else None
+        if isinstance(rate, (int, float)) and rate > 0:
+            out[code] = float(rate)
+    return out
+
+
 def sensor_warnings(exp: Experiment, cfg: ExperimentConfig, model, excitation) -> list[tuple[str, str]]:
     """(kind, message) for what the experiment's sampling and the scene's record say against each other
     (model/sensors/checks.py): a sample rate below twice a building's modes (aliasing), and the lowest
@@ -255,7 +272,15 @@ def sensor_warnings(exp: Experiment, cfg: ExperimentConfig, model, excitation) -
     modes = {
         f"building {b}": list(frame.modes().frequency_Hz) for b, frame in ((1, model.b1), (2, model.b2)) if b in seen
     }
-    out += [("aliasing", w) for w in aliasing_problems(f"{Path(exp.path).name}", fs, modes)]
+    where = f"{Path(exp.path).name}"
+    rates = _sensor_rates(exp)
+    if rates and min(rates.values()) < 0.95 * fs:  # a sensor slower than the table: its own rate is what aliases
+        slow = min(rates, key=rates.get)
+        where, fs = (
+            f"{where} column '{exp.columns[slow]}' (its sensor's own rate; the table's {fs:.6g} Hz)",
+            rates[slow],
+        )
+    out += [("aliasing", w) for w in aliasing_problems(where, fs, modes)]
     if excitation.kind != "record" or len(excitation.records) != 1:
         return out
     rec = excitation.records[0]

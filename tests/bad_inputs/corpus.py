@@ -200,8 +200,11 @@ def table_csv(rows: int = 21, t=None, b1=None, b2=None, header: str = "t_s,b1f3,
 # ----------------------------------------------------------------------------- raw sensor exports (issue 27)
 
 
-def xsens_csv(rows: int = 64, ticks=None, acc_x=None, tag: str = "Xsens DOT") -> str:
-    """A small Xsens DOT export (120 Hz, gravity on Z): overrides {row: 'text'} for SampleTimeFine or Acc_X."""
+def xsens_csv(
+    rows: int = 64, ticks=None, acc_x=None, tag: str = "Xsens DOT", gain: float = 0.5, g: float = 9.81
+) -> str:
+    """A small Xsens DOT export (120 Hz, Acc_X gain * sin(0.3 i), gravity g on Z): overrides {row: 'text'} for
+    SampleTimeFine or Acc_X."""
     head = (
         f"sep=,\nDeviceTag:,{tag}\nFirmwareVersion:,3.0.0\nAppVersion:,2023.6.0\n"
         "StartTime: ,2025-03-06_12:43:39_000 PST\n\u00a9 Movella Technologies B. V. 2005-2025\n\n"
@@ -210,8 +213,8 @@ def xsens_csv(rows: int = 64, ticks=None, acc_x=None, tag: str = "Xsens DOT") ->
     lines = []
     for i in range(rows):
         tick = (ticks or {}).get(i, str(2042652963 + 8333 * i))
-        ax = (acc_x or {}).get(i, f"{0.5 * np.sin(0.3 * i):.5f}")
-        lines.append(f"{i},{tick},1.0,2.0,3.0,{ax},0.01,9.81,0.0,0.0,0.0")
+        ax = (acc_x or {}).get(i, f"{gain * np.sin(0.3 * i):.5f}")
+        lines.append(f"{i},{tick},1.0,2.0,3.0,{ax},0.01,{g},0.0,0.0,0.0")
     return head + "\n".join(lines) + "\n"
 
 
@@ -219,7 +222,7 @@ def import_argv(*extra: str, names=("ground", "b1f1")) -> tuple[str, ...]:
     return ("import", *[f"{n}={{dir}}/{n}.csv" for n in names], "--out", "{dir}/imported", *extra)
 
 
-XSENS_PAIR = {"ground.csv": xsens_csv(), "b1f1.csv": xsens_csv(tag="floor")}
+XSENS_PAIR = {"ground.csv": xsens_csv(), "b1f1.csv": xsens_csv(tag="floor", gain=0.7)}
 
 
 PICKLE = b"\x80\x04K\x01."  # pickle.dumps(1, protocol=4): bytes a reader must never unpickle
@@ -2133,6 +2136,76 @@ CASES += [
         None,
         XSENS_PAIR,
         import_argv("--quiet", "50,51", "--band", "1,10"),
+    ),
+    _c(
+        "import_units_unknown",
+        "table",
+        "an Xsens export in mm/s^2 (gravity reads 9810)",
+        ["b1f1.csv", "9810"],
+        "their units are neither",
+        None,
+        {"ground.csv": xsens_csv(), "b1f1.csv": xsens_csv(gain=500.0, g=9810.0)},
+        import_argv(),
+    ),
+    _c(
+        "import_acc_absurd",
+        "table",
+        "an Xsens export with one Acc_X sample of 1e9 m/s^2",
+        ["b1f1.csv", "line 14", "Acc_X = 1e+09"],
+        "beyond 1e+06 m/s^2",
+        None,
+        {"ground.csv": xsens_csv(), "b1f1.csv": xsens_csv(acc_x={5: "1e9"})},
+        import_argv(),
+    ),
+    _c(
+        "import_line_cut_short",
+        "table",
+        "an Xsens export whose last line stops after 9 of its 11 fields",
+        ["b1f1.csv", "line 72"],
+        "9 of the header's 11 fields",
+        None,
+        {"ground.csv": xsens_csv(), "b1f1.csv": xsens_csv(tag="floor", gain=0.7).rstrip("\n").rsplit(",", 2)[0] + "\n"},
+        import_argv(),
+    ),
+    _c(
+        "import_same_file_twice",
+        "table",
+        "import ground=g.csv b1f1=g.csv (the table's file for a floor)",
+        ["ground.csv", "sensor ground", "sensor b1f1"],
+        "one file per sensor",
+        None,
+        XSENS_PAIR,
+        ("import", "ground={dir}/ground.csv", "b1f1={dir}/ground.csv", "--out", "{dir}/imported"),
+    ),
+    _c(
+        "import_same_samples",
+        "table",
+        "two sensors' files holding the same samples (a copy)",
+        ["b1f1.csv", "sensor b1f1", "sensor ground"],
+        "the same export twice",
+        None,
+        {"ground.csv": xsens_csv(), "b1f1.csv": xsens_csv()},
+        import_argv(),
+    ),
+    _c(
+        "import_max_lag_negative",
+        "table",
+        "import --max-lag -1",
+        ["--max-lag -1"],
+        "a positive number of seconds",
+        None,
+        XSENS_PAIR,
+        import_argv("--max-lag=-1"),
+    ),
+    _c(
+        "import_band_above_nyquist",
+        "table",
+        "import --band 1,100 on 120 Hz sensors",
+        ["--band 1,100", "60 Hz"],
+        "above",
+        None,
+        XSENS_PAIR,
+        import_argv("--band", "1,100"),
     ),
     _c(
         "import_out_not_ours",

@@ -3,16 +3,18 @@ column per sensor, in m/s^2, on one clock) and the table sensor's record, with a
 
 Steps, in order (docs/how-to/import-real-sensor-data.md says why each):
 1. read each file (formats.py: the device clock in s, unwrapped; SI units);
-2. the shaking axis of each sensor: gravity's axis is the one whose mean is nearest +/- g; the shaking axis
-   the horizontal one with the largest variance (or the one asked for);
+2. the shaking axis of each sensor: gravity's axis is the one whose mean is largest in size (the reader has
+   checked that gravity reads g: formats.py); the shaking axis the horizontal one with the largest variance (or
+   the one asked for);
 3. the clocks: a shared device clock where the sensors' clock ranges overlap (the same instant reads the same
    value on each), else each sensor aligned to the reference by band-limited cross-correlation in the band
-   where the floors follow the table (signals.py); the lag found is reported in both cases (on a shared
-   clock it should be below a sample);
-4. one time grid: the reference's samples over the span every sensor covers; a sensor whose samples fall on
-   them is copied, another is interpolated (a not-a-knot cubic spline: amplitude error below
+   where the floors follow the table (signals.py); on a shared clock the lag found there is reported (it should
+   be below a sample), by cross-correlation it is the alignment (in the clock offset);
+4. one time grid: the reference's samples over the span every sensor covers (uniform at its median step where
+   its clock has gaps); a sensor whose samples fall on them is copied, another is interpolated (a not-a-knot cubic spline: amplitude error below
    5/384 (2 pi f dt)^4, Hall & Meyer 1976, 4e-4 at f = fs / 15), after a zero-phase low-pass at 0.4 x the
-   grid's rate where its own rate is higher (no aliasing);
+   grid's rate where its own rate is higher (no aliasing); across a gap in a sensor's clock (samples missing)
+   the grid's samples are linear between the gap's ends, and a warning says where: they are no measurement;
 5. the offset (gravity's projection from tilt, the sensor's bias): the mean of a stated quiet window,
    subtracted; the window's standard deviation is the channel's noise (docs: noise in each channel's unit);
 6. the sign: each sensor's against the reference in the band below half the first resonance, where a
@@ -22,13 +24,13 @@ Steps, in order (docs/how-to/import-real-sensor-data.md says why each):
 from __future__ import annotations
 
 import math
+import os
 import re
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from pounding_sweep.errors import SensorError
-from pounding_sweep.model.records import G_STANDARD
 from pounding_sweep.model.sensors.formats import SensorFile, read_sensor
 from pounding_sweep.model.sensors.signals import first_resonance, physical_delay_bound, relation, rigid_band
 
@@ -71,7 +73,7 @@ class Imported:
             f"{s['band_Hz'][1]:.3g} Hz; quiet window {s['quiet_s'][0]:.3f}-{s['quiet_s'][1]:.3f} s"
         ]
         for n, i in self.sensors.items():
-            lag = f", lag found {1e3 * i['lag_found_s']:+.2f} ms" if "lag_found_s" in i else ""
+            lag = f", lag found {1e3 * i['lag_found_s']:+.2f} ms" if _checked_lag(i) else ""
             corr = f" (correlation {i['sign_correlation']:+.3f})" if "sign_correlation" in i else ""
             out.append(
                 f"  {n}: axis {i['axis']}, sign {'+1' if i['sign'] > 0 else '-1 (reversed)'}{corr}, offset "
@@ -85,7 +87,7 @@ def _axis(sf: SensorFile, choice: str) -> tuple[str, str, dict]:
     """(shaking axis, gravity axis, per-axis statistics) of a sensor's accelerations."""
     acc = {c: v for c, v in sf.channels.items() if sf.kinds[c] == "acceleration"}
     stats = {c: {"mean": float(np.mean(v)), "std": float(np.std(v))} for c, v in acc.items()}
-    grav = min(acc, key=lambda c: abs(abs(stats[c]["mean"]) - G_STANDARD))
+    grav = max(acc, key=lambda c: abs(stats[c]["mean"]))  # g outweighs any tilt's share and any shaking's mean
     if choice != "auto":
         col = f"Acc_{choice.upper()}"
         if col not in acc:
@@ -116,10 +118,24 @@ def import_sensors(
         raise SensorError(f"--reference {reference}: no sensor of that name (sensors: {', '.join(files)})")
     if clock not in ("auto", "device", "xcorr"):
         raise SensorError(f"--clock {clock}: one of auto, device, xcorr")
+    if max_lag_s is not None and not (math.isfinite(max_lag_s) and max_lag_s > 0):
+        raise SensorError(f"--max-lag {max_lag_s:g}: the largest clock offset searched, a positive number of seconds")
+    same: dict[str, str] = {}
+    for n, path in files.items():
+        key = os.path.realpath(path)
+        if key in same:
+            raise SensorError(f"{path}: given for sensor {same[key]} and for sensor {n}: one file per sensor")
+        same[key] = n
     sens = {n: read_sensor(p, fmt) for n, p in files.items()}
+    slowest = min(sens, key=lambda n: sens[n].rate_Hz)
+    if band_Hz is not None and band_Hz[1] > 0.5 * sens[slowest].rate_Hz:
+        raise SensorError(
+            f"--band {band_Hz[0]:g},{band_Hz[1]:g}: HI above {0.5 * sens[slowest].rate_Hz:.4g} Hz, the Nyquist "
+            f"frequency of the slowest sensor ({slowest}, {sens[slowest].rate_Hz:.4g} Hz)"
+        )
     info: dict[str, dict] = {}
     series: dict[str, np.ndarray] = {}
-    warnings: list[str] = []
+    warnings: list[str] = [w for sf in sens.values() for w in sf.warnings]
     for n, sf in sens.items():
         col, grav, stats = _axis(sf, axis)
         horiz = [c for c in stats if c != grav]
@@ -139,6 +155,11 @@ def import_sensors(
             "reader_notes": list(sf.notes),
         }
         series[n] = sf.channels[col]
+        twin = next((m for m in series if m != n and np.array_equal(series[m], series[n])), None)
+        if twin is not None:
+            raise SensorError(
+                f"{sf.path}: sensor {n} holds the same samples as sensor {twin} ({files[twin]}): the same export twice"
+            )
         if col == grav:
             warnings.append(
                 f"{sf.path}: axis {col} is the one gravity acts along (mean {stats[grav]['mean']:.3f} m/s^2): the "
@@ -173,6 +194,7 @@ def import_sensors(
     lag_limit = max_lag_s if max_lag_s is not None else 0.5 * min(durations.values())
     # clocks: shared or aligned; each sensor's time on the reference's clock
     on_ref: dict[str, np.ndarray] = {}
+    doubtful: set[str] = set()  # sensors whose relation to the reference was too weak to tell (warned)
     for n, sf in sens.items():
         if n == reference:
             on_ref[n] = sf.time_s
@@ -213,6 +235,7 @@ def import_sensors(
         info[n]["runner_up_correlation"] = rel.runner_up
         on_ref[n] = sf.time_s - offset
         if abs(rel.correlation) < MIN_CORRELATION:
+            doubtful.add(n)
             warnings.append(
                 f"{sf.path}: correlates with {reference} at {rel.correlation:+.2f} only in {band[0]:.3g}-"
                 f"{band[1]:.3g} Hz: its alignment and sign cannot be trusted (another test's file? give --band)"
@@ -238,10 +261,20 @@ def import_sensors(
             "the sensors cover no common span: "
             + ", ".join(f"{n} {t[0]:.3f}..{t[-1]:.3f} s" for n, t in on_ref.items())
         )
+    warnings += _span_cut(sens, on_ref, reference, start, end)
     grid = ref.time_s[(ref.time_s >= start - 1e-9) & (ref.time_s <= end + 1e-9)]
+    if _gaps(ref.time_s).size:  # the reference's own samples are not a uniform grid: one at its median step
+        step = float(np.median(np.diff(ref.time_s)))
+        grid = grid[0] + step * np.arange(int(np.floor((end - grid[0]) / step + 1e-9)) + 1)
     cols: dict[str, np.ndarray] = {}
     for n, sf in sens.items():
         t, x = on_ref[n], series[n]
+        if sf.rate_Hz < 0.95 * fs:
+            warnings.append(
+                f"{sf.path}: sampled at {sf.rate_Hz:.4g} Hz, the grid ({reference}'s) at {fs:.4g} Hz: above "
+                f"{0.5 * sf.rate_Hz:.4g} Hz its column is interpolation, not measurement (a mode there is folded "
+                f"or lost in it); score it with lowpass_Hz below {0.5 * sf.rate_Hz:.4g} Hz"
+            )
         j = np.searchsorted(t, grid)
         j = np.clip(j, 0, t.size - 1)
         jm = np.clip(j - 1, 0, t.size - 1)
@@ -259,6 +292,20 @@ def import_sensors(
             info[n]["resampled"] = f"cubic spline onto the grid ({sf.rate_Hz:.6g} -> {fs:.6g} Hz" + (
                 ", low-passed at 0.4 x the grid rate first)" if sf.rate_Hz > 1.05 * fs else ")"
             )
+        gap = _gaps(t)
+        if gap.size:
+            inside = _across_gaps(t, gap, grid)
+            y[inside] = np.interp(grid[inside], t, x)  # linear between the gap's ends: no spline overshoot
+            w = t[gap + 1] - t[gap]
+            if inside.any():
+                g = int(np.argmax(np.where((t[gap + 1] > grid[0]) & (t[gap] < grid[-1]), w, -1.0)))
+                warnings.append(
+                    f"{sf.path}: {int(inside.sum())} samples of {n} missing in {gap.size} gap(s) of its clock (the "
+                    f"largest {w[g]:.4g} s, at {t[gap[g]] - grid[0]:.3f}-{t[gap[g] + 1] - grid[0]:.3f} s of the "
+                    "table): linear between the gaps' ends there, which is no measurement; leave them out of a score "
+                    "([experiment] window_s)"
+                )
+            info[n]["missing_samples"] = int(inside.sum())
         cols[n] = y
     time = grid - grid[0]
     # offsets: the mean of the quiet window (stated, or the quietest QUIET_LENGTH_S of the common span)
@@ -286,9 +333,10 @@ def import_sensors(
         least = float(stds[n].min()) * np.sqrt(quiet.sum() / max(quiet.sum() - 1, 1))
         if sd > QUIET_FACTOR * least:
             k = int(np.argmin(stds[n]))
+            times = f"{sd / least:.1f} x that" if least > 0 else "above that (0)"
             warnings.append(
                 f"{files[n]}: the quiet window {q0:g}-{q1:g} s is not quiet on {n} (standard deviation {sd:.4g} m/s^2, "
-                f"{sd / least:.1f} x that of its quietest {QUIET_LENGTH_S:g} s, from {time[k]:.2f} s): the offset and "
+                f"{times} of its quietest {QUIET_LENGTH_S:g} s, from {time[k]:.2f} s): the offset and "
                 "noise taken there include motion; give --quiet a window where nothing moves"
             )
     # signs against the reference, in the rigid band
@@ -299,6 +347,12 @@ def import_sensors(
         rel = relation(cols[reference], cols[n], fs, band, 1.5 / fs)
         info[n]["sign"] = rel.sign if abs(rel.correlation) >= MIN_CORRELATION else +1
         info[n]["sign_correlation"] = rel.correlation
+        if abs(rel.correlation) < MIN_CORRELATION and n not in doubtful:
+            warnings.append(
+                f"{files[n]}: its sign against {reference} cannot be told (correlation {rel.correlation:+.2f} in "
+                f"{band[0]:.3g}-{band[1]:.3g} Hz, below {MIN_CORRELATION}): kept as recorded; check the sensor's "
+                "direction (or give --band)"
+            )
         cols[n] = cols[n] * info[n]["sign"]
     settings = {
         "reference": reference,
@@ -314,6 +368,42 @@ def import_sensors(
         "span_on_reference_clock_s": [float(grid[0]), float(grid[-1])],
     }
     return Imported(time, {f"{n}_acc_m_s2": cols[n] for n in sens}, reference, info, settings, warnings)
+
+
+def _gaps(t: np.ndarray) -> np.ndarray:
+    """Indices i where samples are missing between t[i] and t[i + 1]: a step above 1.5 times the median."""
+    d = np.diff(t)
+    return np.flatnonzero(d > 1.5 * np.median(d))
+
+
+def _across_gaps(t: np.ndarray, gap: np.ndarray, grid: np.ndarray) -> np.ndarray:
+    """The grid samples inside one of the gaps (t[i], t[i + 1]), i in `gap`, and not on its ends (within a
+    thousandth of a step: the tolerance of a sample on the grid)."""
+    tol = 1e-3 * float(np.median(np.diff(t)))
+    k = np.clip(np.searchsorted(t, grid, side="right") - 1, 0, t.size - 2)  # the sample at or before each instant
+    return np.isin(k, gap) & (grid > t[k] + tol) & (grid < t[k + 1] - tol)
+
+
+#: a sensor that shortens the common span by more than this share of the reference's is named
+SPAN_CUT_SHARE = 0.1
+
+
+def _span_cut(sens, on_ref, reference, start, end) -> list[str]:
+    """Warnings naming the sensors that start later or end earlier than the reference by more than SPAN_CUT_SHARE
+    of its span: the common span, and so every column, is cut there."""
+    t_ref = on_ref[reference]
+    length = t_ref[-1] - t_ref[0]
+    out = []
+    for n, t in on_ref.items():
+        late, early = t[0] - t_ref[0], t_ref[-1] - t[-1]
+        if n == reference or max(late, early) <= SPAN_CUT_SHARE * length:
+            continue
+        out.append(
+            f"{sens[n].path}: sensor {n} covers {t[0] - t_ref[0]:.3f}-{t[-1] - t_ref[0]:.3f} s of {reference}'s "
+            f"{length:.3f} s: the common span, and every column, is cut to {end - start:.3f} s by it (a file cut short, "
+            "or another test's?)"
+        )
+    return out
 
 
 def _moving_std(x: np.ndarray, m: int) -> np.ndarray:
@@ -341,6 +431,18 @@ def _top_floors(floors: list[str]) -> list[str]:
         if b not in top or f > top[b][0]:
             top[b] = (f, n)
     return [n for _f, n in top.values()]
+
+
+def _checked_lag(i: dict) -> bool:
+    """Whether a sensor's lag found is a check (on a shared clock), not its alignment (in its clock offset)."""
+    return "lag_found_s" in i and i["alignment"] == "shared device clock"
+
+
+def _lag_cell(i: dict) -> str:
+    """The provenance table's lag cell: the check on a shared clock, else where the lag went."""
+    if _checked_lag(i):
+        return f"{1e3 * i['lag_found_s']:+.2f}"
+    return "(the clock offset)" if "lag_found_s" in i else "-"
 
 
 def _seconds(x: float) -> str:
@@ -375,8 +477,8 @@ def provenance_text(im: Imported, command: str) -> str:
         f"- reference (the shaking table): `{im.reference}`; one time grid, its samples at {s['rate_Hz']:.6g} Hz over "
         f"{s['span_on_reference_clock_s'][0]:.6f} .. {s['span_on_reference_clock_s'][1]:.6f} s of its clock, "
         f"written from t_s = 0 ({im.time_s.size} samples, {im.time_s[-1]:.3f} s)",
-        f"- {_resonance(im)}, from the spectra (each floor's transmissibility, floor / table; the top floor's peak is "
-        f"the first mode); band of sign and alignment {s['band_Hz'][0]:.4g}-{s['band_Hz'][1]:.4g} Hz (below half of "
+        f"- {_resonance(im)}, from the spectra (each floor's transmissibility, floor / table, and its lowest "
+        f"resonance: the top floor's is the first mode); band of sign and alignment {s['band_Hz'][0]:.4g}-{s['band_Hz'][1]:.4g} Hz (below half of "
         "the first resonance the floors follow the table)",
         f"- quiet window {s['quiet_s'][0]:.3f}-{s['quiet_s'][1]:.3f} s ({s['quiet_window']}): its mean subtracted "
         "from each channel (the offset), its standard deviation the channel's noise",
@@ -391,7 +493,7 @@ def provenance_text(im: Imported, command: str) -> str:
         lines.append(
             f"| {n} | {i['file']} | {i['device']} | {i['axis']} ({i['gravity_axis']}, mean "
             f"{i['gravity_axis_mean_m_s2']:.3f}) | {i['alignment']} | {_seconds(i['clock_offset_s'])} | "
-            f"{1e3 * i.get('lag_found_s', 0.0):+.2f} | {sign}{corr} | {i['offset_removed_m_s2']:+.5f} | "
+            f"{_lag_cell(i)} | {sign}{corr} | {i['offset_removed_m_s2']:+.5f} | "
             f"{i['noise_m_s2']:.5f} | {i['resampled']} |"
         )
     notes = [f"- {n}: {x}" for n, i in im.sensors.items() for x in i["reader_notes"]]

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from pounding_sweep.errors import SensorError
+from pounding_sweep.model.records import G_STANDARD, MAX_ACC_M_S2
 from pounding_sweep.scene.files import MAX_TABLE_BYTES, read_regular, text_problem
 
 
@@ -37,6 +38,7 @@ class SensorFile:
     units: dict[str, str]  # 'Acc_X' -> 'm/s^2'
     kinds: dict[str, str]  # 'Acc_X' -> 'acceleration' (what a table column holding it measures)
     notes: tuple[str, ...] = field(default_factory=tuple)  # rows dropped, clock wraps, ...
+    warnings: tuple[str, ...] = field(default_factory=tuple)  # what the reader corrected that the user must hear of
 
     @property
     def rate_Hz(self) -> float:
@@ -101,6 +103,35 @@ XSENS_COLUMNS = {
 }
 
 
+#: a sensor at rest reads gravity within this share of g: its mean acceleration vector's length tells the units
+GRAVITY_SHARE = 0.2
+
+
+def _gravity_units(p: Path, chans: dict[str, np.ndarray]) -> list[str]:
+    """The acceleration units of an export whose Acc_X/Y/Z hold gravity, from the length of their mean vector
+    (the shaking's mean is about zero, so it is gravity's, g, whichever way the sensor is tilted): m/s^2 as the
+    format says (about 9.81), or g (about 1: converted here, with a warning); anything else is an error, since
+    no factor can then be trusted. Exports without all three axes are taken as the format says."""
+    acc = [chans.get(f"Acc_{a}") for a in "XYZ"]
+    if any(v is None for v in acc):
+        return []
+    read = float(np.linalg.norm([np.mean(v) for v in acc]))
+    if abs(read - G_STANDARD) <= GRAVITY_SHARE * G_STANDARD:
+        return []
+    if abs(read - 1.0) <= GRAVITY_SHARE:
+        for a in "XYZ":
+            chans[f"Acc_{a}"] = chans[f"Acc_{a}"] * G_STANDARD
+        return [
+            f"{p}: its accelerations read gravity as {read:.4g}: they are in g, not in the export's m/s^2; "
+            f"converted (x {G_STANDARD})"
+        ]
+    raise SensorError(
+        f"{p}: its accelerations read gravity as {read:.4g} (the length of Acc_X/Y/Z's mean), where m/s^2 read "
+        f"{G_STANDARD} and g read 1: their units are neither, and no factor can be trusted (mm/s^2 would read "
+        f"{1e3 * G_STANDARD:.0f}); export them in m/s^2"
+    )
+
+
 def _xsens_sniff(head: str) -> bool:
     lines = head.splitlines()
     return any(ln.startswith("DeviceTag:") for ln in lines[:8]) and any(
@@ -136,7 +167,15 @@ def _xsens_read(p: Path, text: str) -> SensorFile:
     for c in ["SampleTimeFine", *measured]:
         bad = ~np.isfinite(df[c].to_numpy())
         if bad.any():
-            raise SensorError(f"{p}, line {k + 2 + int(np.argmax(bad))}: column {c} is not a finite number")
+            i = int(np.argmax(bad))
+            row = lines[k + 1 + i] if k + 1 + i < len(lines) else ""
+            fields, want = len(row.split(",")), len(df.columns)
+            if fields < want:
+                raise SensorError(
+                    f"{p}, line {k + 2 + i}: {fields} of the header's {want} fields (column {c} missing): a line cut "
+                    "short (an export that did not finish?)"
+                )
+            raise SensorError(f"{p}, line {k + 2 + i}: column {c} is not a finite number")
     notes = []
     inertial = [c for c in measured if XSENS_COLUMNS[c][1] in ("acceleration", "angular_velocity")]
     vals = df[inertial].to_numpy()
@@ -177,6 +216,15 @@ def _xsens_read(p: Path, text: str) -> SensorFile:
         unit, kind, factor = XSENS_COLUMNS[c]
         chans[c] = df[c].to_numpy(dtype=float) * factor
         units[c], kinds[c] = unit, kind
+    for c in (c for c in chans if kinds[c] == "acceleration"):
+        big = np.abs(chans[c]) > MAX_ACC_M_S2
+        if big.any():
+            i = int(np.argmax(big))
+            raise SensorError(
+                f"{p}, line {k + 2 + lead + i}: {c} = {chans[c][i]:.4g} m/s^2, beyond {MAX_ACC_M_S2:.0e} m/s^2 "
+                f"({MAX_ACC_M_S2 / G_STANDARD:,.0f} g): no measurement (a corrupted sample, or the wrong units)"
+            )
+    warnings = _gravity_units(p, chans)
     return SensorFile(
         str(p),
         "xsens_dot",
@@ -188,6 +236,7 @@ def _xsens_read(p: Path, text: str) -> SensorFile:
         units,
         kinds,
         tuple(notes),
+        tuple(warnings),
     )
 
 

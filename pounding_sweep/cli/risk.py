@@ -107,9 +107,21 @@ def print_study(study, written) -> None:
         if c.endswith("_m"):
             show[c] = show[c] * 1e3
     print(show.rename(columns=cols).to_string(index=False, float_format=lambda x: f"{x:.4g}"))
+    for row in req.itertuples():
+        if getattr(row, "note", ""):
+            print(f"  NaN at {row.intensity_g:g} g, target {row.target_probability:g}: {row.note}")
+    if study.annual_rate is not None:
+        unknown = study.annual_rate[study.annual_rate.status != "ok"]
+        for _status, d in unknown.groupby("status", sort=False):
+            print(
+                f"annual rate not given at {len(d)} gap(s), {1e3 * d.gap_m.min():.4g}-{1e3 * d.gap_m.max():.4g} mm: "
+                f"{d.note.iloc[0]}"
+            )
     rules = study.code_rules
     print(f"\nprobability of pounding each code rule's gap leaves ({conf} Clopper-Pearson):")
     show = rules[["intensity_g", "rule", "gap_m", "pounding", "motions", "probability", "ci_low", "ci_high"]].copy()
     show["gap_m"] = show.gap_m * 1e3
     print(show.rename(columns={"gap_m": "gap [mm]"}).to_string(index=False, float_format=lambda x: f"{x:.4g}"))
-    print(f"\nwritten: {study.folder} ({len(written)} files: tables, CSV copies, figures)")
+    figures = sum(1 for w in written if str(w).endswith(".png"))
+    what = "tables, CSV copies" + (f", {figures} figures" if figures else "; no figures")
+    print(f"\nwritten: {study.folder} ({len(written)} files: {what})")

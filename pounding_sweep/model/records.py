@@ -23,6 +23,8 @@ MAX_ACC_M_S2 = 1e6
 __all__ = [
     "G_STANDARD",
     "MAX_ACC_M_S2",
+    "VERTICAL_COMPONENTS",
+    "vertical_component",
     "RecordError",
     "GroundRecord",
     "read_at2",
@@ -421,6 +423,17 @@ def implausible_timing(rec: GroundRecord) -> str | None:
 
 
 # --------------------------------------------------------------------------- scaling, resampling
+
+
+#: the component names a vertical record's header gives (PEER: 'Bolu, UP', 'Lamont 362, V'; others UD, DWN, Z)
+VERTICAL_COMPONENTS = frozenset({"UP", "UD", "V", "VER", "VERT", "VERTICAL", "DWN", "DOWN", "Z"})
+
+
+def vertical_component(rec: GroundRecord) -> str | None:
+    """The component name where a record's header says it is vertical (the last comma-separated field of its
+    description line, e.g. 'Duzce Turkey, 11/12/1999, Bolu, UP'), else None."""
+    last = rec.description.split("[similitude")[0].rsplit(",", 1)[-1].strip().upper()
+    return last if "," in rec.description and last in VERTICAL_COMPONENTS else None
 
 
 def similitude_scale(rec: GroundRecord, length_scale: float) -> GroundRecord:

@@ -20,10 +20,10 @@ import pandas as pd
 from pounding_sweep.gaps.rules import RULES, combined_gap, tbec2018_minimum_gap_m
 from pounding_sweep.gaps.study import SEPARATED_GAP_M
 from pounding_sweep.risk.fragility import (
+    bootstrap_interval,
     bootstrap_multiplicities,
     fit_lognormal,
     gap_for_probability,
-    percentile_interval,
     weighted_exceedance,
 )
 from pounding_sweep.risk.probability import clopper_pearson, exceedance_counts, required_gap_empirical
@@ -151,11 +151,13 @@ def fragility_table(data: FragilityData, gaps, boot_fits, confidence: float) -> 
         }
     )
     if boot_fits is not None:
+        ok = fit.status == "ok"
         th = np.where(boot_fits.status == "ok", boot_fits.theta, np.nan)
         be = np.where(boot_fits.status == "ok", boot_fits.beta, np.nan)
-        out["median_ci_low_g"], out["median_ci_high_g"] = percentile_interval(th, confidence)
-        out["beta_ci_low"], out["beta_ci_high"] = percentile_interval(be, confidence)
-        out["bootstrap_ok_fraction"] = (boot_fits.status == "ok").mean(axis=0)
+        lo, hi, found = bootstrap_interval(th, np.where(ok, fit.theta, np.nan), confidence)
+        out["median_ci_low_g"], out["median_ci_high_g"] = lo, hi
+        out["beta_ci_low"], out["beta_ci_high"], _ = bootstrap_interval(be, np.where(ok, fit.beta, np.nan), confidence)
+        out["bootstrap_ok_fraction"] = found
     out["motions"] = data.n_motions
     return out
 
@@ -165,27 +167,65 @@ def required_gap_table(
 ) -> pd.DataFrame:
     """Per intensity and target probability: the gap that leaves that probability of pounding, from the stripe's
     order statistics (stripes only) and from the lognormal fragilities (every gap's fit, interpolated in ln
-    gap), each with its interval."""
+    gap), each with its interval (fragility.bootstrap_interval), and a note saying why a value is missing."""
     rows = []
     by_scale = dict(groups(demand))
     for x in intensities:
         stripe = by_scale.get(float(x)) if scaling == "intensity" else None
         for p in targets:
             row = {"intensity_g": float(x), "target_probability": float(p)}
+            notes = []
             if stripe is not None:
                 g, lo, hi = required_gap_empirical(stripe.required_gap_m.to_numpy(), p, confidence)
                 row.update(empirical_gap_m=g, empirical_ci_low_m=lo, empirical_ci_high_m=hi, motions=len(stripe))
+                n = len(stripe)
+                if not math.isfinite(g):
+                    notes.append(
+                        f"order statistics: n p = {n * p:.3g} < 1, no order statistic reaches that quantile "
+                        f"({math.ceil(1 / p - 1e-9)} motions at least)"
+                    )
+                elif not math.isfinite(lo):
+                    notes.append(
+                        f"order statistics: {n} motions are too few for a distribution-free {confidence:.0%} interval"
+                    )
             else:
                 row.update(empirical_gap_m=math.nan, empirical_ci_low_m=math.nan, empirical_ci_high_m=math.nan)
                 row["motions"] = data.n_motions
-            row["lognormal_gap_m"] = float(gap_for_probability(fit, gaps, float(x), float(p)))
+            est = float(gap_for_probability(fit, gaps, float(x), float(p)))
+            row["lognormal_gap_m"] = est
+            if not math.isfinite(est):
+                notes.append("lognormal: " + _why_no_gap(fit, gaps, float(x), float(p)))
             if boot_fits is not None:
                 reps = gap_for_probability(boot_fits, gaps, float(x), float(p))
-                lo, hi = percentile_interval(reps, confidence)
+                lo, hi, found = bootstrap_interval(reps, est, confidence)
                 row.update(lognormal_ci_low_m=float(lo), lognormal_ci_high_m=float(hi))
-                row["bootstrap_found_fraction"] = float(np.isfinite(reps).mean())
+                row["bootstrap_found_fraction"] = float(found)
+                if math.isfinite(est) and not math.isfinite(float(lo)):
+                    notes.append(
+                        f"lognormal interval: {found:.1%} of the bootstrap replicates give a gap, fewer than the "
+                        f"{1 - (1 - confidence) / 2:.1%} a {confidence:.0%} interval needs (the others' could all lie "
+                        "in one tail)"
+                    )
+            row["note"] = "; ".join(notes)
             rows.append(row)
     return pd.DataFrame(rows)
+
+
+def _why_no_gap(fit, gaps, x: float, p: float) -> str:
+    """Why gap_for_probability found no gap for P(pounding | x) = p: the target beyond the gaps studied on either
+    side, or a fragility between them that the data do not identify."""
+    prob = fit.probability(np.array([x]))[..., 0]
+    g = np.asarray(gaps, dtype=float)
+    finite = np.isfinite(prob)
+    if finite.any() and np.all(prob[finite] > p) and finite[-1]:
+        return f"P = {prob[-1]:.3g} even at the largest gap studied ({1e3 * g[-1]:.4g} mm): widen [risk] gaps_m"
+    if finite[0] and prob[0] <= p:
+        return f"P = {prob[0]:.3g} already at the smallest gap studied ({1e3 * g[0]:.4g} mm)"
+    bad = sorted(set(fit.status[~finite].astype(str)))
+    return (
+        f"the fragilities around it are not identified ({', '.join(bad)}: the stripes' outcomes do not overlap in "
+        "intensity, see fragility.status)"
+    )
 
 
 def rule_gaps(stripe: pd.DataFrame, n_pairs: int, rho: float, top_height_full_m: float | None, length_scale: float):
@@ -240,9 +280,8 @@ def code_rule_table(
             if mult is not None:
                 bf = data.fit([g], mult)
                 p = bf.probability([float(x)])[:, 0, 0]
-                row["lognormal_ci_low"], row["lognormal_ci_high"] = (
-                    float(v) for v in percentile_interval(p, confidence)
-                )
+                lo, hi, _ = bootstrap_interval(p, row["lognormal_probability"], confidence)
+                row["lognormal_ci_low"], row["lognormal_ci_high"] = float(lo), float(hi)
             col = f"{rule.lower()}_gap_m"
             if col in stripe:
                 kk = int((req > stripe[col].to_numpy()).sum())
@@ -293,15 +332,35 @@ def consequence_table(contact: pd.DataFrame, free: pd.DataFrame, floors: tuple[i
     return pd.DataFrame(rows)
 
 
-def annual_rate_table(hazard, fit, boot_fits, gaps, confidence: float, integrate) -> pd.DataFrame:
+def annual_rate_table(hazard, fit, boot_fits, gaps, confidence: float, integrate, levels_g=None) -> pd.DataFrame:
     """Per gap: the annual rate of pounding, the fragility integrated over the hazard curve
-    (integrate = hazard.annual_rate), with its bootstrap interval."""
-    rate = integrate(hazard, fit.probability)
+    (integrate = hazard.annual_rate), with its bootstrap interval, where the fragility is fitted ('ok'). Where no
+    motion pounded at any level ('none') or every motion at every level ('all') the rate comes from intensities
+    the study did not reach (the hazard curve runs beyond its levels `levels_g`), and a separated fit has no
+    curve: NaN there, the fit's status and a note saying so (an integral of P = 0 or 1 would read as a rate)."""
+    ok = fit.status == "ok"
+    rate = np.where(ok, integrate(hazard, fit.probability), np.nan)
     out = pd.DataFrame({"gap_m": np.asarray(gaps, dtype=float), "annual_rate_per_yr": rate})
     if boot_fits is not None:
         reps = integrate(hazard, boot_fits.probability)
-        out["ci_low_per_yr"], out["ci_high_per_yr"] = percentile_interval(reps, confidence)
+        out["ci_low_per_yr"], out["ci_high_per_yr"], out["bootstrap_found_fraction"] = bootstrap_interval(
+            reps, rate, confidence
+        )
     out["return_period_yr"] = 1.0 / out.annual_rate_per_yr
+    out["status"] = fit.status.astype(str)
+    lo = f" (the lowest level, {min(levels_g):g} g)" if levels_g else ""
+    hi = f" (up to {max(levels_g):g} g)" if levels_g else ""
+    why = {
+        "ok": "",
+        "none": f"no motion pounds at any level studied{hi}: the rate lies at intensities the study did not reach "
+        "(add higher levels)",
+        "all": f"every motion pounds at every level studied, down to the lowest{lo}: the rate lies at intensities "
+        "the study did not reach (add lower levels)",
+        "separated": "the fragility is not identified (its stripes' outcomes do not overlap in intensity): no curve "
+        "to integrate",
+        "flat": "pounding does not grow with the intensity here: no fragility curve to integrate",
+    }
+    out["note"] = [why.get(st, st) for st in out.status]
     return out
 
 

@@ -37,10 +37,12 @@ COLUMN_DOCS = {
         "gap_m": "gap [m]",
         "median_g": "lognormal fragility's median theta: P(pounding | x) = Phi(ln(x / theta) / beta) [g]",
         "beta": "its dispersion (log standard deviation) [-]",
-        "status": "'ok'; 'separated' (outcomes do not overlap in intensity: beta -> 0, median between them); "
-        "'none' (no pounding: median inf); 'all' (pounding at every point: median 0)",
-        "loglik": "log-likelihood of the fit (binomial, Baker 2015) [-]",
-        "median_ci_low_g": "bootstrap (over motions) percentile interval of the median [g]",
+        "status": "'ok'; 'separated' (every pounding at or above every non-pounding, both at one intensity at most: "
+        "beta -> 0, median between them); 'none' (no pounding: median inf); 'all' (pounding at every point: "
+        "median 0); 'flat' (pounding does not grow with the intensity)",
+        "loglik": "log-likelihood of the fit (binomial, Baker 2015); not 'ok': the supremum the data allow [-]",
+        "median_ci_low_g": "bootstrap (over motions) percentile interval of the median; NaN where the fit is not 'ok' "
+        "or more than (1 - confidence) / 2 of the replicates are not [g]",
         "median_ci_high_g": "its upper end [g]",
         "beta_ci_low": "bootstrap percentile interval of beta [-]",
         "beta_ci_high": "its upper end [-]",
@@ -55,9 +57,12 @@ COLUMN_DOCS = {
         "empirical_ci_high_m": "its upper end [m]",
         "motions": "motions behind it [-]",
         "lognormal_gap_m": "gap at which the lognormal fragilities give the target (interpolated in ln gap) [m]",
-        "lognormal_ci_low_m": "bootstrap percentile interval [m]",
+        "lognormal_ci_low_m": "bootstrap percentile interval; NaN without an estimate or where more than "
+        "(1 - confidence) / 2 of the replicates give no gap [m]",
         "lognormal_ci_high_m": "its upper end [m]",
-        "bootstrap_found_fraction": "fraction of replicates whose target lies inside the gaps studied [-]",
+        "bootstrap_found_fraction": "fraction of replicates that give a gap (target inside the gaps studied, fits "
+        "identified) [-]",
+        "note": "why a value of the row is NaN ('' when none is)",
     },
     "code_rules": {
         "intensity_g": "intensity [g]",
@@ -69,7 +74,7 @@ COLUMN_DOCS = {
         "probability": "pounding / motions [-]",
         **_CI,
         "lognormal_probability": "the lognormal fragility of that gap at this intensity [-]",
-        "lognormal_ci_low": "bootstrap percentile interval [-]",
+        "lognormal_ci_low": "bootstrap percentile interval; NaN as for the required gap's [-]",
         "lognormal_ci_high": "its upper end [-]",
         "per_motion_pounding": "motions that pound at the gap the rule gives from their own peaks [-]",
         "per_motion_probability": "per_motion_pounding / motions [-]",
@@ -94,9 +99,14 @@ COLUMN_DOCS = {
     },
     "annual_rate": {
         "gap_m": "gap [m]",
-        "annual_rate_per_yr": "annual rate of pounding: the fragility integrated over the hazard curve [1/yr]",
-        "ci_low_per_yr": "bootstrap percentile interval [1/yr]",
+        "annual_rate_per_yr": "annual rate of pounding: the fragility integrated over the hazard curve; NaN where "
+        "the fragility is not 'ok' (see note) [1/yr]",
+        "ci_low_per_yr": "bootstrap percentile interval; NaN without an estimate or where more than "
+        "(1 - confidence) / 2 of the replicates give none [1/yr]",
         "ci_high_per_yr": "its upper end [1/yr]",
+        "bootstrap_found_fraction": "fraction of replicates that give a rate [-]",
         "return_period_yr": "1 / annual rate [yr]",
+        "status": "the gap's fragility status (fragility table)",
+        "note": "why the rate is NaN ('' when it is given)",
     },
 }

@@ -12,13 +12,19 @@ b = 1 / beta and a = -ln(theta) / beta, solved here by Fisher scoring (iterative
 McCullagh & Nelder, Generalized Linear Models, 2nd ed. 1989, sec. 2.5), vectorised over any number of
 fragilities (one per gap, per bootstrap replicate). The maximum exists only when the outcomes overlap in x:
 all-or-nothing stripes that separate (every pounding above every non-pounding) drive beta to 0 (Baker 2015,
-sec. "Potential problems"), and no pounding at all (or pounding everywhere) drives theta out of the data's
-range; those fits are flagged, not reported as numbers they are not.
+sec. "Potential problems"; quasi-separation too: every pounding at or above every non-pounding, with both at one
+intensity at most, where the likelihood's supremum is a step at that intensity), and no pounding at all (or
+pounding everywhere) drives theta out of the data's range; those fits are flagged, not reported as numbers they
+are not: their log-likelihood is the supremum the data allow (0 for a perfect step, the mixed intensity's own
+binomial term for a quasi-separated one), not a fitted curve's.
 
 Intervals: the motions are resampled with replacement (each replicate a multiset of the motions, all their
 stripes kept together: the stripes of an IDA share their motions and are not independent) and every
 fragility refitted; the percentile interval of the replicates (Efron & Tibshirani, An Introduction to the
-Bootstrap, 1993, sec. 13.3).
+Bootstrap, 1993, sec. 13.3), given only where the estimate itself exists and where at most (1 - confidence) / 2
+of the replicates fail to give a value (bootstrap_interval): a replicate that fails (its target beyond the gaps
+studied, its fit not identified) has no value, and the missing ones could all lie in one tail, so past that share
+the percentile interval of the others is not a `confidence` interval.
 """
 
 from __future__ import annotations
@@ -147,10 +153,14 @@ def fit_lognormal(x, k, n, weights=None) -> Fit:
     theta = np.where(status == "none", np.inf, np.where(status == "all", 0.0, theta))
     beta = np.where(status == "ok", beta, np.where(status == "separated", 0.0, np.nan))
     eta = np.log(x / np.where(status == "ok", theta, 1.0)[..., None]) / np.where(status == "ok", beta, 1.0)[..., None]
+    # a separated fit's supremum: the step fits every point but a mixed one, which gives its own binomial maximum
+    with np.errstate(divide="ignore", invalid="ignore"):
+        q = np.where(n > 0, k / np.where(n > 0, n, 1.0), 0.0)
+        mixed_ll = np.where((k > 0) & (k < n), k * np.log(q) + (n - k) * np.log1p(-q), 0.0).sum(-1)
     ll = np.where(
         status == "ok",
         (k * log_ndtr(eta) + (n - k) * log_ndtr(-eta)).sum(-1),
-        0.0,
+        np.where(status == "separated", mixed_ll, 0.0),
     )
     return Fit(theta, beta, ll, status)
 
@@ -201,6 +211,17 @@ def percentile_interval(values, confidence: float = 0.95, axis: int = 0) -> tupl
     return lo, hi
 
 
+def bootstrap_interval(replicates, estimate, confidence: float = 0.95) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(low, high, found): the percentile interval of the replicates (along axis 0) and the share of them that give
+    a value; NaN where the estimate is not finite or more than (1 - confidence) / 2 of the replicates give none
+    (module docstring: their values could all lie in one tail)."""
+    v = np.asarray(replicates, dtype=float)
+    found = np.isfinite(v).mean(axis=0)
+    lo, hi = percentile_interval(v, confidence)
+    ok = np.isfinite(np.asarray(estimate, dtype=float)) & (found >= 1.0 - (1.0 - confidence) / 2.0 - 1e-12)
+    return np.where(ok, lo, np.nan), np.where(ok, hi, np.nan), found
+
+
 def gap_for_probability(fit: Fit, gaps, x: float, p: float) -> np.ndarray:
     """The gap at which the fitted fragilities (one per gap along the last axis, gaps increasing) give
     P(pounding | x) = p, by linear interpolation of the probability in ln(gap) between the two grid gaps that
@@ -230,5 +251,6 @@ __all__ = [
     "bootstrap_multiplicities",
     "weighted_exceedance",
     "percentile_interval",
+    "bootstrap_interval",
     "gap_for_probability",
 ]

@@ -315,11 +315,20 @@ def analyse(scene: Scene, summaries: dict | None = None) -> RiskStudy:
             f"[risk] {scene.name}: {int(bad.sum())} contact-free run(s) diverged; the study needs finite runs"
         )
     demand = A.demand_table(free, n_pairs, facts["ddc_rho"])
+    _check_gap_units(r, float(demand.required_gap_m.max()))
     gaps = np.asarray(r.gaps_m) if r.gaps_m else A.default_gaps(demand)
     gaps = np.sort(gaps)
     prob = A.probability_table(demand, gaps, e.scaling, r.confidence)
     data = A.FragilityData(demand, e.scaling)
     mult, boot = A.bootstrap(data, gaps, r.bootstrap, r.bootstrap_seed)
+    if boot is None:
+        from pounding_sweep.warn import warn
+
+        warn(
+            "no_bootstrap",
+            "[risk] bootstrap = 0: the fragilities, the lognormal required gaps and the annual rates come without "
+            "intervals (a fitted value without its uncertainty is half an answer); 1000 resamples is the default",
+        )
     frag = A.fragility_table(data, gaps, boot, r.confidence)
     fit = data.fit(gaps)
     if r.intensities_g:
@@ -344,8 +353,30 @@ def analyse(scene: Scene, summaries: dict | None = None) -> RiskStudy:
         from pounding_sweep.risk.hazard import annual_rate, read_hazard
 
         hz = read_hazard(r.hazard)
-        annual = A.annual_rate_table(hz, fit, boot, gaps, r.confidence, annual_rate)
+        levels = sorted(set(demand.intensity_g.astype(float)))
+        annual = A.annual_rate_table(hz, fit, boot, gaps, r.confidence, annual_rate, levels)
     return RiskStudy(scene, folder, facts, demand, prob, frag, req, rules, cons, annual, dict(summaries or {}), boot)
+
+
+#: gaps all beyond this many times the largest required gap of any run: metres written for millimetres, likely
+GAP_UNITS_FACTOR = 10.0
+
+
+def _check_gap_units(r, largest_m: float) -> None:
+    """A warning where every gap of [risk] gaps_m (or contact_gaps_m) lies beyond GAP_UNITS_FACTOR times the largest
+    gap any run requires: no run comes near them (every probability 0, every contact run free), as when
+    millimetres are written in a key in metres."""
+    from pounding_sweep.warn import warn
+
+    for key in ("gaps_m", "contact_gaps_m"):
+        values = getattr(r, key)
+        if values and min(values) > GAP_UNITS_FACTOR * largest_m:
+            warn(
+                "gap_units",
+                f"[risk] {key} = {list(values)}: every gap is more than {GAP_UNITS_FACTOR:g} times the largest gap any "
+                f"run requires ({largest_m:.4g} m at the highest level): no motion comes near them; the key is in "
+                f"metres (for {values[0]:g} mm write {values[0] / 1e3:g})",
+            )
 
 
 def risk_study(

@@ -79,6 +79,8 @@ def validate_risk(scene) -> None:
     for p in r.targets:
         if not 0 < p < 1:
             raise ConfigError(f"[risk] targets = {shown(list(r.targets))}: probabilities lie in (0, 1) (found {p!r})")
+    if len(set(r.targets)) != len(r.targets):
+        raise ConfigError(f"[risk] targets = {shown(list(r.targets))}: repeated values")
     if not 0.5 <= r.confidence < 1:
         raise ConfigError(f"[risk] confidence = {r.confidence!r}: expected a level in [0.5, 1), e.g. 0.95")
     if not 0 <= r.bootstrap <= MAX_BOOTSTRAP:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from pathlib import Path
 
 import numpy as np
 
@@ -286,6 +287,7 @@ def check_scene(prep) -> None:
             f" (for the other laws, {', '.join(others)}, r matters)" if others else ""
         )
         warn("r_ignored", f"[sweep] r: {who}" + ("" if others else "; drop the r axis, or use hertzdamp or jankowski"))
+    _check_records(prep)
     x, exp = scene.experiment, prep.experiment
     if exp is None:
         return
@@ -315,6 +317,38 @@ def check_scene(prep) -> None:
                 f"(the error no longer tells the runs apart); set it above the modes the accelerations should show "
                 f"(at least {f1:.3g} Hz)",
             )
+
+
+def _check_records(prep) -> None:
+    """Warnings for records that run but cannot mean what the scene says: a vertical component (its header names
+    it) shaking the horizontal model, and a record sampled more finely than the runs step (the kernel reads it at
+    the steps, with no anti-alias filter: its content above half the step rate folds onto lower frequencies)."""
+    from pounding_sweep.model.records import vertical_component
+
+    exc = prep.excitation
+    if exc.kind != "record":
+        return
+    vertical = [(r, c) for r in exc.records if (c := vertical_component(r)) is not None]
+    if vertical:
+        warn(
+            "record_vertical",
+            "; ".join(
+                f"{r.source}: a vertical component (its header: '{r.description.split(' [')[0]}')" for r, _ in vertical
+            )
+            + ": the model is a horizontal one, shaken here by vertical motion; use the record's horizontal components",
+        )
+    dt = float(exc.dt)
+    coarse = [r for r in exc.records if dt > 1.5 * r.dt_s]
+    if coarse:
+        finest = min(r.dt_s for r in coarse)
+        warn(
+            "record_step",
+            f"[integration] dt_s = {dt:g} s steps over the samples of "
+            + ", ".join(f"{Path(r.source).name} (every {r.dt_s:.4g} s)" for r in coarse)
+            + f": the runs read the record at their steps only (no anti-alias filter), so its content above "
+            f"{0.5 / dt:.4g} Hz folds onto lower frequencies and its peaks between steps are missed; use dt_s <= "
+            f"{finest:.4g} s",
+        )
 
 
 #: a best eq. 20 error above this explains less than 1 - 0.9^2 = 19 % of a channel's mean square: with a measured

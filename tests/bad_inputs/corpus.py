@@ -2751,6 +2751,15 @@ CASES += [
         argv=RISK,
     ),
     _c(
+        "risk_targets_repeated",
+        "risk",
+        "[risk] targets = [0.1, 0.1]",
+        [S, "[risk] targets = [0.1, 0.1]"],
+        "repeated values",
+        edit(STOCHASTIC, "intensities_g = [0.4]", "intensities_g = [0.4]\ntargets = [0.1, 0.1]"),
+        argv=RISK,
+    ),
+    _c(
         "risk_hazard_missing",
         "risk",
         "[risk] hazard = 'nowhere.csv' (no such file)",

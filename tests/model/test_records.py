@@ -379,3 +379,33 @@ def test_resample_real_record_on_original_grid(gm_dir):
     assert np.array_equal(out, rec.acc_m_s2)
     scaled = similitude_scale(rec, 15)
     assert np.array_equal(resample(scaled, scaled.dt_s), rec.acc_m_s2)
+
+
+def test_a_vertical_component_and_a_record_finer_than_the_step_are_named():
+    """A helper's trial ran Bolu UP and Lamont 362 V as horizontal motions, and dt_s = 0.05 s over records sampled
+    every 0.005 s (the required gap 10 % short), both without a word. The header's component names the first; a
+    step above 1.5 record samples the second (the runs read the record at their steps, with no anti-alias filter)."""
+    from types import SimpleNamespace
+
+    from pounding_sweep.model.records import GroundRecord, similitude_scale, vertical_component
+    from pounding_sweep.sweep.checks import _check_records
+    from pounding_sweep.warn import collecting
+
+    def rec(desc, dt=0.005):
+        return GroundRecord(
+            name="x", source=f"/r/{desc[-2:].strip()}.AT2", dt_s=dt, acc_m_s2=np.zeros(8), description=desc
+        )
+
+    up, east = rec("Duzce Turkey, 11/12/1999, Bolu, UP"), rec("Duzce Turkey, 11/12/1999, Lamont 362, E")
+    assert vertical_component(up) == "UP" and vertical_component(similitude_scale(up, 15)) == "UP"
+    assert vertical_component(rec("Duzce Turkey, 11/12/1999, Lamont 362, V")) == "V"
+    assert vertical_component(east) is None and vertical_component(rec("no component here")) is None
+    with collecting() as got:
+        _check_records(SimpleNamespace(excitation=SimpleNamespace(kind="record", dt=0.05, records=(up, east))))
+    kinds = {w.kind: w.message for w in got.items}
+    assert "a vertical component (its header: 'Duzce Turkey, 11/12/1999, Bolu, UP')" in kinds["record_vertical"]
+    assert "dt_s = 0.05 s steps over the samples of UP.AT2 (every 0.005 s), E.AT2" in kinds["record_step"]
+    assert "use dt_s <= 0.005 s" in kinds["record_step"]
+    with collecting() as got:
+        _check_records(SimpleNamespace(excitation=SimpleNamespace(kind="record", dt=0.005, records=(east,))))
+    assert not got.items

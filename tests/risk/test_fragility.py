@@ -13,7 +13,9 @@ import pytest
 from scipy.special import ndtr
 from scipy.stats import binom, binomtest, chi2
 
+from pounding_sweep.risk.analysis import annual_rate_table
 from pounding_sweep.risk.fragility import (
+    bootstrap_interval,
     bootstrap_multiplicities,
     fit_lognormal,
     gap_for_probability,
@@ -116,6 +118,48 @@ def test_degenerate_data_are_flagged_not_fitted():
     assert (none.status, every.status, sep.status) == ("none", "all", "separated")
     assert none.probability([0.3])[0] == 0.0 and every.probability([0.3])[0] == 1.0
     assert np.isnan(sep.probability([0.3])).all()  # not identified: no curve
+
+
+def test_a_quasi_separated_fit_reports_the_likelihood_the_data_allow():
+    """A helper's trial: 0/200, 0/200, 63/200 at 0.2, 0.4, 0.8 g. The likelihood's supremum is a step at 0.8 g
+    (beta -> 0) with P = 63/200 there: log L = 63 ln(0.315) + 137 ln(0.685) = -124.6, which the table now gives
+    (it gave 0.0, a perfect fit). A strict separation's step fits every point: 0."""
+    quasi = fit_lognormal([0.2, 0.4, 0.8], [0, 0, 63], [200, 200, 200])
+    assert quasi.status == "separated"
+    assert float(quasi.loglik) == pytest.approx(63 * math.log(63 / 200) + 137 * math.log(137 / 200), rel=1e-12)
+    assert float(quasi.loglik) == pytest.approx(-124.6, abs=0.05)
+    assert float(fit_lognormal([0.1, 0.2, 0.4], [0, 0, 5], [5, 5, 5]).loglik) == 0.0
+
+
+def test_a_bootstrap_interval_needs_its_estimate_and_enough_replicates():
+    """The percentile interval of the replicates, given only with an estimate and where at most (1 - 0.95) / 2 of
+    the replicates have no value: a helper's trial found 95 % intervals built from 11.5 % and 65.6 % of them (the
+    missing ones could all lie in one tail), and intervals beside a NaN estimate."""
+    reps = np.arange(1000, dtype=float)
+    lo, hi, found = bootstrap_interval(reps, 500.0)
+    assert (lo, hi, found) == (pytest.approx(24.975), pytest.approx(974.025), 1.0)
+    assert all(np.isnan(bootstrap_interval(reps, np.nan)[:2]))
+    some = reps.copy()
+    some[:26] = np.nan  # 2.6 % missing: more than the 2.5 % a tail may lose
+    assert all(np.isnan(bootstrap_interval(some, 500.0)[:2])) and bootstrap_interval(some, 500.0)[2] == 0.974
+    some[25] = 25.0  # 2.5 % missing: given
+    assert np.isfinite(bootstrap_interval(some, 500.0)[0])
+
+
+def test_the_annual_rate_is_not_a_number_where_the_study_did_not_reach_it():
+    """No motion pounding at any level (or every one at every level) gives P = 0 (or 1) on the levels studied, and
+    the hazard integral then read 0 per year (return period inf) or the curve's own rate at its lowest row
+    (21.3 per year): numbers the data do not have. NaN, the status and a note; an identified fit is integrated."""
+    hz = Hazard(np.array([0.02, 0.1, 1.0, 3.0]), np.array([20.0, 1.0, 0.002, 1e-4]), "test")
+    gaps = np.array([0.01, 0.1, 1.0])
+    x = np.array([0.1, 0.2, 0.4, 0.8])
+    fit = fit_lognormal(np.broadcast_to(x, (3, 4)), [[10, 10, 10, 10], [1, 3, 6, 9], [0, 0, 0, 0]], np.full((3, 4), 10))
+    assert list(fit.status) == ["all", "ok", "none"]
+    t = annual_rate_table(hz, fit, None, gaps, 0.95, annual_rate, [0.1, 0.2, 0.4, 0.8])
+    assert np.isnan(t.annual_rate_per_yr[0]) and np.isnan(t.annual_rate_per_yr[2]) and t.annual_rate_per_yr[1] > 0
+    assert np.isnan(t.return_period_yr[2])
+    assert "down to the lowest (the lowest level, 0.1 g)" in t.note[0] and "up to 0.8 g" in t.note[2]
+    assert t.note[1] == "" and list(t.status) == ["all", "ok", "none"]
 
 
 def test_weighted_exceedance_is_the_bootstrap_count():

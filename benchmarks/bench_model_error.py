@@ -274,6 +274,7 @@ def run_case(name: str, scene, params, noise_m, windows, threads: int) -> list[d
                     z(w["estimate"][n]),
                     z(b0),
                     z(b1),
+                    moving=True,  # envelope_windows picks windows of motion (the strongest and a small amplitude)
                 )
             )
             for label, w in part.items()

@@ -356,6 +356,8 @@ def test_a_scene_whose_records_are_only_a_sweep_axis_is_plotted_with_its_ladder(
     """A helper's trial: `plot` of a valid result whose records are a [sweep] record axis and no [excitation]
     record stopped at the accuracy ladder ('[excitation] missing key record'), whose scene drops the sweep; the
     ladder now runs on the shown run's record (by path, or by the result's record name)."""
+    import dataclasses
+
     from pounding_sweep.accuracy import ladder_duration
     from pounding_sweep.sweep.run import run_scene
 
@@ -372,4 +374,12 @@ def test_a_scene_whose_records_are_only_a_sweep_axis_is_plotted_with_its_ladder(
     assert "error_vs_runtime" in figs and "displacement_history" in figs
     scene = plots.scene_of(out)
     assert scene.excitation.record is None
-    assert ladder_duration(scene, "RSN1605_DUZCE_DZC270") == ladder_duration(scene, recs[1]) <= 2.0
+    # the window follows the run's record, named by path or by the result's name: uncapped by the test's 2 s, DZC180
+    # (its strongest sample at 1.234 s of the 1/15 record, + 1 s) runs 2.234 s, DZC270 (0.88 s) the 2 s least
+    whole = dataclasses.replace(scene, excitation=dataclasses.replace(scene.excitation, duration_s=None))
+    assert ladder_duration(whole, "RSN1605_DUZCE_DZC270") == ladder_duration(whole, recs[1]) == 2.0
+    assert (
+        ladder_duration(whole, "RSN1605_DUZCE_DZC180")
+        == ladder_duration(whole, recs[0])
+        == pytest.approx(2.234, abs=1e-3)
+    )

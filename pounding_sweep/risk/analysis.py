@@ -191,6 +191,11 @@ def required_gap_table(
             else:
                 row.update(empirical_gap_m=math.nan, empirical_ci_low_m=math.nan, empirical_ci_high_m=math.nan)
                 row["motions"] = data.n_motions
+                notes.append(
+                    "order statistics: no stripe of motions at this intensity (a cloud keeps each motion's own)"
+                    if scaling != "intensity"
+                    else "order statistics: no stripe at this intensity (not a level of the study)"
+                )
             est = float(gap_for_probability(fit, gaps, float(x), float(p)))
             row["lognormal_gap_m"] = est
             if not math.isfinite(est):
@@ -221,10 +226,13 @@ def _why_no_gap(fit, gaps, x: float, p: float) -> str:
         return f"P = {prob[-1]:.3g} even at the largest gap studied ({1e3 * g[-1]:.4g} mm): widen [risk] gaps_m"
     if finite[0] and prob[0] <= p:
         return f"P = {prob[0]:.3g} already at the smallest gap studied ({1e3 * g[0]:.4g} mm)"
+    why = {
+        "separated": "separated: the outcomes do not overlap in intensity",
+        "flat": "flat: pounding does not grow with the intensity",
+    }
     bad = sorted(set(fit.status[~finite].astype(str)))
     return (
-        f"the fragilities around it are not identified ({', '.join(bad)}: the stripes' outcomes do not overlap in "
-        "intensity, see fragility.status)"
+        f"the fragilities around it are not identified ({'; '.join(why.get(b, b) for b in bad)}: see fragility.status)"
     )
 
 
@@ -342,7 +350,8 @@ def annual_rate_table(hazard, fit, boot_fits, gaps, confidence: float, integrate
     rate = np.where(ok, integrate(hazard, fit.probability), np.nan)
     out = pd.DataFrame({"gap_m": np.asarray(gaps, dtype=float), "annual_rate_per_yr": rate})
     if boot_fits is not None:
-        reps = integrate(hazard, boot_fits.probability)
+        # a replicate whose fit is not 'ok' gives no rate, as the estimate would not
+        reps = np.where(boot_fits.status == "ok", integrate(hazard, boot_fits.probability), np.nan)
         out["ci_low_per_yr"], out["ci_high_per_yr"], out["bootstrap_found_fraction"] = bootstrap_interval(
             reps, rate, confidence
         )

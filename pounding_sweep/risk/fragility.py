@@ -93,8 +93,9 @@ def fit_lognormal(x, k, n, weights=None) -> Fit:
     has_not = (n - k) > 0
     lo_k = np.where(has_k, lx, np.inf).min(-1)
     hi_not = np.where(has_not, lx, -np.inf).max(-1)
-    mixed = (has_k & has_not).sum(-1)
-    separated = (hi_not < lo_k) | ((hi_not == lo_k) & (mixed <= 1))
+    # (quasi-)separated: every pounding at or above every non-pounding; both at one intensity at most (ties in a
+    # cloud pooled there)
+    separated = hi_not <= lo_k
     status[(status == "ok") & separated] = "separated"
     ok = status == "ok"
     # start: least squares of the probit of the empirical fractions (clipped), or a unit slope
@@ -153,16 +154,28 @@ def fit_lognormal(x, k, n, weights=None) -> Fit:
     theta = np.where(status == "none", np.inf, np.where(status == "all", 0.0, theta))
     beta = np.where(status == "ok", beta, np.where(status == "separated", 0.0, np.nan))
     eta = np.log(x / np.where(status == "ok", theta, 1.0)[..., None]) / np.where(status == "ok", beta, 1.0)[..., None]
-    # a separated fit's supremum: the step fits every point but a mixed one, which gives its own binomial maximum
-    with np.errstate(divide="ignore", invalid="ignore"):
-        q = np.where(n > 0, k / np.where(n > 0, n, 1.0), 0.0)
-        mixed_ll = np.where((k > 0) & (k < n), k * np.log(q) + (n - k) * np.log1p(-q), 0.0).sum(-1)
+    # the supremum the data allow where no curve is fitted: a separated step fits every point but those at the one
+    # intensity where both outcomes meet (pooled: their own binomial maximum); a flat fit's is the pooled binomial
+    # of every point (a curve that does not rise); 'none' and 'all' fit every point (0)
+    at_edge = (lx == lo_k[..., None]) & (hi_not == lo_k)[..., None]
     ll = np.where(
         status == "ok",
         (k * log_ndtr(eta) + (n - k) * log_ndtr(-eta)).sum(-1),
-        np.where(status == "separated", mixed_ll, 0.0),
+        np.where(
+            status == "separated",
+            _binomial_max((k * at_edge).sum(-1), (n * at_edge).sum(-1)),
+            np.where(status == "flat", _binomial_max(ktot, ntot), 0.0),
+        ),
     )
     return Fit(theta, beta, ll, status)
+
+
+def _binomial_max(k, n) -> np.ndarray:
+    """k ln(k / n) + (n - k) ln(1 - k / n): the largest binomial log-likelihood of k of n (0 where k is 0 or n)."""
+    k, n = np.asarray(k, dtype=float), np.asarray(n, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        q = np.where(n > 0, k / np.where(n > 0, n, 1.0), 0.0)
+        return np.where((k > 0) & (k < n), k * np.log(q) + (n - k) * np.log1p(-q), 0.0)
 
 
 def bootstrap_multiplicities(n_motions: int, replicates: int, seed: int) -> np.ndarray:
@@ -212,14 +225,39 @@ def percentile_interval(values, confidence: float = 0.95, axis: int = 0) -> tupl
 
 
 def bootstrap_interval(replicates, estimate, confidence: float = 0.95) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(low, high, found): the percentile interval of the replicates (along axis 0) and the share of them that give
-    a value; NaN where the estimate is not finite or more than (1 - confidence) / 2 of the replicates give none
-    (module docstring: their values could all lie in one tail)."""
+    """(low, high, found): the percentile interval of all the replicates (along axis 0) whatever the values of
+    those that give none, and the share that give one. With a share f of them missing (their values unknown, all
+    possibly in one tail), the a = (1 - confidence) / 2 quantile of all lies at or above the (a - f) / (1 - f)
+    quantile of the others, and the 1 - a quantile at or below their (1 - a) / (1 - f) quantile: that interval
+    holds at least `confidence` of all. NaN where the estimate is not finite or f > a (module docstring)."""
     v = np.asarray(replicates, dtype=float)
     found = np.isfinite(v).mean(axis=0)
-    lo, hi = percentile_interval(v, confidence)
-    ok = np.isfinite(np.asarray(estimate, dtype=float)) & (found >= 1.0 - (1.0 - confidence) / 2.0 - 1e-12)
+    a = (1.0 - confidence) / 2.0
+    f = np.clip(1.0 - found, 0.0, a)
+    ok = np.isfinite(np.asarray(estimate, dtype=float)) & (1.0 - found <= a + 1e-12)
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns: NaN
+        lo = (
+            np.nanquantile(v, (a - f) / (1.0 - f), axis=0) if v.ndim == 1 else _column_quantiles(v, (a - f) / (1.0 - f))
+        )
+        hi = (
+            np.nanquantile(v, (1.0 - a) / (1.0 - f), axis=0)
+            if v.ndim == 1
+            else _column_quantiles(v, (1.0 - a) / (1.0 - f))
+        )
     return np.where(ok, lo, np.nan), np.where(ok, hi, np.nan), found
+
+
+def _column_quantiles(v: np.ndarray, q) -> np.ndarray:
+    """np.nanquantile of each column of v (axis 0) at its own level q (broadcast over the other axes)."""
+    q = np.broadcast_to(np.asarray(q, dtype=float), v.shape[1:])
+    out = np.empty(v.shape[1:])
+    for idx in np.ndindex(*v.shape[1:]):
+        col = v[(slice(None), *idx)]
+        out[idx] = np.nanquantile(col, q[idx]) if np.isfinite(col).any() else np.nan
+    return out
 
 
 def gap_for_probability(fit: Fit, gaps, x: float, p: float) -> np.ndarray:

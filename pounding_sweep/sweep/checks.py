@@ -343,7 +343,7 @@ def _check_records(prep) -> None:
         finest = min(r.dt_s for r in coarse)
         warn(
             "record_step",
-            f"[integration] dt_s = {dt:g} s steps over the samples of "
+            f"[integration] {'dt_max_s' if prep.scene.integration.auto else 'dt_s'} = {dt:g} s steps over the samples of "
             + ", ".join(f"{Path(r.source).name} (every {r.dt_s:.4g} s)" for r in coarse)
             + f": the runs read the record at their steps only (no anti-alias filter), so its content above "
             f"{0.5 / dt:.4g} Hz folds onto lower frequencies and its peaks between steps are missed; use dt_s <= "

@@ -242,6 +242,11 @@ def combination(exp: Experiment, cfg: ExperimentConfig, spec: ScoreSpec, raw: np
     return Combination(cfg.combine, w, noise)
 
 
+def _building(code: str) -> int:
+    """The building a channel code measures ('b1f3', 'abs_acc_b2f1' -> 1, 2)."""
+    return int(code.removeprefix("abs_acc_")[1:].split("f")[0])
+
+
 def _sensor_rates(exp: Experiment) -> dict[str, float]:
     """Channel code -> the sample rate [Hz] of the sensor that made it, where the table is an import's
     (its 'sensor_import' metadata: cli/import_.py); a sensor slower than the table was interpolated onto it."""
@@ -264,23 +269,24 @@ def sensor_warnings(exp: Experiment, cfg: ExperimentConfig, model, excitation) -
     (model/sensors/checks.py): a sample rate below twice a building's modes (aliasing), and the lowest
     acceleration channel of each building reversed or lagging against the record that drives it (its
     absolute acceleration follows the table's in the band where the two move together)."""
+    from pounding_sweep.model.sensors.assemble import slower
     from pounding_sweep.model.sensors.checks import aliasing_problems, pair_problems
 
     out = []
     fs = 1.0 / exp.dt_sample
-    seen = {int(c.removeprefix("abs_acc_")[1:].split("f")[0]) for c in exp.channels}  # buildings measured
+    seen = {_building(c) for c in exp.channels}  # buildings measured
     modes = {
         f"building {b}": list(frame.modes().frequency_Hz) for b, frame in ((1, model.b1), (2, model.b2)) if b in seen
     }
-    where = f"{Path(exp.path).name}"
     rates = _sensor_rates(exp)
-    if rates and min(rates.values()) < 0.95 * fs:  # a sensor slower than the table: its own rate is what aliases
-        slow = min(rates, key=rates.get)
-        where, fs = (
-            f"{where} column '{exp.columns[slow]}' (its sensor's own rate; the table's {fs:.6g} Hz)",
-            rates[slow],
-        )
-    out += [("aliasing", w) for w in aliasing_problems(where, fs, modes)]
+    for b, fr in modes.items():  # per building, at the rate of its slowest sensor where it is slower than the table
+        mine = {c: r for c, r in rates.items() if f"building {_building(c)}" == b and slower(r, fs)}
+        where, fs_b = f"{Path(exp.path).name}", fs
+        if mine:
+            slow = min(mine, key=mine.get)
+            where = f"{where} column '{exp.columns[slow]}' (its sensor's own rate; the table's {fs:.6g} Hz)"
+            fs_b = mine[slow]
+        out += [("aliasing", w) for w in aliasing_problems(where, fs_b, {b: fr})]
     if excitation.kind != "record" or len(excitation.records) != 1:
         return out
     rec = excitation.records[0]

@@ -50,7 +50,7 @@ WINDOWS = 4  # windows of the split (the prediction interval's t quantile grows 
 IDENTIFIED = 0.25  # a window identifies a parameter when its 95 % half-width is at most this share of the range
 
 
-def identifies(half_width, z, lo, hi, moving: bool = True) -> np.ndarray:
+def identifies(half_width, z, lo, hi, moving: bool) -> np.ndarray:
     """Per fit coordinate, whether a window's fit identifies the parameter (the rule in one place): its data
     move (RMS above misfit_factor times their noise: `moving`), its optimum z is inside the bounds (lo, hi),
     and its 95 % half-width (fit coordinates) is at most IDENTIFIED of the bounds' range."""

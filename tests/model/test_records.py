@@ -401,11 +401,16 @@ def test_a_vertical_component_and_a_record_finer_than_the_step_are_named():
     assert vertical_component(rec("Duzce Turkey, 11/12/1999, Lamont 362, V")) == "V"
     assert vertical_component(east) is None and vertical_component(rec("no component here")) is None
     with collecting() as got:
-        _check_records(SimpleNamespace(excitation=SimpleNamespace(kind="record", dt=0.05, records=(up, east))))
+        scene = SimpleNamespace(integration=SimpleNamespace(auto=False))
+        _check_records(
+            SimpleNamespace(scene=scene, excitation=SimpleNamespace(kind="record", dt=0.05, records=(up, east)))
+        )
     kinds = {w.kind: w.message for w in got.items}
     assert "a vertical component (its header: 'Duzce Turkey, 11/12/1999, Bolu, UP')" in kinds["record_vertical"]
     assert "dt_s = 0.05 s steps over the samples of UP.AT2 (every 0.005 s), E.AT2" in kinds["record_step"]
     assert "use dt_s <= 0.005 s" in kinds["record_step"]
     with collecting() as got:
-        _check_records(SimpleNamespace(excitation=SimpleNamespace(kind="record", dt=0.005, records=(east,))))
+        _check_records(
+            SimpleNamespace(scene=scene, excitation=SimpleNamespace(kind="record", dt=0.005, records=(east,)))
+        )
     assert not got.items

@@ -129,6 +129,13 @@ def test_a_quasi_separated_fit_reports_the_likelihood_the_data_allow():
     assert float(quasi.loglik) == pytest.approx(63 * math.log(63 / 200) + 137 * math.log(137 / 200), rel=1e-12)
     assert float(quasi.loglik) == pytest.approx(-124.6, abs=0.05)
     assert float(fit_lognormal([0.1, 0.2, 0.4], [0, 0, 5], [5, 5, 5]).loglik) == 0.0
+    # a cloud with two runs at the boundary intensity, one pounding: pooled there, 1 of 2 (a review's case)
+    tie = fit_lognormal([0.1, 0.2, 0.2, 0.4], [0, 1, 0, 1], [1, 1, 1, 1])
+    assert tie.status == "separated" and float(tie.loglik) == pytest.approx(2 * math.log(0.5), rel=1e-12)
+    # pounding falling with the intensity: no curve; the supremum a curve that does not rise allows is the pooled
+    # binomial, 9 of 30
+    flat = fit_lognormal([0.1, 0.2, 0.4], [5, 3, 1], [10, 10, 10])
+    assert flat.status == "flat" and float(flat.loglik) == pytest.approx(9 * math.log(0.3) + 21 * math.log(0.7))
 
 
 def test_a_bootstrap_interval_needs_its_estimate_and_enough_replicates():
@@ -142,8 +149,19 @@ def test_a_bootstrap_interval_needs_its_estimate_and_enough_replicates():
     some = reps.copy()
     some[:26] = np.nan  # 2.6 % missing: more than the 2.5 % a tail may lose
     assert all(np.isnan(bootstrap_interval(some, 500.0)[:2])) and bootstrap_interval(some, 500.0)[2] == 0.974
-    some[25] = 25.0  # 2.5 % missing: given
-    assert np.isfinite(bootstrap_interval(some, 500.0)[0])
+    # 2.5 % missing, which could all lie in either tail: the interval of all 1000 then reaches the others' ends
+    some[25] = 25.0
+    assert bootstrap_interval(some, 500.0)[:2] == (25.0, 999.0)
+    # 1 % missing: the others' (2.5 - 1) / 99 and 97.5 / 99 % quantiles, which hold 95 % of all wherever those lie
+    some = reps.copy()
+    some[:10] = np.nan
+    lo, hi, _ = bootstrap_interval(some, 500.0)
+    assert (lo, hi) == (
+        pytest.approx(np.quantile(reps[10:], 0.015 / 0.99)),
+        pytest.approx(np.quantile(reps[10:], 0.975 / 0.99)),
+    )
+    below = np.sum(reps[10:] < lo) + 10  # the missing ones all below: at most 2.5 % of the 1000 under the interval
+    assert below <= 25 and np.sum(reps[10:] > hi) + 10 <= 25
 
 
 def test_the_annual_rate_is_not_a_number_where_the_study_did_not_reach_it():

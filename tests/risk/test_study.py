@@ -289,3 +289,20 @@ def test_free_scene_is_the_ensemble_without_contact():
     assert f.contact.gap_m == 100.0 and [a.name for a in f.sweep] == ["record", "scale"]
     assert f.risk is None and f.integration.min_steps_per_contact_period == 0.0
     assert dataclasses.replace(s, sweep=(Axis("scale", (0.1,)),)).risk is not None
+
+
+def test_gaps_in_metres_beyond_every_demand_and_no_bootstrap_are_warned(tmp_path):
+    """A helper's trial: gaps_m = [20, 50] (millimetres written in a key in metres) gave probabilities of 0 and
+    'none' fits without a word; bootstrap = 0 gave fitted values without their intervals without a word."""
+    import dataclasses
+
+    from pounding_sweep.warn import collecting
+
+    scene = small(tmp_path, seeds=12, levels=(0.2, 0.4, 0.8))
+    scene = dataclasses.replace(scene, risk=dataclasses.replace(scene.risk, gaps_m=(20.0, 50.0), bootstrap=0))
+    with collecting() as got:
+        risk_study(scene, threads=2)
+    kinds = {w.kind: w.message for w in got.items}
+    assert "[risk] gaps_m = [20.0, 50.0]: every gap is more than 10 times the largest gap" in kinds["gap_units"]
+    assert "(for 20 mm write 0.02)" in kinds["gap_units"]
+    assert "[risk] bootstrap = 0" in kinds["no_bootstrap"]

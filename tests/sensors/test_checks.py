@@ -195,3 +195,29 @@ def test_at_the_sweep_the_lowest_floor_is_checked_against_the_record_and_the_rat
     assert any("(abs_acc_b1f1): reversed against the record record.csv" in m for m in msgs)
     (w,) = warned("slow.csv")
     assert "below building 1's modes: mode 2 at 21.71 Hz folds onto" in w and "building 2" not in w
+
+
+def test_the_aliasing_check_takes_a_slow_sensors_own_rate_for_its_building_only():
+    """An import's table on a 120 Hz grid with building 1's top floor from a 60 Hz sensor (its metadata says so):
+    building 1's 40 Hz mode is above that sensor's 30 Hz Nyquist frequency and named with its column; building 2,
+    measured at 120 Hz, is not (a review found the slowest rate applied to every building, and to the sign and
+    lag checks, which run on the table's own samples)."""
+    import json
+    from types import SimpleNamespace
+
+    from pounding_sweep.sweep.scoring import sensor_warnings
+
+    t = np.arange(1200) / 120.0
+    frame = SimpleNamespace(modes=lambda: SimpleNamespace(frequency_Hz=np.array([8.0, 25.0, 40.0])))
+    exp = SimpleNamespace(
+        path="table.parquet",
+        time_s=t,
+        dt_sample=1 / 120.0,
+        channels={"abs_acc_b1f3": np.zeros_like(t), "abs_acc_b2f3": np.zeros_like(t)},
+        columns={"abs_acc_b1f3": "b1f3_acc_m_s2", "abs_acc_b2f3": "b2f3_acc_m_s2"},
+        metadata={"sensor_import": json.dumps({"sensors": {"b1f3": {"rate_Hz": 60.0}, "b2f3": {"rate_Hz": 120.0}}})},
+    )
+    out = sensor_warnings(exp, None, SimpleNamespace(b1=frame, b2=frame), SimpleNamespace(kind="harmonic"))
+    (w,) = [m for k, m in out if k == "aliasing"]
+    assert "column 'b1f3_acc_m_s2' (its sensor's own rate; the table's 120 Hz): sampled at 60 Hz" in w
+    assert "building 1's modes: mode 3 at 40 Hz folds onto 20 Hz" in w

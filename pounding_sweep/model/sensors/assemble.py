@@ -3,9 +3,9 @@ column per sensor, in m/s^2, on one clock) and the table sensor's record, with a
 
 Steps, in order (docs/how-to/import-real-sensor-data.md says why each):
 1. read each file (formats.py: the device clock in s, unwrapped; SI units);
-2. the shaking axis of each sensor: gravity's axis is the one whose mean is largest in size (the reader has
-   checked that gravity reads g: formats.py); the shaking axis the horizontal one with the largest variance (or
-   the one asked for);
+2. the shaking axis of each sensor: gravity's axis is the one whose mean is largest in size, if it reads at
+   least half of g (where all three axes are exported, the reader has checked that gravity reads g: formats.py);
+   the shaking axis the horizontal one with the largest variance (or the one asked for);
 3. the clocks: a shared device clock where the sensors' clock ranges overlap (the same instant reads the same
    value on each), else each sensor aligned to the reference by band-limited cross-correlation in the band
    where the floors follow the table (signals.py); on a shared clock the lag found there is reported (it should
@@ -31,7 +31,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pounding_sweep.errors import SensorError
-from pounding_sweep.model.sensors.formats import SensorFile, read_sensor
+from pounding_sweep.model.records import G_STANDARD
+from pounding_sweep.model.sensors.formats import SensorFile, clock_gaps, read_sensor
 from pounding_sweep.model.sensors.signals import first_resonance, physical_delay_bound, relation, rigid_band
 
 #: a sensor whose clock range overlaps the reference's by this share of the shorter one shares its clock
@@ -83,11 +84,18 @@ class Imported:
         return out
 
 
+#: an axis whose mean is below this share of g is not gravity's (an export without its vertical axis)
+GRAVITY_AXIS_SHARE = 0.5
+
+
 def _axis(sf: SensorFile, choice: str) -> tuple[str, str, dict]:
-    """(shaking axis, gravity axis, per-axis statistics) of a sensor's accelerations."""
+    """(shaking axis, gravity axis ('' where no exported axis reads gravity), per-axis statistics) of a sensor's
+    accelerations."""
     acc = {c: v for c, v in sf.channels.items() if sf.kinds[c] == "acceleration"}
     stats = {c: {"mean": float(np.mean(v)), "std": float(np.std(v))} for c, v in acc.items()}
     grav = max(acc, key=lambda c: abs(stats[c]["mean"]))  # g outweighs any tilt's share and any shaking's mean
+    if abs(stats[grav]["mean"]) < GRAVITY_AXIS_SHARE * G_STANDARD:  # an export without its vertical axis
+        grav = ""
     if choice != "auto":
         col = f"Acc_{choice.upper()}"
         if col not in acc:
@@ -149,7 +157,7 @@ def import_sensors(
             "clock": sf.clock,
             "axis": col,
             "gravity_axis": grav,
-            "gravity_axis_mean_m_s2": stats[grav]["mean"],
+            "gravity_axis_mean_m_s2": stats[grav]["mean"] if grav else float("nan"),
             "axis_std_m_s2": stats[col]["std"],
             "axis_share_of_horizontal_variance": share,
             "reader_notes": list(sf.notes),
@@ -182,10 +190,7 @@ def import_sensors(
         # each floor's transmissibility peak: the top floor's is the first mode, a lower floor's may be a higher one
         # (its strongest response): the top floors' where the names say which they are, else the lowest of all
         for n in floors:
-            m = min(series[reference].size, series[n].size)
-            info[n]["transmissibility_peak_Hz"] = first_resonance(
-                series[reference][:m], series[n][:m], min(fs, sens[n].rate_Hz)
-            )
+            info[n]["transmissibility_peak_Hz"] = first_resonance(series[reference], fs, series[n], sens[n].rate_Hz)
         f1_from = min(_top_floors(floors), key=lambda n: info[n]["transmissibility_peak_Hz"])
         f1 = info[f1_from]["transmissibility_peak_Hz"]
         band = rigid_band(f1, min(durations.values()), min(sf.rate_Hz for sf in sens.values()))
@@ -263,13 +268,13 @@ def import_sensors(
         )
     warnings += _span_cut(sens, on_ref, reference, start, end)
     grid = ref.time_s[(ref.time_s >= start - 1e-9) & (ref.time_s <= end + 1e-9)]
-    if _gaps(ref.time_s).size:  # the reference's own samples are not a uniform grid: one at its median step
+    if clock_gaps(ref.time_s).size:  # the reference's own samples are not a uniform grid: one at its median step
         step = float(np.median(np.diff(ref.time_s)))
         grid = grid[0] + step * np.arange(int(np.floor((end - grid[0]) / step + 1e-9)) + 1)
     cols: dict[str, np.ndarray] = {}
     for n, sf in sens.items():
         t, x = on_ref[n], series[n]
-        if sf.rate_Hz < 0.95 * fs:
+        if slower(sf.rate_Hz, fs):
             warnings.append(
                 f"{sf.path}: sampled at {sf.rate_Hz:.4g} Hz, the grid ({reference}'s) at {fs:.4g} Hz: above "
                 f"{0.5 * sf.rate_Hz:.4g} Hz its column is interpolation, not measurement (a mode there is folded "
@@ -292,20 +297,21 @@ def import_sensors(
             info[n]["resampled"] = f"cubic spline onto the grid ({sf.rate_Hz:.6g} -> {fs:.6g} Hz" + (
                 ", low-passed at 0.4 x the grid rate first)" if sf.rate_Hz > 1.05 * fs else ")"
             )
-        gap = _gaps(t)
+        gap = clock_gaps(t)
         if gap.size:
             inside = _across_gaps(t, gap, grid)
             y[inside] = np.interp(grid[inside], t, x)  # linear between the gap's ends: no spline overshoot
             w = t[gap + 1] - t[gap]
+            within = (t[gap + 1] > grid[0]) & (t[gap] < grid[-1])  # the gaps inside the common span
             if inside.any():
-                g = int(np.argmax(np.where((t[gap + 1] > grid[0]) & (t[gap] < grid[-1]), w, -1.0)))
+                g = int(np.argmax(np.where(within, w, -1.0)))
                 warnings.append(
-                    f"{sf.path}: {int(inside.sum())} samples of {n} missing in {gap.size} gap(s) of its clock (the "
-                    f"largest {w[g]:.4g} s, at {t[gap[g]] - grid[0]:.3f}-{t[gap[g] + 1] - grid[0]:.3f} s of the "
-                    "table): linear between the gaps' ends there, which is no measurement; leave them out of a score "
-                    "([experiment] window_s)"
+                    f"{sf.path}: {int(inside.sum())} grid samples of {n} without a measurement, in {int(within.sum())} "
+                    f"gap(s) of its clock (samples missing: the largest gap {w[g]:.4g} s, at "
+                    f"{t[gap[g]] - grid[0]:.3f}-{t[gap[g] + 1] - grid[0]:.3f} s of the table): linear between the "
+                    "gaps' ends there, which is no measurement; leave them out of a score ([experiment] window_s)"
                 )
-            info[n]["missing_samples"] = int(inside.sum())
+            info[n]["grid_samples_unmeasured"] = int(inside.sum())
         cols[n] = y
     time = grid - grid[0]
     # offsets: the mean of the quiet window (stated, or the quietest QUIET_LENGTH_S of the common span)
@@ -370,10 +376,14 @@ def import_sensors(
     return Imported(time, {f"{n}_acc_m_s2": cols[n] for n in sens}, reference, info, settings, warnings)
 
 
-def _gaps(t: np.ndarray) -> np.ndarray:
-    """Indices i where samples are missing between t[i] and t[i + 1]: a step above 1.5 times the median."""
-    d = np.diff(t)
-    return np.flatnonzero(d > 1.5 * np.median(d))
+#: a sensor slower than the grid by more than this share is interpolated above its own Nyquist frequency
+SLOWER_SHARE = 0.05
+
+
+def slower(rate_Hz: float, grid_Hz: float) -> bool:
+    """Whether a sensor's rate is below the grid's (or a table's) by more than SLOWER_SHARE (the one rule: the import's
+    warning and the sweep's aliasing check)."""
+    return rate_Hz < (1.0 - SLOWER_SHARE) * grid_Hz
 
 
 def _across_gaps(t: np.ndarray, gap: np.ndarray, grid: np.ndarray) -> np.ndarray:
@@ -414,6 +424,9 @@ def _moving_std(x: np.ndarray, m: int) -> np.ndarray:
     return np.sqrt(np.maximum(s2 - s1 * s1 / m, 0.0) / (m - 1))
 
 
+#: a floor sensor's name as a scene's channels name floors: b<building>f<floor>
+FLOOR_NAME = re.compile(r"b(\d+)f(\d+)")
+
 #: the first line of every provenance note the import writes: how a folder is known to be its output
 PROVENANCE_HEAD = "# Imported by python -m pounding_sweep import"
 
@@ -422,7 +435,7 @@ def _top_floors(floors: list[str]) -> list[str]:
     """Each building's top floor sensor where every floor sensor is named b<building>f<floor> (as a scene's channels
     are), else every floor sensor: a floor's own strongest peak can be a higher mode, never a lower one, so their
     lowest is then the first mode (a spurious low peak of one sensor would win it: name the sensors)."""
-    named = {n: re.fullmatch(r"b(\d+)f(\d+)", n) for n in floors}
+    named = {n: FLOOR_NAME.fullmatch(n) for n in floors}
     if not all(named.values()):
         return floors
     top: dict[int, tuple[int, str]] = {}
@@ -431,6 +444,13 @@ def _top_floors(floors: list[str]) -> list[str]:
         if b not in top or f > top[b][0]:
             top[b] = (f, n)
     return [n for _f, n in top.values()]
+
+
+def _gravity_cell(i: dict) -> str:
+    """The provenance table's gravity cell: the axis gravity acts along and its mean, or that none reads it."""
+    if not i["gravity_axis"]:
+        return "no exported axis reads gravity"
+    return f"{i['gravity_axis']}, mean {i['gravity_axis_mean_m_s2']:.3f}"
 
 
 def _checked_lag(i: dict) -> bool:
@@ -477,9 +497,14 @@ def provenance_text(im: Imported, command: str) -> str:
         f"- reference (the shaking table): `{im.reference}`; one time grid, its samples at {s['rate_Hz']:.6g} Hz over "
         f"{s['span_on_reference_clock_s'][0]:.6f} .. {s['span_on_reference_clock_s'][1]:.6f} s of its clock, "
         f"written from t_s = 0 ({im.time_s.size} samples, {im.time_s[-1]:.3f} s)",
-        f"- {_resonance(im)}, from the spectra (each floor's transmissibility, floor / table, and its lowest "
-        f"resonance: the top floor's is the first mode); band of sign and alignment {s['band_Hz'][0]:.4g}-{s['band_Hz'][1]:.4g} Hz (below half of "
-        "the first resonance the floors follow the table)",
+        (
+            f"- {_resonance(im)}, from the spectra (each floor's transmissibility, floor / table, and its lowest "
+            f"resonance: the top floor's is the first mode); band of sign and alignment {s['band_Hz'][0]:.4g}-"
+            f"{s['band_Hz'][1]:.4g} Hz (below half of the first resonance the floors follow the table)"
+            if s["first_resonance_from"]
+            else f"- band of sign and alignment {s['band_Hz'][0]:.4g}-{s['band_Hz'][1]:.4g} Hz, given (--band): no "
+            "resonance looked for"
+        ),
         f"- quiet window {s['quiet_s'][0]:.3f}-{s['quiet_s'][1]:.3f} s ({s['quiet_window']}): its mean subtracted "
         "from each channel (the offset), its standard deviation the channel's noise",
         "",
@@ -491,8 +516,8 @@ def provenance_text(im: Imported, command: str) -> str:
         sign = "+1" if i["sign"] > 0 else "-1 (reversed)"
         corr = f" ({i['sign_correlation']:+.3f})" if "sign_correlation" in i else " (reference)"
         lines.append(
-            f"| {n} | {i['file']} | {i['device']} | {i['axis']} ({i['gravity_axis']}, mean "
-            f"{i['gravity_axis_mean_m_s2']:.3f}) | {i['alignment']} | {_seconds(i['clock_offset_s'])} | "
+            f"| {n} | {i['file']} | {i['device']} | {i['axis']} ({_gravity_cell(i)}) | {i['alignment']} | "
+            f"{_seconds(i['clock_offset_s'])} | "
             f"{_lag_cell(i)} | {sign}{corr} | {i['offset_removed_m_s2']:+.5f} | "
             f"{i['noise_m_s2']:.5f} | {i['resampled']} |"
         )

@@ -103,6 +103,12 @@ XSENS_COLUMNS = {
 }
 
 
+def clock_gaps(t: np.ndarray) -> np.ndarray:
+    """Indices i where samples are missing between t[i] and t[i + 1]: a step above 1.5 times the median step."""
+    d = np.diff(t)
+    return np.flatnonzero(d > 1.5 * np.median(d))
+
+
 #: a sensor at rest reads gravity within this share of g: its mean acceleration vector's length tells the units
 GRAVITY_SHARE = 0.2
 
@@ -204,7 +210,7 @@ def _xsens_read(p: Path, text: str) -> SensorFile:
     if np.any(step > XSENS_WRAP // 2):
         i = int(np.argmax(step > XSENS_WRAP // 2)) + 1
         raise SensorError(f"{p}, line {k + 2 + lead + i}: SampleTimeFine steps back ({raw[i - 1]} -> {raw[i]})")
-    gaps = np.flatnonzero(step > 1.5 * med)
+    gaps = clock_gaps(np.concatenate([[0], np.cumsum(step)]))
     if gaps.size:
         notes.append(
             f"{gaps.size} gap(s) in the clock (largest {step.max() * XSENS_TICK_S:.4g} s against the step "

@@ -31,27 +31,36 @@ def welch(x: np.ndarray, fs: float, seconds: float = 8.0) -> tuple[np.ndarray, n
     return scipy.signal.welch(x, fs=fs, nperseg=n, detrend="linear")
 
 
-#: a transmissibility peak counts as a resonance when it is at least this share of the highest one, and above 1
+#: a transmissibility peak counts as a resonance when it is at least this share of the highest one, above
+#: MIN_AMPLIFICATION (an amplification, not the table's own motion), and stands out by half that threshold
 PEAK_SHARE = 0.25
 MIN_AMPLIFICATION = 2.0
 
 
-def first_resonance(ground: np.ndarray, top: np.ndarray, fs: float, fmin: float = 1.0) -> float:
-    """The lowest resonance above `fmin` of sqrt(PSD_floor / PSD_ground) (Welch, no alignment needed): the lowest
-    local peak at least PEAK_SHARE of the highest and above MIN_AMPLIFICATION (else the highest). A floor's highest
-    peak can be a higher mode: on the stiff 3-story frame of ../shared (imu_shake_table) floor 1 peaks at 25 Hz
-    (29 times the table) over 14 times at its 7.75 Hz first mode, whose peak is at least 0.48 of the highest on every
-    floor of the five tests; bumps of the noise below it stay under 3. Up to 0.4 fs (the anti-alias roll-off)."""
-    f, pg = welch(ground, fs)
-    _, pt = welch(top, fs)
-    band = (f >= fmin) & (f <= 0.4 * fs)
+def first_resonance(
+    ground: np.ndarray, fs_ground: float, floor: np.ndarray, fs_floor: float, fmin: float = 1.0
+) -> float:
+    """The lowest resonance above `fmin` of sqrt(PSD_floor / PSD_ground) (Welch, each record at its own rate over
+    the span both cover, the floor's spectrum read on the table's frequencies; no alignment needed): the lowest
+    peak at least PEAK_SHARE of the highest, above MIN_AMPLIFICATION and prominent by half that threshold (else
+    the highest). A floor's highest peak can be a higher mode: on the stiff 3-story frame of ../shared
+    (imu_shake_table) floor 1 peaks at 25 Hz (29 times the table) over 14 times at its 7.75 Hz first mode, whose
+    peak is at least 0.48 of the highest on every floor of the five tests; bumps of the noise below it stay under
+    3. Up to 0.4 times the slower rate (the anti-alias roll-off)."""
+    from scipy.ndimage import uniform_filter1d
+    from scipy.signal import find_peaks
+
+    span = min(ground.size / fs_ground, floor.size / fs_floor)
+    f, pg = welch(ground[: int(span * fs_ground)], fs_ground)
+    ff, pt = welch(floor[: int(span * fs_floor)], fs_floor)
+    band = (f >= fmin) & (f <= 0.4 * min(fs_ground, fs_floor))
     tiny = np.finfo(float).tiny
-    ratio = np.sqrt(pt[band] / np.maximum(pg[band], tiny))
-    # smoothed over 3 bins: a single bin where the table's spectrum dips is no resonance
-    ratio = np.convolve(ratio, np.ones(3) / 3, "same")
-    high = float(np.max(ratio))
-    inner = np.r_[False, (ratio[1:-1] >= ratio[:-2]) & (ratio[1:-1] >= ratio[2:]), False]
-    peaks = np.flatnonzero(inner & (ratio >= max(PEAK_SHARE * high, MIN_AMPLIFICATION)))
+    ratio = np.sqrt(np.interp(f[band], ff, pt) / np.maximum(pg[band], tiny))
+    # smoothed over 3 bins (a single bin where the table's spectrum dips is no resonance), the ends by their own
+    # values: zero padding would pull the first bin down and make a false peak beside it
+    ratio = uniform_filter1d(ratio, 3, mode="nearest")
+    thr = max(PEAK_SHARE * float(np.max(ratio)), MIN_AMPLIFICATION)
+    peaks, _ = find_peaks(ratio, height=thr, prominence=0.5 * thr)
     return float(f[band][peaks[0] if peaks.size else int(np.argmax(ratio))])
 
 

@@ -118,10 +118,9 @@ def _gravity_units(p: Path, chans: dict[str, np.ndarray]) -> list[str]:
     (the shaking's mean is about zero, so it is gravity's, g, whichever way the sensor is tilted): m/s^2 as the
     format says (about 9.81), or g (about 1: converted here, with a warning); anything else is an error, since
     no factor can then be trusted. Exports without all three axes are taken as the format says."""
-    acc = [chans.get(f"Acc_{a}") for a in "XYZ"]
-    if any(v is None for v in acc):
+    if any(f"Acc_{a}" not in chans for a in "XYZ"):
         return []
-    read = float(np.linalg.norm([np.mean(v) for v in acc]))
+    read = float(np.linalg.norm([np.mean(chans[f"Acc_{a}"]) for a in "XYZ"]))
     if abs(read - G_STANDARD) <= GRAVITY_SHARE * G_STANDARD:
         return []
     if abs(read - 1.0) <= GRAVITY_SHARE:

@@ -136,6 +136,28 @@ def test_a_sensor_that_lags_on_a_shared_clock_is_named(tmp_path, truth):
     assert im.sensors["b1f3"]["lag_found_s"] == pytest.approx(0.040, abs=0.1 * DT)
 
 
+def test_a_sign_that_cannot_be_told_is_named_not_guessed(tmp_path, truth):
+    """b1f3 125 ms late on the shared clock: named as lagging, and at the shared clock's lag (within 1.5 samples) its
+    correlation with the table in the rigid band is 0.17, below the 0.5 that decides a sign: kept as recorded, and
+    a warning says so (it was kept silently)."""
+    files = _files(tmp_path, truth, shared_clock=True)
+    write_sensor(
+        Path(files["b1f3"]),
+        np.concatenate([np.zeros(150), truth.acc["b1f3"]]),
+        2_042_652_963,
+        0,
+        tilt=-0.06,
+        seed=3,
+        samples=4500,
+    )
+    im = import_sensors(files, "ground")
+    s = im.sensors["b1f3"]
+    assert s["sign"] == 1 and abs(s["sign_correlation"]) < 0.5
+    mine = [w for w in im.warnings if "b1f3" in w]
+    assert any("lags ground by +125." in w for w in mine)
+    assert any("its sign against ground cannot be told" in w and "kept as recorded" in w for w in mine)
+
+
 def test_a_format_is_added_by_registering_it(tmp_path):
     def sniff(head):
         return head.startswith("# two-column test format")

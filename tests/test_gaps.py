@@ -140,6 +140,15 @@ def test_gaps_command_writes_the_study_and_refuses_bad_options(tmp_path):
     assert "required gap per floor pair" in r.stdout
     assert {p.name for p in out.iterdir()} >= {"required_gaps.parquet", "response_ratios.parquet", "required_gaps.png"}
     assert len(pd.read_parquet(out / "required_gaps.parquet")) == 3
+    # the ratio runs' contact in full (a helper's trial read "contact {'r': 0.2}", k_s/k nowhere)
+    assert "response adjacent / separated (contact: law classic, k_s/k = 1, r = 0.2):" in r.stdout
+    import json
+
+    import pyarrow.parquet as pq
+
+    md = json.loads(pq.read_schema(out / "required_gaps.parquet").metadata[b"pounding_sweep"])
+    assert md["contact"] == {"law": "classic", "ks_ratio": 1.0, "ks_N_per_m": None, "r": 0.2}
+    assert "TBEC 2018 minimum" in md["columns"]["required_gaps"]["tbec2018_min_m"]
     bad = tmp_path / "bad"
     r = subprocess.run(
         [sys.executable, "-m", "pounding_sweep", "gaps", str(scene), "--out", str(bad), "--relative-gaps", "0,x"],
@@ -177,3 +186,19 @@ def test_a_study_whose_figure_fails_writes_nothing_and_a_rerun_replaces_its_own_
     write_study(study, s, out)
     assert (out / "required_gaps.parquet").stat().st_mtime_ns >= first
     assert sorted(p.name for p in out.iterdir()) == sorted(FILES)  # no temporaries left
+
+
+def test_a_sweep_axis_the_study_does_not_take_is_named():
+    """A helper's trial: [sweep] scale = [0.5, 1, 2] gave one row per pair, the unscaled scene's, and no word: the
+    study runs each record once at the scene's own values. Now said (and the records' axis still taken)."""
+    from pounding_sweep.scene import Axis
+    from pounding_sweep.warn import collecting
+
+    s = load_scene(SWEEPS / "paper_duzce.toml")
+    s = dataclasses.replace(
+        s, sweep=(Axis("scale", (0.5, 1.0)),), excitation=dataclasses.replace(s.excitation, duration_s=2.0)
+    )
+    with collecting() as got:
+        gap_study(s, relative_gaps=(0.0, 1.0), ks_ratio=1.0, r=0.4)
+    (w,) = [w.message for w in got.items if w.kind == "gaps_axis_ignored"]
+    assert w.startswith("[sweep] scale = [0.5, 1.0]: a gap study runs each record once at the scene's own values")

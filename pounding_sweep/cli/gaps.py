@@ -128,10 +128,15 @@ def gaps_main(argv: list[str]) -> int:
         out = Path(args.out) if args.out else Path(scene.output.path).with_name(f"{scene.name}.gaps")
         check_study_folder(out)
         from pounding_sweep.gaps import RELATIVE_GAPS, gap_study
+        from pounding_sweep.warn import collecting
 
-        study = gap_study(
-            scene, rel or RELATIVE_GAPS, args.length_scale, args.threads, ks_ratio=args.ks_ratio, r=args.r
-        )
+        def echo(w):
+            print(f"warning: {w.message}", file=sys.stderr, flush=True)
+
+        with collecting(echo=echo):
+            study = gap_study(
+                scene, rel or RELATIVE_GAPS, args.length_scale, args.threads, ks_ratio=args.ks_ratio, r=args.r
+            )
         write_study(study, scene, out)
     except (Bad, InputError) as e:
         print(f"error: {e}", file=sys.stderr)
@@ -143,7 +148,7 @@ def gaps_main(argv: list[str]) -> int:
         )
         return EXIT_BAD_INPUT
     if not args.quiet:
-        print_study(study, out)
+        print_study(study, out, scene)
     return 0
 
 
@@ -153,6 +158,7 @@ def study_files(study, scene) -> dict[str, bytes]:
     import pyarrow.parquet as pq
 
     from pounding_sweep.gaps.figures import required_gap_figure, response_ratio_figure
+    from pounding_sweep.gaps.study import COLUMN_DOCS, contact_used
 
     meta = {
         b"pounding_sweep": json.dumps(
@@ -161,7 +167,8 @@ def study_files(study, scene) -> dict[str, bytes]:
                 "scene_name": scene.name,
                 "config_hash": scene.config_hash(),
                 "length_scale": study.length_scale,
-                "contact": study.contact,
+                "contact": contact_used(scene, study.contact or {}),
+                "columns": COLUMN_DOCS,
             }
         ).encode(),
         b"scene_toml": scene.toml_text.encode(),
@@ -204,7 +211,16 @@ def write_study(study, scene, out: Path) -> None:
             tmp.unlink(missing_ok=True)
 
 
-def print_study(study, out: Path) -> None:
+def _contact_text(study, scene) -> str:
+    """The contact of the ratio runs in words: its law, stiffness and r (gaps.study.contact_used)."""
+    from pounding_sweep.gaps.study import contact_used
+
+    v = contact_used(scene, study.contact or {})
+    ks = f"k_s/k = {v['ks_ratio']:g}" if v.get("ks_ratio") is not None else f"k_s = {v['ks_N_per_m']:g} N/m"
+    return f"contact: law {v['law']}, {ks}, r = {v['r']:g}"
+
+
+def print_study(study, out: Path, scene) -> None:
     req = study.required
     lam = study.length_scale
     print(f"required gap per floor pair [mm, model scale{f'; x {lam:g} for full scale' if lam != 1 else ''}]:")
@@ -215,7 +231,7 @@ def print_study(study, out: Path) -> None:
     show.columns = ["record", "pair", "exact", "ABS", "SRSS", "DDC", "TBEC min"]
     print(show.to_string(index=False))
     r = study.ratios
-    print(f"\nresponse adjacent / separated (contact {study.contact or 'as in the scene'}):")
+    print(f"\nresponse adjacent / separated ({_contact_text(study, scene)}):")
     show = r[["record", "relative_gap", "building", "disp_ratio", "drift_ratio", "acc_ratio", "impacts"]]
     print(show.to_string(index=False, float_format=lambda x: f"{x:.3f}"))
     print(f"\nwritten: {out}")

@@ -73,6 +73,16 @@ def _point(scene: Scene, record, gaps, contact: dict) -> Scene:
     return out
 
 
+def contact_used(scene: Scene, point: dict) -> dict:
+    """The contact of the ratio runs in full: the law, the stiffness and r (the study's point over the scene's)."""
+    c = scene.contact
+    out = {"law": c.law, "ks_ratio": c.ks_ratio, "ks_N_per_m": c.ks_N_per_m, "r": c.r}
+    out.update({k: v for k, v in point.items() if v is not None})
+    if point.get("ks_ratio") is not None or point.get("ks_N_per_m") is not None:
+        out["ks_ratio"], out["ks_N_per_m"] = point.get("ks_ratio"), point.get("ks_N_per_m")
+    return out
+
+
 def contact_point(scene: Scene, ks_ratio=None, ks_N_per_m=None, r=None) -> dict:
     """The contact parameters of the ratio runs: as given, else the scene's base point, else the first
     value of its sweep axis (a scene may sweep them and set no base value)."""
@@ -190,12 +200,57 @@ def response_ratios(scene: Scene, required, relative_gaps=RELATIVE_GAPS, contact
 def gap_study(
     scene: Scene, relative_gaps=RELATIVE_GAPS, length_scale: float | None = None, threads: int = 0, **contact
 ) -> GapStudy:
-    """required_gaps and response_ratios of a scene (contact: ks_ratio, ks_N_per_m, r of the ratio runs)."""
+    """required_gaps and response_ratios of a scene (contact: ks_ratio, ks_N_per_m, r of the ratio runs). A [sweep]
+    axis other than the records and the contact's is not studied (the study runs one excitation per record): said."""
+    from pounding_sweep.warn import warn
+
+    ignored = [a for a in scene.sweep if a.name not in STUDIED_AXES]
+    if ignored:
+        warn(
+            "gaps_axis_ignored",
+            "; ".join(f"[sweep] {a.name} = {list(a.values)}" for a in ignored)
+            + ": a gap study runs each record once at the scene's own values (e.g. [excitation] scale = "
+            f"{scene.excitation.scale:g}); these axes are not studied: run the study once per value (set it in its "
+            "section), or use `python -m pounding_sweep risk` for the probability of pounding over intensity levels",
+        )
     point = contact_point(scene, **contact)
     req = required_gaps(scene, length_scale, threads)
     ratios = response_ratios(scene, req, relative_gaps, point, threads)
     lam = float(req.length_scale.iloc[0])
     return GapStudy(scene.name, lam, point, req, ratios)
+
+
+#: what the study's table columns hold (written into their metadata)
+COLUMN_DOCS = {
+    "required_gaps": {
+        "record": "the motion (record file's name, 'harmonic' or the stochastic seed)",
+        "pair": "facing floor pair j (floor j of both buildings) [-]",
+        "height_m": "the pair's height above the table [m]",
+        "exact_m": "the gap this pair needs in this run: its largest closing relative displacement u1 - u2 [m]",
+        "closing_time_s": "when it closes most [s]",
+        "peak_disp_b1_m": "building 1's peak displacement at that floor [m]",
+        "peak_disp_b2_m": "building 2's [m]",
+        "rho": "Der Kiureghian's CQC correlation of the two first modes (DDC) [-]",
+        "abs_m": "ABS rule: the sum of the two peaks [m]",
+        "srss_m": "SRSS rule: the square root of the sum of their squares [m]",
+        "ddc_m": "double-difference rule with rho [m]",
+        "tbec2018_min_m": "TBEC 2018 minimum: 30 mm up to 6 m, 10 mm per further started 3 m of the pair's full-scale "
+        "height, back to model scale [m]",
+        "length_scale": "model-to-full-scale length factor [-]",
+        "abs_over_exact": "ABS / exact (likewise srss_, ddc_) [-]",
+    },
+    "response_ratios": {
+        "relative_gap": "the run's gap over the exact required gap of the record [-]",
+        "gap_m": "the run's gap [m]",
+        "building": "building 1 or 2",
+        "disp_ratio": "top floor peak displacement, this gap / separated (likewise drift_ratio, acc_ratio) [-]",
+        "impacts": "contact phases over the pairs [-]",
+        "peak_force_N": "largest pounding force [N]",
+    },
+}
+
+#: the [sweep] axes a gap study takes: the records (one study each), the gaps (its own), the contact (the ratio runs)
+STUDIED_AXES = ("record", "gap_m", "ks_ratio", "ks_N_per_m", "r")
 
 
 def _label(scene: Scene, record) -> str:

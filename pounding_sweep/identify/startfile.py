@@ -27,6 +27,20 @@ def damping_estimate(m: Mode) -> tuple[float, tuple[float, float], str]:
     return math.nan, nan2, "none"
 
 
+def damping_reliable(m: Mode, z: float, notes) -> bool:
+    """Whether identify trusts the damping estimate z of mode m: above 0, and none of the identification's notes
+    ('<f> Hz: ...: damping unreliable', f within 2 % of the mode's frequency) calls it unreliable."""
+
+    def about(note: str) -> bool:
+        head = note.split(" Hz:", 1)[0]
+        try:
+            return abs(float(head) - m.frequency_Hz) <= 0.02 * m.frequency_Hz
+        except ValueError:
+            return False
+
+    return math.isfinite(z) and z > 0 and not any("unreliable" in n and about(n) for n in notes)
+
+
 def _num(v: float) -> str:
     return "nan" if math.isnan(v) else f"{v:.6g}"
 
@@ -37,7 +51,8 @@ def modes_toml(ident, header: str) -> str:
     lines = [
         header,
         "# identified modes, mode 1 first: frequency [Hz], damping ratio [-] with its 95 % interval and method;",
-        "# [calibrate] start_from = '<this file>' starts a fit from them (docs/tutorials/real-shake-table.md)",
+        "# [calibrate] start_from = '<this file>' starts a fit from them (docs/tutorials/real-shake-table.md);",
+        "# damping_reliable: false where identify called the damping unreliable (see its notes): a start, not a value",
     ]
     for b, r in sorted(ident.results.items()):
         if b == 0 or not r.modes:
@@ -51,5 +66,8 @@ def modes_toml(ident, header: str) -> str:
             "damping_ratios = [" + ", ".join(_num(z) for z, _, _ in est) + "]",
             "damping_ci95 = [" + ", ".join(f"[{_num(a)}, {_num(c)}]" for _, (a, c), _ in est) + "]",
             "damping_methods = [" + ", ".join(json.dumps(w) for _, _, w in est) + "]",
+            "damping_reliable = ["
+            + ", ".join("true" if damping_reliable(m, z, r.notes) else "false" for m, (z, _, _) in zip(r.modes, est))
+            + "]",
         ]
     return "\n".join(lines) + "\n"

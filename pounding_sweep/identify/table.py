@@ -164,6 +164,14 @@ def identify_table(
             f"--fmin and --fmax must satisfy 0 <= fmin < fmax <= {fs / 2:g} Hz (half the sampling rate)",
             f"fmin {fmin:g}, fmax {top:g}",
         )
+    span = float(t[-1] - t[0])
+    if not (np.isfinite(start_s) and 0 <= start_s <= span - 15 / fs):  # the least a spectrum is taken from: 16 samples
+        raise _bad(
+            src,
+            f"--start {start_s:g} s: outside the table's time, which runs {span:.4g} s from its first sample "
+            "(at least 16 samples must follow it)",
+            f"--start {start_s:g}",
+        )
     found_col = table_motion_column(df, src, time_column, table_column)
     explicit = table_column not in (None, "auto") and str(table_column).lower() != "none"
     table_col = None if (free_vibration and not explicit) else found_col

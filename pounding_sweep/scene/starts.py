@@ -3,7 +3,9 @@
 The file is TOML: one table per building, `[building1]`, holding lists mode by mode (mode 1 first):
 `frequencies_Hz`, `damping_ratios` (the estimate identify trusts most: the logarithmic decrement of free
 vibration, else the ratio fitted to the transmissibility, else the half-power bandwidth; NaN where there is
-none), `damping_ci95` ([low, high] pairs, NaN where unknown) and `damping_methods` (which estimate each is).
+none), `damping_ci95` ([low, high] pairs, NaN where unknown), `damping_methods` (which estimate each is) and
+`damping_reliable` (false where identify called the estimate unreliable: not above 0, a band not resolved, a poor
+fit; a calibration still starts there, clipped into its bounds, and says so).
 Written by the identify layer (identify/startfile.py), read here so that a scene is checked when it is loaded;
 the values become start values in sweep/calibrate.py.
 """
@@ -19,7 +21,7 @@ from pounding_sweep.scene.files import read_regular
 
 MAX_MODES_FILE_BYTES = 1 << 20  # a few hundred bytes a building; a megabyte is not identify's
 #: the keys of a building's table, in the order written
-KEYS = ("channels", "frequencies_Hz", "damping_ratios", "damping_ci95", "damping_methods")
+KEYS = ("channels", "frequencies_Hz", "damping_ratios", "damping_ci95", "damping_methods", "damping_reliable")
 
 
 @dataclass(frozen=True)
@@ -29,6 +31,7 @@ class IdentifiedModes:
     frequencies_Hz: tuple[float, ...]
     damping_ratios: tuple[float, ...]
     damping_methods: tuple[str, ...] = ()
+    damping_reliable: tuple[bool, ...] = ()  # empty: not said (a file written before the key)
 
 
 class _Unreadable(Exception):
@@ -72,7 +75,16 @@ def _modes(table: dict, where: str) -> IdentifiedModes:
     if len(zeta) != len(freq):
         raise ConfigError(f"{where} damping_ratios = {shown(list(zeta))}: one per mode ({len(freq)} frequencies)")
     methods = table.get("damping_methods", [])
-    return IdentifiedModes(tuple(freq), tuple(zeta), tuple(str(m) for m in methods))
+    reliable = table.get("damping_reliable", [])
+    if (
+        not isinstance(reliable, list)
+        or not all(isinstance(x, bool) for x in reliable)
+        or len(reliable) not in (0, len(freq))
+    ):
+        raise ConfigError(
+            f"{where} damping_reliable = {shown(reliable)}: true or false per mode ({len(freq)} frequencies)"
+        )
+    return IdentifiedModes(tuple(freq), tuple(zeta), tuple(str(m) for m in methods), tuple(reliable))
 
 
 def _numbers(v, where: str) -> list[float]:

@@ -2237,6 +2237,16 @@ CASES += [
         ("identify", "{dir}/exp.csv"),
     ),
     _c(
+        "identify_start_past_the_end",
+        "table",
+        "identify --start 200 on a 0.39 s table",
+        ["exp.csv", "--start 200"],
+        "outside the table's time",
+        None,
+        {"exp.csv": table_csv(rows=40)},
+        ("identify", "{dir}/exp.csv", "--start", "200"),
+    ),
+    _c(
         "experiment_noise_unmapped",
         "table",
         "[experiment] noise for a column that is not a channel",

@@ -50,6 +50,11 @@ def test_identify_writes_its_modes_for_a_calibration(tmp_path, capsys):
         assert f"mode {k}: {f:.4f} Hz" in printed
     raw = tomllib.loads(text)["building1"]
     assert len(raw["damping_ci95"]) == len(modes.damping_ratios) == len(raw["damping_methods"]) == 3
+    # the estimates identify calls unreliable (a helper's trial: negative damping written without a word) are
+    # marked: on Northridge mode 1's fitted damping is not above 0 (false), mode 2's is trusted (true)
+    assert modes.damping_reliable == tuple(z > 0 and r for z, r in zip(modes.damping_ratios, modes.damping_reliable))
+    assert not modes.damping_reliable[0] and modes.damping_ratios[0] < 0 and modes.damping_reliable[1]
+    assert "damping_reliable: false where identify called the damping unreliable" in text
     assert identify_main([str(TABLE), "--modes-out", str(out)]) == 0  # its own file: replaced
     mine = tmp_path / "mine.toml"
     mine.write_text("a user's notes\n")

@@ -68,6 +68,8 @@ def _check_options(args) -> list[float] | None:
     from pounding_sweep.scene.validate import check_workers
 
     rel = None
+    if args.relative_gaps is not None and not args.relative_gaps.strip():
+        raise InputError("--relative-gaps '': expected numbers separated by commas (omit the option for the default)")
     if args.relative_gaps:
         try:
             rel = [float(x) for x in split_list(args.relative_gaps)]
@@ -75,6 +77,8 @@ def _check_options(args) -> list[float] | None:
             raise InputError(f"--relative-gaps {args.relative_gaps!r}: expected numbers separated by commas") from None
         if not rel or any(not (math.isfinite(x) and x >= 0) for x in rel):
             raise InputError(f"--relative-gaps {args.relative_gaps!r}: expected finite numbers >= 0")
+        if len(set(rel)) != len(rel):
+            raise InputError(f"--relative-gaps {args.relative_gaps!r}: a value given twice")
     if args.length_scale is not None:
         _positive_finite(args.length_scale, "--length-scale")
     if args.r is not None and not 0 <= args.r <= 1:

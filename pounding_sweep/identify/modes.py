@@ -648,7 +648,7 @@ def identify(
         modes = sorted((modes[k] for k in order[:n_modes]), key=lambda m: m.frequency_Hz)
     # the notes on a peak merged into another or left out are not about a mode reported
     gone = found - {f"{m.frequency_Hz:.3f}" for m in modes}
-    notes = [n for n in notes if n.split(" Hz: ")[0] not in gone]
+    notes = [n for n in notes if n.split(" Hz: ")[0] not in gone] + single_channel_pairs(modes)
     return ModalResult(
         channels, float(fs), channels[reference], tuple(modes), sumspec, tuple(notes), method, sigma, (lo, hi)
     )
@@ -695,10 +695,24 @@ def _fitted_damping(tr: Transmissibility, reference: int, f_peak: float, zhp: fl
     return z, ci, fit.frequency_Hz
 
 
+def single_channel_pairs(modes) -> list[str]:
+    """Notes naming each pair of reported modes within MERGE_SPAN of each other where there is one channel: their
+    shapes cannot be compared, so one split peak and two modes look alike (merge_same_shapes cannot decide)."""
+    if not modes or len(modes[0].shape) >= 2:
+        return []
+    return [
+        f"{a.frequency_Hz:.3f} and {b.frequency_Hz:.3f} Hz lie within {100 * MERGE_SPAN:g} % of each other: with one "
+        "channel their shapes cannot be compared, so one mode split in two or two modes, this record cannot tell "
+        "(identify with every floor's channel)"
+        for a, b in zip(modes, modes[1:])
+        if b.frequency_Hz - a.frequency_Hz <= MERGE_SPAN * b.frequency_Hz
+    ]
+
+
 def merge_same_shapes(modes: list[Mode], notes: list[str]) -> list[Mode]:
     """Neighbouring peaks (in frequency, within MERGE_SPAN) whose shapes have a MAC of MAC_SAME or more are one mode: the more
     prominent peak is kept, the other listed in its merged_Hz, and a note says so. With one channel every shape
-    is the same: nothing is merged (a single channel cannot tell a split peak from two modes)."""
+    is the same: nothing is merged (a single channel cannot tell a split peak from two modes: single_channel_pairs)."""
     if not modes or len(modes[0].shape) < 2:
         return modes
     out = [modes[0]]

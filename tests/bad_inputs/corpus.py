@@ -2639,6 +2639,14 @@ CASES += [
         argv=("gaps", "{scene}", "--out", "{dir}/study", "--relative-gaps", "0,inf"),
     ),
     _c(
+        "gaps_relative_gap_twice",
+        "commands",
+        "gaps --relative-gaps 0,0,1 (a value twice: its row printed twice)",
+        ["--relative-gaps '0,0,1'"],
+        "a value given twice",
+        argv=("gaps", "{scene}", "--out", "{dir}/study", "--relative-gaps=0,0,1"),
+    ),
+    _c(
         "plot_a_fifo",
         "commands",
         "plot pipe (a named pipe: a reader would wait for ever)",

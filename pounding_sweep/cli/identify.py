@@ -92,12 +92,16 @@ def _print_identification(ident, forcing) -> None:
         if line.fraction >= 0.5 and line.over_noise < 10:
             what = "a line barely above its noise: a quiet table"
         used = "" if ident.input_column else " (not the input)"
-        print(
-            f"table motion '{ident.table_column}'{used} ({line.kind}, from {ident.input_kind_source}): largest line "
-            f"{line.frequency_Hz:.3f} Hz holds {100 * line.fraction:.1f} % of its acceleration power above the noise"
-            + (f", {line.over_noise:.3g} times the noise" if line.fraction >= 0.5 else "")
-            + f" ({what})"
-        )
+        head = f"table motion '{ident.table_column}'{used} ({line.kind}, from {ident.input_kind_source}): "
+        if line.fraction > 0:
+            print(
+                head + f"largest line {line.frequency_Hz:.3f} Hz holds {100 * line.fraction:.1f} % of its acceleration "
+                "power above the noise"
+                + (f", {line.over_noise:.3g} times the noise" if line.fraction >= 0.5 else "")
+                + f" ({what})"
+            )
+        else:  # no bin above the noise floor: no line to name (it printed 'nan Hz holds 0.0 %')
+            print(head + what)
     for b, r in sorted(ident.results.items()):
         head = f"building {b}" if b else "other columns"
         print(

@@ -240,7 +240,7 @@ def identify_table(
         except ValueError as e:
             raise _bad(src, f"cannot identify {', '.join(cs)}", e) from None
     for b, r in results.items():
-        if b and (note := floor_order_note(r)) is not None:
+        if b and fmin <= 0 and (note := floor_order_note(r)) is not None:  # above fmin the lowest is not mode 1
             results[b] = dataclasses.replace(r, notes=(*r.notes, note))
     return TableIdentification(src, fs, results, table_col, line, found_col, tline, kind_source, free_vibration)
 

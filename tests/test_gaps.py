@@ -147,7 +147,14 @@ def test_gaps_command_writes_the_study_and_refuses_bad_options(tmp_path):
     import pyarrow.parquet as pq
 
     md = json.loads(pq.read_schema(out / "required_gaps.parquet").metadata[b"pounding_sweep"])
-    assert md["contact"] == {"law": "classic", "ks_ratio": 1.0, "ks_N_per_m": None, "r": 0.2}
+    c = md["contact"]
+    assert (c["law"], c["ks_ratio"], c["ks_N_per_m"], c["r"]) == ("classic", 1.0, None, 0.2)
+    # the scene's own k_s/k and r axes (4 x 5 values): one point of them is run, and said
+    assert (
+        "[sweep] ks_ratio = [0.1, 1.0, 5.0, 10.0]: the study's response ratios take one contact point, ks_ratio = 1.0"
+        in r.stderr
+    )
+    assert r.stderr.count("warning:") == 2  # ks_ratio and r, nothing else
     assert "TBEC 2018 minimum" in md["columns"]["required_gaps"]["tbec2018_min_m"]
     bad = tmp_path / "bad"
     r = subprocess.run(
@@ -201,4 +208,24 @@ def test_a_sweep_axis_the_study_does_not_take_is_named():
     with collecting() as got:
         gap_study(s, relative_gaps=(0.0, 1.0), ks_ratio=1.0, r=0.4)
     (w,) = [w.message for w in got.items if w.kind == "gaps_axis_ignored"]
-    assert w.startswith("[sweep] scale = [0.5, 1.0]: a gap study runs each record once at the scene's own values")
+    assert w.startswith("[sweep] scale = [0.5, 1.0]: not studied: a gap study runs each motion once")
+
+
+def test_a_hertz_scene_with_k_h_only_and_a_stiffness_only_swept_are_studied(tmp_path, capsys):
+    """A review found `gaps` on a valid hertzdamp scene giving k_h alone writing its study and then stopping with a
+    traceback (its summary formatted a missing k_s), and a scene whose k_s/k is only a [sweep] axis refused
+    ('missing key ks_ratio') though the study takes the axis's first value for its ratio runs."""
+    from pounding_sweep.cli.gaps import gaps_main
+
+    text = (SWEEPS / "paper_duzce.toml").read_text()
+    text = text.replace('record = "records/', f'record = "{SWEEPS.as_posix()}/records/')
+    text = text.replace("[excitation]\n", "[excitation]\nduration_s = 2.0\n")
+    hertz = text.replace("ks_ratio = 1.0\n", 'law = "hertzdamp"\nkh_N_per_m1_5 = 1e6\n')
+    hertz = hertz.split("[sweep]")[0] + "[output]" + hertz.split("[output]")[1]
+    (tmp_path / "hertz.toml").write_text(hertz)
+    assert gaps_main([str(tmp_path / "hertz.toml"), "--out", str(tmp_path / "h"), "--relative-gaps", "0,1"]) == 0
+    assert "(contact: law hertzdamp, k_h = 1e+06 N/m^1.5, r = 0.2):" in capsys.readouterr().out
+    swept = text.replace("ks_ratio = 1.0\n", "")  # k_s/k only on the [sweep] axis
+    (tmp_path / "swept.toml").write_text(swept)
+    assert gaps_main([str(tmp_path / "swept.toml"), "--out", str(tmp_path / "s"), "--relative-gaps", "0,1"]) == 0
+    assert "(contact: law classic, k_s/k = 0.1, r = 0.2):" in capsys.readouterr().out

@@ -68,8 +68,11 @@ def _check_options(args) -> list[float] | None:
     from pounding_sweep.scene.validate import check_workers
 
     rel = None
-    if args.relative_gaps is not None and not args.relative_gaps.strip():
-        raise InputError("--relative-gaps '': expected numbers separated by commas (omit the option for the default)")
+    if args.relative_gaps is not None and not split_list(args.relative_gaps):
+        raise InputError(
+            f"--relative-gaps {args.relative_gaps!r}: expected numbers separated by commas (omit the option for the "
+            "default)"
+        )
     if args.relative_gaps:
         try:
             rel = [float(x) for x in split_list(args.relative_gaps)]
@@ -77,8 +80,9 @@ def _check_options(args) -> list[float] | None:
             raise InputError(f"--relative-gaps {args.relative_gaps!r}: expected numbers separated by commas") from None
         if not rel or any(not (math.isfinite(x) and x >= 0) for x in rel):
             raise InputError(f"--relative-gaps {args.relative_gaps!r}: expected finite numbers >= 0")
-        if len(set(rel)) != len(rel):
-            raise InputError(f"--relative-gaps {args.relative_gaps!r}: a value given twice")
+        twice = sorted({x for x in rel if rel.count(x) > 1})
+        if twice:
+            raise InputError(f"--relative-gaps {args.relative_gaps!r}: {twice[0]:g} given twice")
     if args.length_scale is not None:
         _positive_finite(args.length_scale, "--length-scale")
     if args.r is not None and not 0 <= args.r <= 1:
@@ -152,7 +156,7 @@ def gaps_main(argv: list[str]) -> int:
         )
         return EXIT_BAD_INPUT
     if not args.quiet:
-        print_study(study, out, scene)
+        print_study(study, out)
     return 0
 
 
@@ -162,7 +166,7 @@ def study_files(study, scene) -> dict[str, bytes]:
     import pyarrow.parquet as pq
 
     from pounding_sweep.gaps.figures import required_gap_figure, response_ratio_figure
-    from pounding_sweep.gaps.study import COLUMN_DOCS, contact_used
+    from pounding_sweep.gaps.study import COLUMN_DOCS
 
     meta = {
         b"pounding_sweep": json.dumps(
@@ -171,7 +175,7 @@ def study_files(study, scene) -> dict[str, bytes]:
                 "scene_name": scene.name,
                 "config_hash": scene.config_hash(),
                 "length_scale": study.length_scale,
-                "contact": contact_used(scene, study.contact or {}),
+                "contact": study.contact,
                 "columns": COLUMN_DOCS,
             }
         ).encode(),
@@ -215,16 +219,23 @@ def write_study(study, scene, out: Path) -> None:
             tmp.unlink(missing_ok=True)
 
 
-def _contact_text(study, scene) -> str:
-    """The contact of the ratio runs in words: its law, stiffness and r (gaps.study.contact_used)."""
-    from pounding_sweep.gaps.study import contact_used
+def _contact_text(study) -> str:
+    """The contact of the ratio runs in words: its law and its stiffness and r, whichever form the law takes."""
+    c = study.contact
+    parts = [f"law {c['law']}"]
+    for key, label in (
+        ("ks_ratio", "k_s/k = {:g}"),
+        ("ks_N_per_m", "k_s = {:g} N/m"),
+        ("kh_N_per_m1_5", "k_h = {:g} N/m^1.5"),
+    ):
+        if c.get(key) is not None:
+            parts.append(label.format(c[key]))
+    if c.get("r") is not None:
+        parts.append(f"r = {c['r']:g}")
+    return "contact: " + ", ".join(parts)
 
-    v = contact_used(scene, study.contact or {})
-    ks = f"k_s/k = {v['ks_ratio']:g}" if v.get("ks_ratio") is not None else f"k_s = {v['ks_N_per_m']:g} N/m"
-    return f"contact: law {v['law']}, {ks}, r = {v['r']:g}"
 
-
-def print_study(study, out: Path, scene) -> None:
+def print_study(study, out: Path) -> None:
     req = study.required
     lam = study.length_scale
     print(f"required gap per floor pair [mm, model scale{f'; x {lam:g} for full scale' if lam != 1 else ''}]:")
@@ -235,7 +246,7 @@ def print_study(study, out: Path, scene) -> None:
     show.columns = ["record", "pair", "exact", "ABS", "SRSS", "DDC", "TBEC min"]
     print(show.to_string(index=False))
     r = study.ratios
-    print(f"\nresponse adjacent / separated ({_contact_text(study, scene)}):")
+    print(f"\nresponse adjacent / separated ({_contact_text(study)}):")
     show = r[["record", "relative_gap", "building", "disp_ratio", "drift_ratio", "acc_ratio", "impacts"]]
     print(show.to_string(index=False, float_format=lambda x: f"{x:.3f}"))
     print(f"\nwritten: {out}")

@@ -31,6 +31,7 @@ from pounding_sweep.gaps.rules import (
 from pounding_sweep.model.coupled import CoupledModel
 from pounding_sweep.scene import Axis, Scene, validate
 from pounding_sweep.scene.axes import setting_ks
+from pounding_sweep.scene.parameters import CONTACT, names
 from pounding_sweep.sweep.prepare import prepare
 
 #: the gap of the runs "without contact": no building drifts 100 m (the divergence guard stops at 1 km)
@@ -74,13 +75,9 @@ def _point(scene: Scene, record, gaps, contact: dict) -> Scene:
 
 
 def contact_used(scene: Scene, point: dict) -> dict:
-    """The contact of the ratio runs in full: the law, the stiffness and r (the study's point over the scene's)."""
-    c = scene.contact
-    out = {"law": c.law, "ks_ratio": c.ks_ratio, "ks_N_per_m": c.ks_N_per_m, "r": c.r}
-    out.update({k: v for k, v in point.items() if v is not None})
-    if point.get("ks_ratio") is not None or point.get("ks_N_per_m") is not None:
-        out["ks_ratio"], out["ks_N_per_m"] = point.get("ks_ratio"), point.get("ks_N_per_m")
-    return out
+    """The contact of the ratio runs in full (the scene's [contact] with the study's point applied, as _point
+    applies it): the law and every setting of it."""
+    return dataclasses.asdict(dataclasses.replace(scene.contact, **point))
 
 
 def contact_point(scene: Scene, ks_ratio=None, ks_N_per_m=None, r=None) -> dict:
@@ -112,7 +109,7 @@ def _metrics(scene: Scene, threads: int) -> dict:
     return out
 
 
-def required_gaps(scene: Scene, length_scale: float | None = None, threads: int = 0):
+def required_gaps(scene: Scene, length_scale: float | None = None, threads: int = 0, contact: dict | None = None):
     """One row per record and floor pair: the exact required gap against ABS, SRSS, DDC and TBEC 2018's
     minimum, at model scale [m] and, with a length scale, at full scale."""
     import pandas as pd
@@ -126,7 +123,9 @@ def required_gaps(scene: Scene, length_scale: float | None = None, threads: int 
     heights = floor_heights_m(h * model.b1.n_floors if len(h or ()) == 1 else h) if h else None
     rows = []
     for rec in _records(scene):
-        m = _metrics(_point(scene, rec, (SEPARATED_GAP_M,), {}), threads)
+        # the separated run: any contact makes none at this gap, but the scene must be whole (contact: the study's
+        # point, where [contact] leaves a setting to a sweep axis)
+        m = _metrics(_point(scene, rec, (SEPARATED_GAP_M,), contact or {}), threads)
         for j in range(1, model.n_pairs + 1):
             closing = SEPARATED_GAP_M - m[f"closest_approach_f{j}_m"][0]  # the largest u1 - u2
             u1, u2 = m[f"peak_disp_b1f{j}_m"][0], m[f"peak_disp_b2f{j}_m"][0]
@@ -202,22 +201,43 @@ def gap_study(
 ) -> GapStudy:
     """required_gaps and response_ratios of a scene (contact: ks_ratio, ks_N_per_m, r of the ratio runs). A [sweep]
     axis other than the records and the contact's is not studied (the study runs one excitation per record): said."""
+    from pounding_sweep.errors import shown
     from pounding_sweep.warn import warn
 
     ignored = [a for a in scene.sweep if a.name not in STUDIED_AXES]
     if ignored:
         warn(
             "gaps_axis_ignored",
-            "; ".join(f"[sweep] {a.name} = {list(a.values)}" for a in ignored)
-            + ": a gap study runs each record once at the scene's own values (e.g. [excitation] scale = "
-            f"{scene.excitation.scale:g}); these axes are not studied: run the study once per value (set it in its "
-            "section), or use `python -m pounding_sweep risk` for the probability of pounding over intensity levels",
+            "; ".join(f"[sweep] {a.name} = {shown(list(a.values))}" for a in ignored)
+            + ": not studied: a gap study runs each motion once, at the scene's own value of these; run it once per "
+            "value (set in its section), or `python -m pounding_sweep risk` for the probability of pounding over "
+            "intensity levels or motions",
         )
     point = contact_point(scene, **contact)
-    req = required_gaps(scene, length_scale, threads)
+    _say_contact_axes(scene, point, contact)
+    req = required_gaps(scene, length_scale, threads, point)
     ratios = response_ratios(scene, req, relative_gaps, point, threads)
     lam = float(req.length_scale.iloc[0])
-    return GapStudy(scene.name, lam, point, req, ratios)
+    return GapStudy(scene.name, lam, contact_used(scene, point), req, ratios)
+
+
+def _say_contact_axes(scene: Scene, point: dict, given: dict) -> None:
+    """A warning for each contact axis of several values that no option chose: the ratio runs take one point."""
+    from pounding_sweep.errors import shown
+    from pounding_sweep.warn import warn
+
+    used = contact_used(scene, point)
+    chosen = {k for k, v in given.items() if v is not None}
+    if chosen & {"ks_ratio", "ks_N_per_m"}:
+        chosen |= {"ks_ratio", "ks_N_per_m"}
+    for a in scene.sweep:
+        if a.name in CONTACT_AXES and a.name != "gap_m" and len(a.values) > 1 and a.name not in chosen:
+            hint = f" (give --{a.name.replace('_', '-')} for another)" if a.name in ("ks_ratio", "r") else ""
+            warn(
+                "gaps_contact_point",
+                f"[sweep] {a.name} = {shown(list(a.values))}: the study's response ratios take one contact point, "
+                f"{a.name} = {used.get(a.name)!r}{hint}",
+            )
 
 
 #: what the study's table columns hold (written into their metadata)
@@ -249,8 +269,10 @@ COLUMN_DOCS = {
     },
 }
 
-#: the [sweep] axes a gap study takes: the records (one study each), the gaps (its own), the contact (the ratio runs)
-STUDIED_AXES = ("record", "gap_m", "ks_ratio", "ks_N_per_m", "r")
+#: the [sweep] axes a gap study takes: the records (one study each), the gaps (its own), the contact's (the ratio runs
+#: take one point of them: _say_contact_axes)
+CONTACT_AXES = tuple(names(CONTACT))
+STUDIED_AXES = ("record", "gap_m", *CONTACT_AXES)
 
 
 def _label(scene: Scene, record) -> str:

@@ -27,18 +27,27 @@ def damping_estimate(m: Mode) -> tuple[float, tuple[float, float], str]:
     return math.nan, nan2, "none"
 
 
-def damping_reliable(m: Mode, z: float, notes) -> bool:
-    """Whether identify trusts the damping estimate z of mode m: above 0, and none of the identification's notes
-    ('<f> Hz: ...: damping unreliable', f within 2 % of the mode's frequency) calls it unreliable."""
+#: the words identify's notes use for each damping estimate (identify/modes.py)
+NOTE_WORDS = {
+    "logarithmic decrement": "logarithmic decrement",
+    "fitted to the transmissibility": "fitted damping",
+    "half-power bandwidth": "half-power",
+}
 
-    def about(note: str) -> bool:
-        head = note.split(" Hz:", 1)[0]
-        try:
-            return abs(float(head) - m.frequency_Hz) <= 0.02 * m.frequency_Hz
-        except ValueError:
-            return False
 
-    return math.isfinite(z) and z > 0 and not any("unreliable" in n and about(n) for n in notes)
+def damping_reliable(m: Mode, z: float, ci: tuple[float, float], method: str, notes) -> bool:
+    """Whether identify trusts the damping estimate z (by `method`, 95 % interval ci) of mode m: above 0, its
+    interval (where known) above 0, and none of the identification's notes on that mode and that estimate (a
+    note starts with the mode's frequency to 3 decimals, as identify writes it) calls it unreliable."""
+    head = f"{m.frequency_Hz:.3f} Hz:"
+    word = NOTE_WORDS.get(method, method)
+    mine = [n for n in notes if n.startswith(head) and word in n]
+    return (
+        math.isfinite(z)
+        and z > 0
+        and not (math.isfinite(ci[0]) and ci[0] <= 0)
+        and not any("unreliable" in n for n in mine)
+    )
 
 
 def _num(v: float) -> str:
@@ -52,7 +61,8 @@ def modes_toml(ident, header: str) -> str:
         header,
         "# identified modes, mode 1 first: frequency [Hz], damping ratio [-] with its 95 % interval and method;",
         "# [calibrate] start_from = '<this file>' starts a fit from them (docs/tutorials/real-shake-table.md);",
-        "# damping_reliable: false where identify called the damping unreliable (see its notes): a start, not a value",
+        "# damping_reliable: false where identify does not trust the damping (not above 0, its interval reaching 0,",
+        "# or its notes call that estimate unreliable): a calibration starting there says so",
     ]
     for b, r in sorted(ident.results.items()):
         if b == 0 or not r.modes:
@@ -67,7 +77,9 @@ def modes_toml(ident, header: str) -> str:
             "damping_ci95 = [" + ", ".join(f"[{_num(a)}, {_num(c)}]" for _, (a, c), _ in est) + "]",
             "damping_methods = [" + ", ".join(json.dumps(w) for _, _, w in est) + "]",
             "damping_reliable = ["
-            + ", ".join("true" if damping_reliable(m, z, r.notes) else "false" for m, (z, _, _) in zip(r.modes, est))
+            + ", ".join(
+                "true" if damping_reliable(m, z, ci, w, r.notes) else "false" for m, (z, ci, w) in zip(r.modes, est)
+            )
             + "]",
         ]
     return "\n".join(lines) + "\n"

@@ -164,12 +164,14 @@ def identify_table(
             f"--fmin and --fmax must satisfy 0 <= fmin < fmax <= {fs / 2:g} Hz (half the sampling rate)",
             f"fmin {fmin:g}, fmax {top:g}",
         )
-    span = float(t[-1] - t[0])
-    if not (np.isfinite(start_s) and 0 <= start_s <= span - 15 / fs):  # the least a spectrum is taken from: 16 samples
+    # identify() takes the samples at its times n / fs >= start_s (modes.identify): at least 16 must be left
+    after = np.arange(t.size) / fs >= start_s
+    kept = int(after.sum()) if np.isfinite(start_s) else 0
+    if not (np.isfinite(start_s) and start_s >= 0 and kept >= 16):
         raise _bad(
             src,
-            f"--start {start_s:g} s: outside the table's time, which runs {span:.4g} s from its first sample "
-            "(at least 16 samples must follow it)",
+            f"--start {start_s:g} s leaves {max(kept, 0)} samples of the table ({t.size} samples, "
+            f"{(t.size - 1) / fs:.4g} s): at least 16 needed",
             f"--start {start_s:g}",
         )
     found_col = table_motion_column(df, src, time_column, table_column)
@@ -207,7 +209,7 @@ def identify_table(
             )
         kind, kind_source = input_kind(found_col, input_kind_given, metadata)
         try:
-            tline = input_line(motion[t - t[0] >= start_s], fs, kind)
+            tline = input_line(motion[after], fs, kind)  # the samples identify takes
         except ValueError as e:
             raise _bad(src, f"cannot analyse the table's motion '{found_col}'", e) from None
         if table_col is not None:

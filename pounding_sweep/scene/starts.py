@@ -4,8 +4,8 @@ The file is TOML: one table per building, `[building1]`, holding lists mode by m
 `frequencies_Hz`, `damping_ratios` (the estimate identify trusts most: the logarithmic decrement of free
 vibration, else the ratio fitted to the transmissibility, else the half-power bandwidth; NaN where there is
 none), `damping_ci95` ([low, high] pairs, NaN where unknown), `damping_methods` (which estimate each is) and
-`damping_reliable` (false where identify called the estimate unreliable: not above 0, a band not resolved, a poor
-fit; a calibration still starts there, clipped into its bounds, and says so).
+`damping_reliable` (false where identify does not trust the estimate: not above 0, its interval reaching 0, a band
+not resolved, a poor fit; a calibration still starts there, clipped into its bounds, and warns).
 Written by the identify layer (identify/startfile.py), read here so that a scene is checked when it is loaded;
 the values become start values in sweep/calibrate.py.
 """

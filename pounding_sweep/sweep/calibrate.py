@@ -483,7 +483,23 @@ def identified_starts(scene: Scene, names: list[str]) -> dict[str, float]:
             out[n] = structure_value(scene, n) * c
         zeta = {f"modal_damping_ratio_b{b}_m{j}": z for j, z in enumerate(m.damping_ratios, 1)}
         zeta[f"damping_ratio_b{b}"] = m.damping_ratios[0]
-        out |= {n: z for n, z in zeta.items() if n in names and math.isfinite(z)}
+        used = {n: z for n, z in zeta.items() if n in names and math.isfinite(z)}
+        out |= used
+        doubtful = [
+            n
+            for n in used
+            if m.damping_reliable
+            and not m.damping_reliable[0 if n.startswith("damping_ratio_") else int(n.split("_m")[-1]) - 1]
+        ]
+        if doubtful:
+            from pounding_sweep.warn import warn
+
+            warn(
+                "start_unreliable",
+                f"[calibrate] start_from: {', '.join(f'{n} = {used[n]:.4g}' for n in doubtful)} start from damping "
+                "identify does not trust (damping_reliable = false in the modes file; clipped into the bounds): "
+                "a start, not a value",
+            )
     bounds = scene.calibrate.parameters
     return {n: float(min(max(v, bounds[n][0]), bounds[n][1])) for n, v in out.items()}
 

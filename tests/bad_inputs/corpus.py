@@ -2241,7 +2241,7 @@ CASES += [
         "table",
         "identify --start 200 on a 0.39 s table",
         ["exp.csv", "--start 200"],
-        "outside the table's time",
+        "leaves 0 samples of the table",
         None,
         {"exp.csv": table_csv(rows=40)},
         ("identify", "{dir}/exp.csv", "--start", "200"),
@@ -2643,7 +2643,7 @@ CASES += [
         "commands",
         "gaps --relative-gaps 0,0,1 (a value twice: its row printed twice)",
         ["--relative-gaps '0,0,1'"],
-        "a value given twice",
+        "0 given twice",
         argv=("gaps", "{scene}", "--out", "{dir}/study", "--relative-gaps=0,0,1"),
     ),
     _c(

@@ -52,9 +52,11 @@ def test_identify_writes_its_modes_for_a_calibration(tmp_path, capsys):
     assert len(raw["damping_ci95"]) == len(modes.damping_ratios) == len(raw["damping_methods"]) == 3
     # the estimates identify calls unreliable (a helper's trial: negative damping written without a word) are
     # marked: on Northridge mode 1's fitted damping is not above 0 (false), mode 2's is trusted (true)
-    assert modes.damping_reliable == tuple(z > 0 and r for z, r in zip(modes.damping_ratios, modes.damping_reliable))
+    assert len(modes.damping_reliable) == 3 and all(
+        z > 0 for z, r in zip(modes.damping_ratios, modes.damping_reliable) if r
+    )
     assert not modes.damping_reliable[0] and modes.damping_ratios[0] < 0 and modes.damping_reliable[1]
-    assert "damping_reliable: false where identify called the damping unreliable" in text
+    assert "damping_reliable: false where identify does not trust the damping" in text
     assert identify_main([str(TABLE), "--modes-out", str(out)]) == 0  # its own file: replaced
     mine = tmp_path / "mine.toml"
     mine.write_text("a user's notes\n")
@@ -62,9 +64,9 @@ def test_identify_writes_its_modes_for_a_calibration(tmp_path, capsys):
     assert mine.read_text() == "a user's notes\n" and "never replaces" in capsys.readouterr().err
 
 
-def _modes_file(path, f1: float, zeta) -> str:
+def _modes_file(path, f1: float, zeta, reliable: str = "") -> str:
     z = ", ".join("nan" if math.isnan(v) else repr(v) for v in zeta)
-    path.write_text(f"[building1]\nfrequencies_Hz = [{f1!r}, 30.0, 45.0]\ndamping_ratios = [{z}]\n")
+    path.write_text(f"[building1]\nfrequencies_Hz = [{f1!r}, 30.0, 45.0]\ndamping_ratios = [{z}]\n{reliable}")
     return str(path)
 
 
@@ -84,6 +86,22 @@ def test_the_start_puts_the_first_mode_at_the_identified_one(tmp_path):
     scales = tuple(start[f"story_stiffness_scale_b1_s{k}"] for k in (1, 2, 3))
     moved = dataclasses.replace(s, building1=dataclasses.replace(s.building1, story_stiffness_scales=scales))
     assert float(CoupledModel.from_scene(moved).b1.modes().frequency_Hz[0]) == pytest.approx(1.1 * f1, rel=1e-12)
+    # a file written before damping_reliable reads as it did (no flags); one that flags mode 1's start warns
+    assert read_modes(path)[1].damping_reliable == ()
+    flagged = _modes_file(
+        tmp_path / "f.toml", 1.1 * f1, [-0.002, 0.007, math.nan], "damping_reliable = [false, true, true]\n"
+    )
+    with collecting() as got:
+        identified_starts(
+            dataclasses.replace(s, calibrate=dataclasses.replace(cal, start_from=flagged)), list(cal.parameters)
+        )
+    (w,) = [w.message for w in got.items if w.kind == "start_unreliable"]
+    assert w.startswith(
+        "[calibrate] start_from: modal_damping_ratio_b1_m1 = -0.002 start from damping identify does not trust"
+    )
+    bad = _modes_file(tmp_path / "b.toml", 1.1 * f1, [0.01, 0.007, 0.01], "damping_reliable = [1, 0, 1]\n")
+    with pytest.raises(ConfigError, match="damping_reliable = \\[1, 0, 1\\]: true or false per mode"):
+        read_modes(bad)
     uniform = dataclasses.replace(cal, parameters={"stiffness_scale_b1": [0.5, 2.0]})
     s2 = dataclasses.replace(s, building1=dataclasses.replace(s.building1, stiffness_scale=1.05), calibrate=uniform)
     assert identified_starts(s2, ["stiffness_scale_b1"])["stiffness_scale_b1"] == pytest.approx(1.21, rel=1e-12)

@@ -118,18 +118,16 @@ def test_unsynchronised_clocks_are_aligned_by_cross_correlation(tmp_path, truth)
     assert np.percentile(np.abs(x - ref), 99) <= bound
 
 
-def test_a_sensor_that_lags_on_a_shared_clock_is_named(tmp_path, truth):
+def _late_top_floor(tmp_path, truth, fine: int) -> dict:
+    """The four exports on a shared clock, b1f3's samples `fine` fine-grid samples (of 1/1200 s) late."""
     files = _files(tmp_path, truth, shared_clock=True)
-    # b1f3's file: samples 5 fine-grid samples (4.2 ms) ... no: 48 fine samples = 40 ms late, same clock ticks
-    write_sensor(
-        Path(files["b1f3"]),
-        np.concatenate([np.zeros(48), truth.acc["b1f3"]]),
-        2_042_652_963,
-        0,
-        tilt=-0.06,
-        seed=3,
-        samples=4500,
-    )
+    late = np.concatenate([np.zeros(fine), truth.acc["b1f3"]])
+    write_sensor(Path(files["b1f3"]), late, 2_042_652_963, 0, tilt=-0.06, seed=3, samples=4500)
+    return files
+
+
+def test_a_sensor_that_lags_on_a_shared_clock_is_named(tmp_path, truth):
+    files = _late_top_floor(tmp_path, truth, 48)  # 40 ms late, the same clock ticks
     im = import_sensors(files, "ground")
     (w,) = [w for w in im.warnings if "b1f3" in w]
     assert "lags ground by +40." in w and "--clock xcorr" in w
@@ -140,17 +138,7 @@ def test_a_sign_that_cannot_be_told_is_named_not_guessed(tmp_path, truth):
     """b1f3 125 ms late on the shared clock: named as lagging, and at the shared clock's lag (within 1.5 samples) its
     correlation with the table in the rigid band is 0.17, below the 0.5 that decides a sign: kept as recorded, and
     a warning says so (it was kept silently)."""
-    files = _files(tmp_path, truth, shared_clock=True)
-    write_sensor(
-        Path(files["b1f3"]),
-        np.concatenate([np.zeros(150), truth.acc["b1f3"]]),
-        2_042_652_963,
-        0,
-        tilt=-0.06,
-        seed=3,
-        samples=4500,
-    )
-    im = import_sensors(files, "ground")
+    im = import_sensors(_late_top_floor(tmp_path, truth, 150), "ground")
     s = im.sensors["b1f3"]
     assert s["sign"] == 1 and abs(s["sign_correlation"]) < 0.5
     mine = [w for w in im.warnings if "b1f3" in w]

@@ -6,11 +6,17 @@ import contextlib
 import os
 import signal
 import stat
+import sys
 import threading
 from collections.abc import Callable
 from pathlib import Path
 
 EXIT_BAD_INPUT = 2
+
+
+def print_warning(w) -> None:
+    """A collected warning (pounding_sweep.warn) as the commands print it: one `warning:` line on stderr, now."""
+    print(f"warning: {w.message}", file=sys.stderr, flush=True)
 
 
 def split_list(s: str) -> list[str]:

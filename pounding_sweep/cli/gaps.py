@@ -20,7 +20,7 @@ import os
 import sys
 from pathlib import Path
 
-from pounding_sweep.cli.common import EXIT_BAD_INPUT, Bad, hidden_temporary, split_list
+from pounding_sweep.cli.common import EXIT_BAD_INPUT, Bad, hidden_temporary, print_warning, split_list
 
 #: the files a study writes into its folder, the one that marks the folder as a study's first
 FILES = (
@@ -138,10 +138,7 @@ def gaps_main(argv: list[str]) -> int:
         from pounding_sweep.gaps import RELATIVE_GAPS, gap_study
         from pounding_sweep.warn import collecting
 
-        def echo(w):
-            print(f"warning: {w.message}", file=sys.stderr, flush=True)
-
-        with collecting(echo=echo):
+        with collecting(echo=print_warning):
             study = gap_study(
                 scene, rel or RELATIVE_GAPS, args.length_scale, args.threads, ks_ratio=args.ks_ratio, r=args.r
             )

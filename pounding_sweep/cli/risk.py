@@ -15,7 +15,7 @@ import dataclasses
 import sys
 from pathlib import Path
 
-from pounding_sweep.cli.common import EXIT_BAD_INPUT
+from pounding_sweep.cli.common import EXIT_BAD_INPUT, print_warning
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -57,7 +57,7 @@ def risk_main(argv: list[str]) -> int:
 
         def echo(w):
             if w.kind != "no_contact":  # the contact-free runs make no contact: that is their point
-                print(f"warning: {w.message}", file=sys.stderr, flush=True)
+                print_warning(w)
 
         with collecting(echo=echo):
             study = risk_study(scene, args.threads, None, progress, args.overwrite, args.yes)

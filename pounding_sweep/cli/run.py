@@ -13,7 +13,7 @@ import signal
 import sys
 import threading
 
-from pounding_sweep.cli.common import EXIT_BAD_INPUT, interruptible
+from pounding_sweep.cli.common import EXIT_BAD_INPUT, interruptible, print_warning
 from pounding_sweep.errors import InputError
 from pounding_sweep.progress import Progress
 from pounding_sweep.scene import describe, load_scene
@@ -186,10 +186,6 @@ class SweepProgress(Progress):
             print(message, file=sys.stderr, flush=True)
 
 
-def _print_warning(w) -> None:
-    print(f"warning: {w.message}", file=sys.stderr, flush=True)
-
-
 def check_execution_options(args) -> None:
     """--threads, --workers and --dask-address, checked before anything is read (shared by the subcommands)."""
     if args.threads is not None:
@@ -251,7 +247,7 @@ def _sweep_main(argv: list[str]) -> int:
             )  # Numba and pyarrow: after the scene is read, so bad input fails fast
 
             scene = _with_execution(scene, args)
-            with collecting(echo=_print_warning):  # printed as they happen, before the long part of a run
+            with collecting(echo=print_warning):  # printed as they happen, before the long part of a run
                 summary = run_scene(
                     scene,
                     out_path=args.out,

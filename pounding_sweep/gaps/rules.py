@@ -54,6 +54,10 @@ def combined_gap(u1, u2, rule: str, rho=0.0):
     return float(out) if out.ndim == 0 else out
 
 
+#: TBEC 2018's least gap in words (tbec2018_minimum_gap_m), as the tables' column notes give it
+TBEC2018_RULE = "30 mm up to 6 m, 10 mm per further started 3 m"
+
+
 def tbec2018_minimum_gap_m(height_m):
     """TBEC 2018's least gap at a level `height_m` above the ground [m], full scale: 30 mm up to 6 m,
     plus 10 mm for each further started 3 m."""

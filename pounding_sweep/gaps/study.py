@@ -22,6 +22,7 @@ from pounding_sweep.engine import layout as L
 from pounding_sweep.errors import ConfigError
 from pounding_sweep.gaps.rules import (
     RULES,
+    TBEC2018_RULE,
     combined_gap,
     cqc_correlation,
     floor_heights_m,
@@ -254,8 +255,7 @@ COLUMN_DOCS = {
         "abs_m": "ABS rule: the sum of the two peaks [m]",
         "srss_m": "SRSS rule: the square root of the sum of their squares [m]",
         "ddc_m": "double-difference rule with rho [m]",
-        "tbec2018_min_m": "TBEC 2018 minimum: 30 mm up to 6 m, 10 mm per further started 3 m of the pair's full-scale "
-        "height, back to model scale [m]",
+        "tbec2018_min_m": f"TBEC 2018 minimum: {TBEC2018_RULE} of the pair's full-scale height, back to model scale [m]",
         "length_scale": "model-to-full-scale length factor [-]",
         "abs_over_exact": "ABS / exact (likewise srss_, ddc_) [-]",
     },
@@ -271,8 +271,8 @@ COLUMN_DOCS = {
 
 #: the [sweep] axes a gap study takes: the records (one study each), the gaps (its own), the contact's (the ratio runs
 #: take one point of them: _say_contact_axes)
-CONTACT_AXES = tuple(names(CONTACT))
-STUDIED_AXES = ("record", "gap_m", *CONTACT_AXES)
+CONTACT_AXES = tuple(names(CONTACT))  # gap_m among them
+STUDIED_AXES = ("record", *CONTACT_AXES)
 
 
 def _label(scene: Scene, record) -> str:

@@ -166,7 +166,7 @@ def identify_table(
         )
     # identify() takes the samples at its times n / fs >= start_s (modes.identify): at least 16 must be left
     after = np.arange(t.size) / fs >= start_s
-    kept = int(after.sum()) if np.isfinite(start_s) else 0
+    kept = int(after.sum())
     if not (np.isfinite(start_s) and start_s >= 0 and kept >= 16):
         raise _bad(
             src,

@@ -226,14 +226,18 @@ def _why_no_gap(fit, gaps, x: float, p: float) -> str:
         return f"P = {prob[-1]:.3g} even at the largest gap studied ({1e3 * g[-1]:.4g} mm): widen [risk] gaps_m"
     if finite[0] and prob[0] <= p:
         return f"P = {prob[0]:.3g} already at the smallest gap studied ({1e3 * g[0]:.4g} mm)"
-    why = {
-        "separated": "separated: the outcomes do not overlap in intensity",
-        "flat": "flat: pounding does not grow with the intensity",
-    }
     bad = sorted(set(fit.status[~finite].astype(str)))
     return (
-        f"the fragilities around it are not identified ({'; '.join(why.get(b, b) for b in bad)}: see fragility.status)"
+        "the fragilities around it are not identified "
+        f"({'; '.join(f'{b}: {NOT_IDENTIFIED.get(b, b)}' for b in bad)}: see fragility.status)"
     )
+
+
+#: why a fit with that status has no fragility curve (the notes of the required-gap and annual-rate tables)
+NOT_IDENTIFIED = {
+    "separated": "the outcomes do not overlap in intensity",
+    "flat": "pounding does not grow with the intensity",
+}
 
 
 def rule_gaps(stripe: pd.DataFrame, n_pairs: int, rho: float, top_height_full_m: float | None, length_scale: float):
@@ -365,9 +369,7 @@ def annual_rate_table(hazard, fit, boot_fits, gaps, confidence: float, integrate
         "(add higher levels)",
         "all": f"every motion pounds at every level studied, down to the lowest{lo}: the rate lies at intensities "
         "the study did not reach (add lower levels)",
-        "separated": "the fragility is not identified (its stripes' outcomes do not overlap in intensity): no curve "
-        "to integrate",
-        "flat": "pounding does not grow with the intensity here: no fragility curve to integrate",
+        **{st: f"the fragility is not identified ({w}): no curve to integrate" for st, w in NOT_IDENTIFIED.items()},
     }
     out["note"] = [why.get(st, st) for st in out.status]
     return out

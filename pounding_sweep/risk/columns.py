@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pounding_sweep.gaps.rules import TBEC2018_RULE
+
 _GROUP = {
     "scale": "the runs' [sweep] scale: the intensity level [g] (scaling = 'intensity') or the factor on the motions",
     "intensity_g": "the group's intensity [g]: its level, or the median of its motions' intensities (a cloud)",
@@ -67,7 +69,7 @@ COLUMN_DOCS = {
     "code_rules": {
         "intensity_g": "intensity [g]",
         "rule": "ABS, SRSS, DDC (from the median peak displacements of the motions at this intensity) or "
-        "TBEC2018_min (30 mm up to 6 m, 10 mm per further started 3 m, at the top facing floor)",
+        f"TBEC2018_min ({TBEC2018_RULE}, at the top facing floor)",
         "gap_m": "the gap the rule asks for [m]",
         "motions": "motions [-]",
         "pounding": "motions that pound at that gap [-]",

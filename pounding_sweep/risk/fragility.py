@@ -235,23 +235,13 @@ def bootstrap_interval(replicates, estimate, confidence: float = 0.95) -> tuple[
     a = (1.0 - confidence) / 2.0
     f = np.clip(1.0 - found, 0.0, a)
     ok = np.isfinite(np.asarray(estimate, dtype=float)) & (1.0 - found <= a + 1e-12)
-    import warnings
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns: NaN
-        lo = (
-            np.nanquantile(v, (a - f) / (1.0 - f), axis=0) if v.ndim == 1 else _column_quantiles(v, (a - f) / (1.0 - f))
-        )
-        hi = (
-            np.nanquantile(v, (1.0 - a) / (1.0 - f), axis=0)
-            if v.ndim == 1
-            else _column_quantiles(v, (1.0 - a) / (1.0 - f))
-        )
+    lo, hi = _column_quantiles(v, (a - f) / (1.0 - f)), _column_quantiles(v, (1.0 - a) / (1.0 - f))
     return np.where(ok, lo, np.nan), np.where(ok, hi, np.nan), found
 
 
 def _column_quantiles(v: np.ndarray, q) -> np.ndarray:
-    """np.nanquantile of each column of v (axis 0) at its own level q (broadcast over the other axes)."""
+    """np.nanquantile of each column of v (axis 0) at its own level q (broadcast over the other axes; a 1-D v is
+    one column); NaN for a column without a finite value."""
     q = np.broadcast_to(np.asarray(q, dtype=float), v.shape[1:])
     out = np.empty(v.shape[1:])
     for idx in np.ndindex(*v.shape[1:]):

@@ -481,16 +481,11 @@ def identified_starts(scene: Scene, names: list[str]) -> dict[str, float]:
         ]
         for n in scales:
             out[n] = structure_value(scene, n) * c
-        zeta = {f"modal_damping_ratio_b{b}_m{j}": z for j, z in enumerate(m.damping_ratios, 1)}
-        zeta[f"damping_ratio_b{b}"] = m.damping_ratios[0]
-        used = {n: z for n, z in zeta.items() if n in names and math.isfinite(z)}
+        mode = {f"modal_damping_ratio_b{b}_m{j + 1}": j for j in range(len(m.damping_ratios))}  # name -> its mode
+        mode[f"damping_ratio_b{b}"] = 0
+        used = {n: m.damping_ratios[j] for n, j in mode.items() if n in names and math.isfinite(m.damping_ratios[j])}
         out |= used
-        doubtful = [
-            n
-            for n in used
-            if m.damping_reliable
-            and not m.damping_reliable[0 if n.startswith("damping_ratio_") else int(n.split("_m")[-1]) - 1]
-        ]
+        doubtful = [n for n in used if m.damping_reliable and not m.damping_reliable[mode[n]]]
         if doubtful:
             from pounding_sweep.warn import warn
 

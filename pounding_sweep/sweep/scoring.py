@@ -256,9 +256,11 @@ def _sensor_rates(exp: Experiment) -> dict[str, float]:
         sensors = json.loads(exp.metadata.get("sensor_import", "{}")).get("sensors", {})
     except (TypeError, ValueError, AttributeError):
         return {}
+    if not isinstance(sensors, dict):
+        return {}
     out = {}
     for code, column in exp.columns.items():
-        rate = sensors.get(column.removesuffix("_acc_m_s2"), {}).get("rate_Hz") if isinstance(sensors, dict) else None
+        rate = sensors.get(column.removesuffix("_acc_m_s2"), {}).get("rate_Hz")
         if isinstance(rate, (int, float)) and rate > 0:
             out[code] = float(rate)
     return out

@@ -21,14 +21,13 @@ from __future__ import annotations
 import numpy as np
 
 from pounding_sweep.model.records import G_STANDARD
+from pounding_sweep.model.sensors.formats import GRAVITY_SHARE
 from pounding_sweep.model.sensors.signals import physical_delay_bound, proportional_band
 
 #: a mean acceleration above this many noise standard deviations is an offset
 OFFSET_SIGMAS = 3.0
 #: |mean| T above this many times the motion's peak velocity: an offset (twice the peak bounds any motion's)
 DRIFT_FACTOR = 4.0
-#: a mean within this share of g of +/- g is gravity
-GRAVITY_SHARE = 0.2
 #: correlations weaker than this in the rigid band decide nothing
 MIN_CORRELATION = 0.5
 #: the fewest samples a sign or lag check uses

@@ -209,13 +209,13 @@ def _xsens_read(p: Path, text: str) -> SensorFile:
     if np.any(step > XSENS_WRAP // 2):
         i = int(np.argmax(step > XSENS_WRAP // 2)) + 1
         raise SensorError(f"{p}, line {k + 2 + lead + i}: SampleTimeFine steps back ({raw[i - 1]} -> {raw[i]})")
-    gaps = clock_gaps(np.concatenate([[0], np.cumsum(step)]))
+    t = (raw[0] + np.concatenate([[0], np.cumsum(step)])) * XSENS_TICK_S
+    gaps = clock_gaps(t)
     if gaps.size:
         notes.append(
             f"{gaps.size} gap(s) in the clock (largest {step.max() * XSENS_TICK_S:.4g} s against the step "
             f"{med * XSENS_TICK_S:.4g} s): samples missing there"
         )
-    t = (raw[0] + np.concatenate([[0], np.cumsum(step)])) * XSENS_TICK_S
     chans, units, kinds = {}, {}, {}
     for c in measured:
         unit, kind, factor = XSENS_COLUMNS[c]

@@ -112,3 +112,21 @@ def test_the_checker_finds_what_is_missing():
         "pounding_sweep.kernel_lanes.lanes_ineligible_reason",
         "kernel_lanes.lanes_ineligible_reason",
     }
+
+
+TOML_BLOCK = re.compile(r"```toml\n(.*?)```", re.S)
+
+
+@pytest.mark.parametrize("page", DOCS, ids=lambda p: str(p.relative_to(REPO)))
+def test_every_toml_block_is_toml_a_reader_can_paste(page):
+    """A ```toml block is pasted into a scene as it stands, so each must parse (an inline table written over
+    several lines, as TOML 1.0 forbids, failed a helper's per-story scene)."""
+    import tomllib
+
+    text = page.read_text(encoding="utf-8")
+    for m in TOML_BLOCK.finditer(text):
+        line = text[: m.start()].count("\n") + 1
+        try:
+            tomllib.loads(m.group(1))
+        except tomllib.TOMLDecodeError as e:
+            pytest.fail(f"{page.relative_to(REPO)}:{line}: the toml block does not parse: {e}")

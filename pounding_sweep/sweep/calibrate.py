@@ -73,7 +73,7 @@ from pounding_sweep.model.experiment import noise_floor
 from pounding_sweep.scene import Scene
 from pounding_sweep.scene.channels import channel_unit, shown_value
 from pounding_sweep.scene.parameters import channel_offset, default_profiled, is_log, member
-from pounding_sweep.sweep.fitchecks import reversed_channel_warnings
+from pounding_sweep.sweep.fitchecks import at_noise_level, reversed_channel_warnings
 from pounding_sweep.sweep.fitstats import NO_CONTACT, fit_label, gauss_newton, interval, local_fit, misfit_of, on_bound
 from pounding_sweep.sweep.globalsearch import Search, find_basin
 from pounding_sweep.sweep.lawcompare import compare_laws as compare_on_one_basis
@@ -232,6 +232,9 @@ class Problem:
                     )
             sig.append(s0 * (gain if a else 1.0))
         self.target = Target(codes, acc, times, values, np.asarray(sig), sos)
+        if sigma is None:  # the scene's own noise floors (a window's problem keeps the whole record's: said there)
+            for message in at_noise_level(self.target, exp.columns, self.noise_source, self.window):
+                warn("calibration", message)
         #: (fit coordinate, channel index) of each per-channel clock offset fitted
         self.channel_offsets = _channel_slots(self.names, codes)
         if window is None and self.channel_offsets:

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from pounding_sweep.model.records import G_STANDARD, MAX_ACC_M_S2
+from pounding_sweep.scene.channels import shown_value
 from pounding_sweep.scene.parameters import CONTACT, STIFFNESS, names
 from pounding_sweep.warn import warn
 
@@ -210,6 +211,7 @@ def check_calibration(prep) -> None:
             score_spec(exp, moved, prep.excitation.max_duration_s, prep.dt)
         except ExperimentError as e:
             raise ConfigError(f"{key}: at {offset:g} s, {e}") from None
+    _check_coverage(prep)
     if cal is None:
         return
     from pounding_sweep.sweep.calibrate import check_channel_offsets
@@ -255,6 +257,34 @@ def check_calibration(prep) -> None:
             f"{cal.global_points * per_run / 2**30:.3g} GiB of histories ({per_run / 2**20:.3g} MiB a run), more than "
             f"{GLOBAL_STAGE_BYTES / 2**30:g} GiB: use at most {most:,} points"
         )
+
+
+def _check_coverage(prep) -> None:
+    """Warn when the record ends before the experiment's motion does: with neither [experiment] window_s nor
+    [excitation] duration_s the scored window is the record's span, so a record cut short (a helper's 3 s of a 70 s
+    table) silently scored only the quiet lead-in. Named where a measured channel varies more (standard deviation)
+    after the record's end than within it."""
+    x, exp = prep.scene.experiment, prep.experiment
+    if x.window_s is not None or prep.scene.excitation.duration_s is not None:  # a window or span the user chose
+        return
+    end = prep.excitation.max_duration_s
+    t_sim = exp.time_s - x.time_offset_s
+    inside, after = (t_sim >= 0) & (t_sim <= end), t_sim > end
+    if inside.sum() < 2 or after.sum() < 2:
+        return
+    for code in prep.score_codes:
+        y = exp.channels[code]
+        s_in, s_after = float(np.std(y[inside])), float(np.std(y[after]))
+        if s_after > s_in:
+            warn(
+                "record_short",
+                f"[experiment] {exp.columns.get(code, code)} ({code}) varies more after the simulation ends at "
+                f"{end:.6g} s (standard deviation {shown_value(code, s_after)} over the {t_sim[-1] - end:.6g} s "
+                f"after) than within it ({shown_value(code, s_in)}): only its samples in 0-{end:.6g} s (simulation "
+                "time) are scored; is the record cut short, or time_offset_s wrong? ([experiment] window_s scores a "
+                "part on purpose)",
+            )
+            return
 
 
 #: the largest |displacement| [m] and |absolute acceleration| [m/s^2] a measured channel may hold: the kernel calls

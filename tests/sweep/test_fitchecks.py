@@ -50,3 +50,60 @@ def test_the_calibration_names_the_reversed_channel(tmp_path):
     for n in ("ks_ratio", "r"):  # negated back, the fit is the clean one's: within 4 of its standard errors
         shown = float(re.search(rf"\b{n} ([0-9.eE+-]+)", named).group(1))  # (plus the 4 digits shown)
         assert abs(shown - clean.estimate[n]) < 4 * clean.std_error[n] + 5e-4 * abs(shown), (n, shown)
+
+
+def test_a_channel_at_its_noise_floor_is_named_with_what_set_the_floor():
+    """A noise typed in the wrong unit (a helper's 9.6 'm/s^2' against 2.5 m/s^2 of shaking), a noise window inside
+    the shaking, or a scored window without the shaking: the data stand at most SIGNAL_MIN_NOISE_FLOORS above the
+    floor they are weighed by, so a fit to them is a fit to noise, and the message says which source to doubt."""
+    from pounding_sweep.sweep.calibrate import Target
+    from pounding_sweep.sweep.fitchecks import SIGNAL_MIN_NOISE_FLOORS, at_noise_level
+
+    x = np.sin(2 * np.pi * 8.0 * T)  # standard deviation 1/sqrt(2) (whole periods)
+    spread = float(np.std(x))
+    codes = ["abs_acc_b1f1", "abs_acc_b1f2", "abs_acc_b1f3"]
+    sigma = np.array([spread / (SIGNAL_MIN_NOISE_FLOORS * 1.01), spread / (SIGNAL_MIN_NOISE_FLOORS * 0.99), 13.0])
+    target = Target(codes, [True] * 3, [T] * 3, [x] * 3, sigma, np.zeros((0, 6)))
+    sources = {
+        "abs_acc_b1f1": "[experiment] noise.f1 = 0.1 m/s2",
+        "abs_acc_b1f2": "standard deviation in noise_window_s = [10, 11] s",
+        "abs_acc_b1f3": "[experiment] noise.f3 = 13.0 m/s2",
+    }
+    out = at_noise_level(target, {c: c[-4:] for c in codes}, sources, (0.0, 2.0))
+    assert len(out) == 2  # b1f1 stands just above the threshold, b1f2 just below it
+    assert "(abs_acc_b1f2)" in out[0] and "noise_window_s at rest" in out[0]
+    assert "(abs_acc_b1f3)" in out[1] and "column's own unit" in out[1] and "0.054 times the noise floor" in out[1]
+
+
+def test_a_record_that_ends_before_the_shaking_is_named(tmp_path):
+    """The real Northridge table scored against its record's first 3 s: without window_s or duration_s the scored
+    window is the record's span, the quiet lead-in; the floors move far more after it, and the check says so
+    (before any run). The whole record, or the same cut with window_s given, is not warned."""
+    import tomllib
+
+    from conftest import SWEEPS
+
+    from pounding_sweep.scene import scene_from_dict
+    from pounding_sweep.sweep.checks import check_calibration
+    from pounding_sweep.sweep.prepare import prepare
+    from pounding_sweep.warn import collecting
+
+    scene_path = SWEEPS / "real_northridge.toml"
+    rec = pd.read_csv(SWEEPS / "experiments/imu_northridge/record.csv", comment="#")
+    rec[rec.iloc[:, 0] <= 3.0].to_csv(tmp_path / "first_3s.csv", index=False)
+
+    def kinds(edit):
+        raw = tomllib.loads(scene_path.read_text())
+        edit(raw)
+        prep = prepare(scene_from_dict(raw, base_dir=SWEEPS, source=str(scene_path)))
+        with collecting() as seen:
+            check_calibration(prep)
+        return [w for w in seen.items if w.kind == "record_short"]
+
+    def cut(raw):
+        raw["excitation"]["record"] = str(tmp_path / "first_3s.csv")
+
+    short = kinds(cut)
+    assert len(short) == 1 and "only its samples in 0-2.999 s (simulation time) are scored" in short[0].message
+    assert kinds(lambda raw: None) == []
+    assert kinds(lambda raw: (cut(raw), raw["experiment"].update(window_s=[0.0, 2.9]))) == []

@@ -23,7 +23,7 @@ import pytest
 from conftest import SWEEPS
 from engine.test_scalar import kernel_run, scene_6hz
 from scipy.integrate import solve_ivp
-from tolerances import SAFETY, count_bounds, history_tolerance, mca_twins, rel_to_peak
+from tolerances import SAFETY, count_bounds, history_tolerance, mca_twins, rel_to_peak, value_tolerance
 
 from pounding_sweep.codes import CONTACT_LAWS
 from pounding_sweep.engine.nonlinear import NEWTON_RTOL, law_force
@@ -93,7 +93,9 @@ def test_law_kernel_histories_equal_the_discrete_reference(law, scheme, ks_ratio
 @pytest.mark.parametrize("law, scheme, ks_ratio, r, gap_m", CASES, ids=[_id(c) for c in CASES])
 def test_law_kernel_counts_and_flags_equal_the_discrete_reference(law, scheme, ks_ratio, r, gap_m):
     """Impacts per pair equal the reference's (or lie between it and a twin's at a near-tie); the grazing flag
-    (a Hertz-damp impact whose approach speed was floored) is raised by both or neither; every solve converged."""
+    (a Hertz-damp impact whose approach speed was floored) is raised by both or neither; every solve converged; the
+    peak force equals the reference's within the histories' tolerance (its twins' spread, which reached 1.4e-6 of it
+    on Jankowski's event scheme at gap 0, where a fixed 1e-6 would fail on another BLAS; and the Newton residue)."""
     k, ref, twins = law_pair(law, scheme, ks_ratio, r, gap_m)
     m = k["metrics"]
     p = ref["F"].shape[1]
@@ -105,7 +107,18 @@ def test_law_kernel_counts_and_flags_equal_the_discrete_reference(law, scheme, k
     if law == "hertzdamp" and gap_m == 0.0:  # gap 0: the buildings start in contact at rest (v0 = 0)
         assert ref["grazing"]
     peak = max(m[f"peak_force_f{j + 1}_N"] for j in range(p))
-    assert peak == pytest.approx(float(ref["peak_force"].max()), rel=1e-6)
+    base = float(ref["peak_force"].max())
+    n_steps, n_dof = ref["u"].shape[0] - 1, ref["u"].shape[1]
+    contact_steps = int(ref["active"].any(axis=1).sum())
+    tol = max(
+        float(
+            value_tolerance(
+                np.array(base), [np.array(float(tw["peak_force"].max())) for tw in twins], base, n_steps, n_dof
+            )
+        ),
+        SAFETY * contact_steps * NEWTON_RTOL * base,
+    )
+    assert abs(peak - base) <= tol, (peak, base, tol)
 
 
 # ----------------------------------------------------------------------------- the continuous-time truth

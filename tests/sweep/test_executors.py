@@ -24,8 +24,6 @@ from pounding_sweep.scene import Axis, load_scene
 from pounding_sweep.sweep.results import MANIFEST, part_files, read_manifest
 from pounding_sweep.sweep.run import run_scene
 
-pytest.importorskip("dask.distributed")
-
 
 def small_scene(runs_per_part: int = 4, duration_s: float = 0.5):
     """The 6 Hz scene over 24 grid points (k_s/k x r x gap), short runs, small parts."""
@@ -45,6 +43,8 @@ def table(path) -> pd.DataFrame:
 
 @pytest.fixture(scope="module")
 def dask_executor():
+    """A two-worker local cluster; without the 'dask' extra only the tests that take it skip (not the file's others)."""
+    pytest.importorskip("dask.distributed", reason="dask.distributed is not installed (the 'dask' extra)")
     from pounding_sweep.sweep.executors import DaskExecutor
 
     ex = DaskExecutor(workers=2)

@@ -314,9 +314,14 @@ def test_a_full_disk_is_one_line_naming_the_part(tmp_path, monkeypatch):
 
 # ------------------------------------------------------------------ item 4: Dask, signals
 
-dask_distributed = pytest.importorskip("dask.distributed")
+try:  # the 'dask' extra (in the test extra): without it only these tests skip, not the module's others above
+    import dask.distributed as dask_distributed
+except ImportError:
+    dask_distributed = None
+needs_dask = pytest.mark.skipif(dask_distributed is None, reason="dask.distributed is not installed (the 'dask' extra)")
 
 
+@needs_dask
 def test_a_lost_dask_node_completes_the_sweep_exactly_once(tmp_path):
     """Both workers of a LocalCluster are killed after the first part (a node lost: every copy of the
     prepared scene with them). The scene is scattered again to the restarted workers, the unfinished
@@ -353,6 +358,7 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
+@needs_dask
 def test_a_lost_scheduler_is_one_line_and_the_sweep_resumes(tmp_path):
     bindir = Path(sys.executable).parent
     if not (bindir / "dask").exists():
@@ -393,6 +399,7 @@ def test_a_lost_scheduler_is_one_line_and_the_sweep_resumes(tmp_path):
     finish_and_compare(scene_file, out, tmp_path)  # resumed here, on the local executor
 
 
+@needs_dask
 def test_an_unreachable_scheduler_is_reported_at_once(tmp_path):
     """Nothing listens: the connection is refused, said by the probe before Dask's own connect (which would retry
     for its whole timeout, then report a timeout)."""
@@ -408,6 +415,7 @@ def test_an_unreachable_scheduler_is_reported_at_once(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+@needs_dask
 def test_a_server_that_is_not_a_dask_scheduler_is_one_line(tmp_path):
     """Something listens at the address, accepts, and says nothing (a web server waiting for its request): Dask's
     client would wait for its handshake for ever. The probe waits timeout_s for the server's first bytes, then
@@ -439,6 +447,7 @@ def test_a_server_that_is_not_a_dask_scheduler_is_one_line(tmp_path):
             conn.close()
 
 
+@needs_dask
 @pytest.mark.parametrize(
     "sig, code, line", [(signal.SIGINT, 130, "interrupted:"), (signal.SIGTERM, 143, "terminated (SIGTERM):")]
 )

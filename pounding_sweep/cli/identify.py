@@ -81,23 +81,26 @@ def _identify_parser() -> argparse.ArgumentParser:
 def _print_identification(ident, forcing) -> None:
     import numpy as np
 
-    from pounding_sweep.identify.safety import forcing_notes
+    from pounding_sweep.identify.safety import HARMONIC_OVER_NOISE, forcing_notes
 
     print(f"method: {ident.method}")
     if ident.table_line is not None:
         line = ident.table_line
+        # "noise" here is the table spectrum's median level over the band (identify/modes.py input_line), which
+        # a shaking table's own broadband motion may set: a line below HARMONIC_OVER_NOISE times it is not called a
+        # forcing, but the table is not called quiet either (a helper's Sine 1.5 table, 160 times its sensor noise)
         what = "broadband" if line.fraction < 0.5 else "one line dominates"
         if not line.fraction > 0:
-            what = "nothing above its noise: a quiet table"
-        if line.fraction >= 0.5 and line.over_noise < 10:
-            what = "a line barely above its noise: a quiet table"
+            what = "no line above the median of its spectrum: broadband, or at rest"
+        if line.fraction >= 0.5 and line.over_noise < HARMONIC_OVER_NOISE:
+            what = f"not {HARMONIC_OVER_NOISE:g} times above the rest: not a forcing"
         used = "" if ident.input_column else " (not the input)"
         head = f"table motion '{ident.table_column}'{used} ({line.kind}, from {ident.input_kind_source}): "
         if line.fraction > 0:
             print(
                 head + f"largest line {line.frequency_Hz:.3f} Hz holds {100 * line.fraction:.1f} % of its acceleration "
-                "power above the noise"
-                + (f", {line.over_noise:.3g} times the noise" if line.fraction >= 0.5 else "")
+                "power above 4 times the median of its spectrum"
+                + (f", {line.over_noise:.3g} times the median's power over the band" if line.fraction >= 0.5 else "")
                 + f" ({what})"
             )
         else:  # no bin above the noise floor: no line to name (it printed 'nan Hz holds 0.0 %')
@@ -174,7 +177,7 @@ def identify_main(argv: list[str]) -> int:
         if ident.empty:
             raise Bad(src, empty_reason(ident))
         updates = model_updates(ident, scene, args.update_damping) if scene is not None else []
-        problems = update_problems(updates, ident, forcing)
+        problems = update_problems(updates, ident, forcing, args.update_damping)
         if updates:
             print()
             for u in updates:

@@ -144,12 +144,23 @@ def forcing_notes(result, forcing) -> list[str]:
     return out
 
 
-def update_problems(updates, ident, forcing) -> list[str]:
-    """Why each model update should not be written: a first frequency at a forcing frequency, or a
-    stiffness scaled by more than MAX_STIFFNESS_CHANGE; [] when none."""
+def update_problems(updates, ident, forcing, damping: bool = False) -> list[str]:
+    """Why each model update should not be written: a first frequency at a forcing frequency, a
+    stiffness scaled by more than MAX_STIFFNESS_CHANGE, or (`damping`: --update-damping) a damping estimate identify
+    does not trust (identify/startfile.py damping_reliable, as a modes file marks it); [] when none."""
+    from pounding_sweep.identify.startfile import damping_estimate, damping_reliable
+
     out = []
     for u in updates:
         r = ident.results[int(u.section[-1])]
+        if damping and r.modes:
+            m = r.modes[0]
+            z, ci, method = damping_estimate(m)
+            if not damping_reliable(m, z, ci, method, r.notes):
+                out.append(
+                    f"{u.section}: its first mode's damping {100 * z:.3g} % ({method}) is one identify does not "
+                    "trust (its notes above say why)"
+                )
         hit = near_forcing(u.f1_target_Hz, forcing, r.spectrum.resolution_Hz)
         if hit is not None:
             g, k = hit

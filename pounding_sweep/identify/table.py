@@ -16,6 +16,7 @@ import numpy as np
 from pounding_sweep.errors import ExperimentError
 from pounding_sweep.identify.modes import InputLine, ModalResult, identify, input_line
 from pounding_sweep.identify.safety import HARMONIC_INPUT_FRACTION, HARMONIC_OVER_NOISE, input_kind, is_harmonic
+from pounding_sweep.identify.startfile import damping_estimate
 from pounding_sweep.identify.update import StiffnessUpdate, update_scene
 from pounding_sweep.model.experiment import MAX_TABLE_STEP_S
 from pounding_sweep.model.records import TIME_UNITS, time_unit_guess
@@ -292,9 +293,8 @@ def model_updates(ident: TableIdentification, scene, update_damping: bool = Fals
     damp = None
     if update_damping:
         damp = {}
-        for b in targets:
-            m = ident.results[b].modes[0]
-            z = m.damping_log_decrement if m.damping_log_decrement is not None else m.damping_half_power
-            if z is not None and np.isfinite(z):
+        for b in targets:  # the estimate a modes file keeps (identify/startfile.py), one rule for both
+            z, _, _ = damping_estimate(ident.results[b].modes[0])
+            if np.isfinite(z):
                 damp[b] = z
     return update_scene(scene, targets, damp)

@@ -212,6 +212,7 @@ def check_calibration(prep) -> None:
         except ExperimentError as e:
             raise ConfigError(f"{key}: at {offset:g} s, {e}") from None
     _check_coverage(prep)
+    _check_record_against_table(prep)
     if cal is None:
         return
     from pounding_sweep.sweep.calibrate import check_channel_offsets
@@ -285,6 +286,51 @@ def _check_coverage(prep) -> None:
                 "part on purpose)",
             )
             return
+
+
+#: a record whose peak is within this factor of G_STANDARD times the table's measured one (or 1 / G_STANDARD) is
+#: read in the wrong one of g and m/s^2 (a real test's table and record differ by a few percent: one resampling)
+UNIT_SLIP = 1.25
+
+
+def _check_record_against_table(prep) -> None:
+    """Warn when the record driving the runs and the table's own measured acceleration (the column the import wrote
+    for its reference sensor, 'sensor_import' metadata) differ in peak by a factor g: [excitation] units names the
+    wrong one of g and m/s^2 (a helper's 'g' on an m/s^2 record drove the frame 9.8 times too hard, and the scoring's
+    own unit hint pointed at the table instead). Only where the runs take the record as read (scale 1)."""
+    import json
+
+    from pounding_sweep.model.experiment import read_table
+
+    scene, exp = prep.scene, prep.experiment
+    e = scene.excitation
+    if e.type != "record" or e.scaling == "intensity" or e.scale != 1.0 or set(scene.axis_values("scale")) - {1.0}:
+        return
+    reference = json.loads(exp.metadata.get("sensor_import", "{}")).get("settings", {}).get("reference")
+    if not reference:
+        return
+    df, _ = read_table(exp.path)
+    column = f"{reference}_acc_m_s2"
+    if column not in df.columns:
+        return
+    t_sim = exp.time_s - scene.experiment.time_offset_s
+    for rec in prep.excitation.records:
+        on = (t_sim >= 0) & (t_sim <= rec.duration_s)
+        if on.sum() < 2:
+            continue
+        table = float(np.nanmax(np.abs(df[column].to_numpy(dtype=float)[on])))
+        peak = float(np.nanmax(np.abs(rec.acc_m_s2)))
+        if not (table > 0 and peak > 0):
+            continue
+        ratio = peak / table
+        for factor, meant in ((G_STANDARD, "m/s2"), (1 / G_STANDARD, "g")):
+            if abs(math.log(ratio / factor)) <= math.log(UNIT_SLIP):
+                warn(
+                    "record_units",
+                    f"[excitation] units = {e.units or 'its default'!r}: {Path(rec.source).name} read so peaks at {peak:.4g} m/s^2, "
+                    f"{ratio:.3g} times the table's own measured peak ({column}: {table:.4g} m/s^2 over the record's "
+                    f"span): is the record in {meant} (units = {meant!r})?",
+                )
 
 
 #: the largest |displacement| [m] and |absolute acceleration| [m/s^2] a measured channel may hold: the kernel calls
@@ -418,7 +464,8 @@ def check_scale(tally: ContactTally, prep, best) -> None:
         if np.isfinite(lo) and lo / 2 <= rescaled <= 2 * hi:
             hint = (
                 f"rescaled as {other[0]} its peak would be {rescaled:.3g} {si}, among the runs': is the table in "
-                f"{other[0]} ([experiment] {key} = {other[0]!r}, not {unit!r})?"
+                f"{other[0]} ([experiment] {key} = {other[0]!r}, not {unit!r})"
+                + (", or the record read in the wrong unit ([excitation] units)?" if acc else "?")
             )
         elif error > 100.0:
             hint = "check the channel mapping, its sign and its units"

@@ -107,3 +107,33 @@ def test_a_record_that_ends_before_the_shaking_is_named(tmp_path):
     assert len(short) == 1 and "only its samples in 0-2.999 s (simulation time) are scored" in short[0].message
     assert kinds(lambda raw: None) == []
     assert kinds(lambda raw: (cut(raw), raw["experiment"].update(window_s=[0.0, 2.9]))) == []
+
+
+def test_a_record_read_in_the_wrong_one_of_g_and_m_s2_is_named_against_the_tables_own_column(tmp_path):
+    """The real Northridge scene with [excitation] units = 'g' on its m/s^2 record: the runs are driven 9.8 times too
+    hard, and the table's own measured column (the import's reference sensor) says so before any run; as written it
+    is not warned (the record is that column, resampled: ratio 1)."""
+    import tomllib
+
+    from conftest import SWEEPS
+
+    from pounding_sweep.scene import scene_from_dict
+    from pounding_sweep.sweep.checks import check_calibration
+    from pounding_sweep.sweep.prepare import prepare
+    from pounding_sweep.warn import collecting
+
+    scene_path = SWEEPS / "real_northridge.toml"
+
+    def said(units):
+        raw = tomllib.loads(scene_path.read_text())
+        if units is not None:
+            raw["excitation"]["units"] = units
+        prep = prepare(scene_from_dict(raw, base_dir=SWEEPS, source=str(scene_path)))
+        with collecting() as seen:
+            check_calibration(prep)
+        return [w.message for w in seen.items if w.kind == "record_units"]
+
+    wrong = said("g")
+    assert len(wrong) == 1 and "is the record in m/s2 (units = 'm/s2')?" in wrong[0], wrong
+    assert "9.8" in wrong[0].split("times the table")[0]
+    assert said(None) == [] and said("m/s2") == []

@@ -71,7 +71,9 @@ def test_accelerations_in_g_read_as_metres_per_second_squared_are_named(tmp_path
     ]
     for line in lines:
         assert "no run explains the measured acceleration (best eq. 20 error " in line
-        assert line.endswith("is the table in g ([experiment] acc_units = 'g', not 'm/s2')?")
+        assert line.endswith(
+            "is the table in g ([experiment] acc_units = 'g', not 'm/s2'), or the record read in the wrong unit ([excitation] units)?"
+        )
     best = pd.read_parquet(tmp_path / "g.best.parquet").set_index("criterion")
     assert best.loc["rel_rms_abs_acc_b1f3_pct", "error_pct"] > 100.0  # the criterion, as it held here
     # every metric group left out: the runs' peak accelerations the check reads are computed all the same

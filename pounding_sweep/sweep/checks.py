@@ -347,6 +347,11 @@ def _window(prep) -> np.ndarray:
     return (t_sim >= lo) & (t_sim <= hi)
 
 
+#: a story height above this [m] is another unit typed in metres (a helper's 200 for 200 mm: drift ratios 1000 times
+#: too small); the tallest storeys of buildings (lobbies, plant floors) stay well below it
+MAX_STORY_HEIGHT_M = 20.0
+
+
 def check_scene(prep) -> None:
     """Before the grid: values that run but cannot mean what they say. A measured channel beyond MEASURED_LIMITS is
     an ExperimentError (its units are wrong); warnings for an r axis the elastic Hertz law ignores (identical runs)
@@ -355,6 +360,16 @@ def check_scene(prep) -> None:
     from pounding_sweep.scene.channels import is_acceleration
 
     scene = prep.scene
+    for section in ("building1", "building2"):
+        b = getattr(scene, section, None)
+        tall = [h for h in (b.story_height_m or ()) if h > MAX_STORY_HEIGHT_M] if b is not None else []
+        if tall:
+            warn(
+                "story_height",
+                f"[{section}] story_height_m = {tall[0]:g} is {tall[0]:g} m, taller than any story "
+                f"({MAX_STORY_HEIGHT_M:g} m): metres are meant (for {tall[0]:g} mm write {tall[0] / 1e3:g}); the "
+                "drift ratios divide by it",
+            )
     r_values = scene.axis_values("r")
     laws = [] if scene.contact is None else list(dict.fromkeys(scene.axis_values("law") or (scene.contact.law,)))
     if len(r_values) > 1 and "hertz" in laws:

@@ -117,3 +117,31 @@ def test_an_r_axis_the_elastic_hertz_law_ignores_is_said(tmp_path, laws):
     hertz = df[df.contact_law == "hertz"].drop(columns=["run_id", "r", "run_time_s"])
     numbers = hertz.select_dtypes("number").to_numpy()
     np.testing.assert_array_equal(numbers[0], numbers[1])  # what the warning says: identical runs
+
+
+def test_a_story_height_in_millimetres_is_named():
+    """story_height_m = 200 (a helper's 200 mm typed as metres) ran silently with drift ratios 1000 times too small;
+    above MAX_STORY_HEIGHT_M it is named with the value to write. The shipped scene's 0.2 m is not."""
+    import tomllib
+
+    from conftest import SWEEPS
+
+    from pounding_sweep.scene import scene_from_dict
+    from pounding_sweep.sweep.checks import check_scene
+    from pounding_sweep.sweep.prepare import prepare
+    from pounding_sweep.warn import collecting
+
+    path = SWEEPS / "real_northridge.toml"
+
+    def said(height):
+        raw = tomllib.loads(path.read_text())
+        raw["building1"]["story_height_m"] = height
+        with collecting() as seen:
+            check_scene(prepare(scene_from_dict(raw, base_dir=SWEEPS, source=str(path))))
+        return [w.message for w in seen.items if w.kind == "story_height"]
+
+    assert said(200.0) == [
+        "[building1] story_height_m = 200 is 200 m, taller than any story (20 m): metres are meant (for 200 mm write "
+        "0.2); the drift ratios divide by it"
+    ]
+    assert said(0.2) == []

@@ -213,6 +213,7 @@ def check_calibration(prep) -> None:
             raise ConfigError(f"{key}: at {offset:g} s, {e}") from None
     _check_coverage(prep)
     _check_record_against_table(prep)
+    _check_floor_order(prep)
     if cal is None:
         return
     from pounding_sweep.sweep.calibrate import check_channel_offsets
@@ -286,6 +287,61 @@ def _check_coverage(prep) -> None:
                 "part on purpose)",
             )
             return
+
+
+#: a lower floor's amplitude in the first mode's band past this many times a higher floor's is a mapping fault (real
+#: Northridge floors 1-3: 0.42, 0.83, 1.0 of the top; noise moves a ratio by a few percent at MODE_BAND_SNR)
+FLOOR_ORDER_SLACK = 1.15
+#: ... judged only where the channels' band amplitude stands this many times above their noise floor
+MODE_BAND_SNR = 5.0
+
+
+def _check_floor_order(prep) -> None:
+    """Warn when a building's measured channels of one kind do not grow with height in its first mode's band: a
+    shear frame's first mode has every floor on the same side, each further out than the one below (Chopra,
+    Dynamics of Structures, sec. 10.2), relative to the table and so also absolutely (|1 + H phi| grows with phi).
+    Two floors' columns exchanged in [experiment] channels fail it (a helper's swap of floors 1 and 3 was told
+    only by a larger misfit; identify's floor_order_note checks the import's files the same way). The band is
+    0.8-1.25 times the model's first mode; the order is judged only where the band stands MODE_BAND_SNR above
+    the channels' noise."""
+    from scipy.signal import butter, sosfiltfilt
+
+    from pounding_sweep.model.experiment import noise_floor
+    from pounding_sweep.scene.channels import ACC_PREFIX, is_acceleration
+
+    exp = prep.experiment
+    fs = 1.0 / exp.dt_sample
+    inside = _window(prep)
+    for b, building in enumerate(prep.model.buildings, 1):
+        f1 = float(building.modes().frequency_Hz[0])
+        if not 1.25 * f1 < 0.45 * fs or inside.sum() < 64:
+            continue
+        sos = butter(4, (0.8 * f1, 1.25 * f1), btype="bandpass", fs=fs, output="sos")
+        for acc in (False, True):
+            chans = {}
+            for code in prep.score_codes:
+                floor = code.removeprefix(ACC_PREFIX)
+                if is_acceleration(code) == acc and floor.startswith(f"b{b}f"):
+                    y = exp.channels[code][inside]
+                    sigma = exp.noise.get(code) or noise_floor(y)[0]
+                    chans[int(floor.split("f")[1])] = (code, float(np.std(sosfiltfilt(sos, y - y.mean()))), sigma)
+            if len(chans) < 2 or not all(a > MODE_BAND_SNR * s for _, a, s in chans.values()):
+                continue
+            order = sorted(chans)
+            for lo, hi in zip(order, order[1:]):
+                (c_lo, a_lo, _), (c_hi, a_hi, _) = chans[lo], chans[hi]
+                if a_lo > FLOOR_ORDER_SLACK * a_hi:
+                    shown = ", ".join(
+                        f"{exp.columns.get(chans[f][0])} {chans[f][1] / chans[order[-1]][1]:.2f}" for f in order
+                    )
+                    warn(
+                        "floor_order",
+                        f"[experiment] channels: near building {b}'s first mode ({0.8 * f1:.3g}-{1.25 * f1:.3g} Hz) "
+                        f"{exp.columns.get(c_lo)} ({c_lo}) moves {a_lo / a_hi:.2f} times {exp.columns.get(c_hi)} "
+                        f"({c_hi}), a floor above it (amplitudes relative to the top: {shown}); in a first mode the "
+                        "floors move more the higher they are: are two floors' columns exchanged in the mapping?",
+                    )
+                    break
 
 
 #: a record whose peak is within this factor of G_STANDARD times the table's measured one (or 1 / G_STANDARD) is

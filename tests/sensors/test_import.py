@@ -396,3 +396,18 @@ def test_bonus_event_clocks_are_aligned_and_floor1_is_reversed():
         assert s[n]["alignment"].startswith("cross-correlation")
         # aligned: the floor follows the table in the rigid band at the found lag
         assert abs(s[n]["correlation_at_lag"]) > 0.95 and s[n]["runner_up_correlation"] < 0.6
+
+
+def test_the_table_and_a_floor_exchanged_are_named(tmp_path, truth):
+    """A floor of the frame moves more than the table it stands on (the five real tests: 1.27-6.8 times its RMS
+    acceleration); the engine-made frame's files with the table's and floor 1's exchanged (a helper's real
+    mistake, imported silently with a first resonance of 10.6 Hz for 7.9) are named, the right ones are not."""
+    from pounding_sweep.model.sensors.assemble import QUIETER_SHARE
+
+    files = _files(tmp_path, truth, shared_clock=True)
+    assert not [w for w in import_sensors(files, "ground").warnings if "times the reference" in w]
+    swapped = dict(files, ground=files["b1f1"], b1f1=files["ground"])
+    said = [w for w in import_sensors(swapped, "ground").warnings if "times the reference" in w]
+    assert len(said) == 1 and "b1f1 moves" in said[0] and "(two files exchanged)?" in said[0]
+    ratio = float(said[0].split("b1f1 moves ")[1].split(" times")[0])
+    assert ratio < QUIETER_SHARE

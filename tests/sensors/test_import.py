@@ -411,3 +411,19 @@ def test_the_table_and_a_floor_exchanged_are_named(tmp_path, truth):
     assert len(said) == 1 and "b1f1 moves" in said[0] and "(two files exchanged)?" in said[0]
     ratio = float(said[0].split("b1f1 moves ")[1].split(" times")[0])
     assert ratio < QUIETER_SHARE
+
+
+def test_files_that_hold_no_shaking_are_refused(tmp_path, truth):
+    """Each sensor's first 2.5 s, the frame at rest (a helper's 3 s cut of a real test imported with a sensor
+    'turned about the vertical' and a 642 ms 'lag', both noise): refused, naming why. The same files whole move
+    far more over the file than over their quietest second (56-336 times on the five real tests)."""
+    from pounding_sweep.errors import SensorError
+
+    files = {}
+    for k, n in enumerate(("ground", "b1f1", "b1f2", "b1f3")):
+        files[n] = str(tmp_path / f"{n}.csv")
+        write_sensor(Path(files[n]), truth.acc[n], 2_042_652_963, 0, seed=k, samples=300)
+    with pytest.raises(SensorError, match=r"no sensor moves: .* the files hold no shaking to import"):
+        import_sensors(files, "ground")
+    (tmp_path / "whole").mkdir()
+    assert import_sensors(_files(tmp_path / "whole", truth, shared_clock=True), "ground").columns

@@ -178,6 +178,7 @@ def import_sensors(
                 f"{sf.path}: the shaking axis {col} holds only {100 * share:.0f} % of the horizontal variance: the "
                 "sensor is turned about the vertical, and the other horizontal axis sees part of the motion"
             )
+    _refuse_a_span_at_rest(series, sens)
     ref = sens[reference]
     fs = ref.rate_Hz
     # the first resonance and the rigid band, from the spectra alone (no alignment needed)
@@ -379,6 +380,32 @@ def import_sensors(
 
 #: a sensor slower than the grid by more than this share is interpolated above its own Nyquist frequency
 SLOWER_SHARE = 0.05
+
+
+#: a sensor whose shaking axis varies over the whole file by less than this many times over its quietest
+#: QUIET_LENGTH_S records no motion: stationary noise alone gives about 1, every sensor of the five real tests of
+#: ../shared 56-336
+AT_REST_RATIO = 3.0
+
+
+def _refuse_a_span_at_rest(series, sens) -> None:
+    """SensorError when no sensor's shaking axis moves beyond its own quietest stretch (standard deviation over the
+    file against the least moving one over QUIET_LENGTH_S): the axis, sign, clock and resonance found from such
+    files are noise (a helper's first 3 s of each file imported with a sensor 'turned about the vertical' and a
+    642 ms 'lag'). One moving sensor is enough (a free vibration leaves the table at rest)."""
+    ratios = {}
+    for n, x in series.items():
+        x = np.asarray(x, float)
+        m = max(16, int(round(QUIET_LENGTH_S * sens[n].rate_Hz)))
+        least = float(_moving_std(x, m).min()) if x.size > m else math.nan
+        ratios[n] = float(np.std(x)) / least if least > 0 else math.inf
+    if ratios and all(r < AT_REST_RATIO for r in ratios.values()):
+        most = max(ratios, key=ratios.get)
+        raise SensorError(
+            f"{sens[most].path}: no sensor moves: over its file each shaking axis varies at most {ratios[most]:.2g} "
+            f"times as much as over its quietest {QUIET_LENGTH_S:g} s ({most}'s; under {AT_REST_RATIO:g} on every "
+            "sensor): the files hold no shaking to import (cut before or after the test, or another test's files?)"
+        )
 
 
 #: a sensor moving less than this share of the reference's RMS acceleration is not a floor above it: every floor of

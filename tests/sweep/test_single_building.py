@@ -268,11 +268,17 @@ def test_profiles_of_nothing_draw_no_figure(calibrated, tmp_path):
     import pyarrow.parquet as pq
 
     from pounding_sweep import plots
+    from pounding_sweep.sweep.calibrate import read_calibration
     from pounding_sweep.sweep.results import META_KEY
 
     _, out, _ = calibrated
     best = out.with_name("small.best.parquet")
-    assert plots.calibration_profile_figure(best) is not None
+    fig = plots.calibration_profile_figure(best)
+    # the misfit exceeds misfit_factor: the interval to quote (with model error) is drawn beside the noise's
+    quoted = [q for ax in fig.axes for q in ax.patches if "(quote this)" in str(q.get_label())]
+    fits = read_calibration(best)["fits"]
+    profiled = fits[fits.parameter.isin({"stiffness_scale_b1", "damping_ratio_b1"}) & (fits["quote"] == "model_error")]
+    assert len(quoted) == len(profiled) > 0
     table = pq.read_table(best)
     meta = json.loads(table.schema.metadata[META_KEY])
     meta["calibration"]["profiles"] = []

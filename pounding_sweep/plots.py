@@ -784,7 +784,7 @@ def measured_figure(scene, pick: dict, label: str, md: dict, noise: dict | None 
             top[col].plot(tk, xm * factor, color="C0", lw=0.8, label="model")
             bottom[col].plot(tk, res * factor, color="C3", lw=0.7, label="residual (measured - model)")
             if sigma:
-                bottom[col].axhspan(-2 * sigma * factor, 2 * sigma * factor, color="0.6", alpha=0.5, lw=0)
+                bottom[col].axhspan(-2 * sigma * factor, 2 * sigma * factor, color="tab:green", alpha=0.35, lw=0)
             for ax, what in ((top[col], quantity), (bottom[col], "residual")):
                 ax.set_xlim(*(lim or (tk[0], tk[-1])))
                 ax.set_xlabel("time [s]")
@@ -798,12 +798,14 @@ def measured_figure(scene, pick: dict, label: str, md: dict, noise: dict | None 
         h, lab = ax.get_legend_handles_labels()
         handles += h
         labels += lab
-    if noise:
-        from matplotlib.patches import Patch
+    from matplotlib.patches import Patch
 
-        handles.append(Patch(color="0.6", alpha=0.5))
+    if noise:  # green, not the zoom window's grey (a helper read the one for the other where the band is thin)
+        handles.append(Patch(color="tab:green", alpha=0.35))
         labels.append("+/- 2 x the channel's noise (sigma)")
-    fig.legend(handles, labels, loc="outside lower center", ncols=4, fontsize=9)
+    handles.append(Patch(color="0.9"))
+    labels.append("the window zoomed on the right")
+    fig.legend(handles, labels, loc="outside lower center", ncols=5, fontsize=9)
     lowpass = md.get("experiment", {}).get("lowpass")
     filt = f"; accelerations low-passed at {lowpass['cutoff_Hz']:g} Hz as scored" if lowpass else ""
     fig.suptitle(

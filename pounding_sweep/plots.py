@@ -852,6 +852,19 @@ def read_accuracy_table(path: str | Path) -> pd.DataFrame:
 DT_MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*", "h", "<", ">", "p")
 
 
+def _ladder_channel(scene) -> str | None:
+    """The history the accuracy ladder measures its error on: a scored acceleration's floor where the scene scores
+    accelerations only (a helper's acceleration-scored calibration showed the error of a displacement it never
+    scored), else the ladder's default (building 1's top-floor displacement)."""
+    x = scene.experiment
+    if x is None:
+        return None
+    acc = sorted(c for c in x.channels.values() if c.startswith("abs_acc_"))
+    if acc and (len(acc) == len(x.channels) or x.use == "acceleration"):
+        return acc[-1]
+    return None
+
+
 def error_vs_runtime_figure(table: pd.DataFrame, title: str = ""):
     """Two log-log panels per scheme: error against dt, and error against run time. A scheme has one
     colour; a time step one marker shape (the legend lists both), so no label can cover another."""
@@ -948,7 +961,9 @@ def figures(
         # one building: the schemes differ only at contact, so one of them (the reference's) says it all
         schemes = None if scene.contact is not None else ["event"]
         window = ladder_duration(ladder_scene, pick.get("record"))
-        table = accuracy_ladder(ladder_scene, schemes=schemes, duration_s=window, **pick)
+        table = accuracy_ladder(
+            ladder_scene, schemes=schemes, duration_s=window, channel=_ladder_channel(scene), **pick
+        )
     else:
         table = accuracy if isinstance(accuracy, pd.DataFrame) else read_accuracy_table(accuracy)
     swept = swept_axes(df, md)

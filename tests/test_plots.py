@@ -383,3 +383,13 @@ def test_a_scene_whose_records_are_only_a_sweep_axis_is_plotted_with_its_ladder(
         == ladder_duration(whole, recs[0])
         == pytest.approx(2.234, abs=1e-3)
     )
+
+
+def test_the_accuracy_ladder_measures_the_quantity_a_scene_scores():
+    """An acceleration-scored scene's error-against-run-time figure is the error of a scored acceleration (a
+    helper's real-data calibration showed a displacement it never scored); a displacement-scored one keeps the
+    top floor's displacement."""
+    from pounding_sweep.plots import _ladder_channel
+
+    assert _ladder_channel(load_scene(SWEEPS / "real_northridge.toml")) == "abs_acc_b1f3"
+    assert _ladder_channel(load_scene(SWEEPS / "scored_6hz.toml")) is None

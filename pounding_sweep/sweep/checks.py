@@ -539,7 +539,11 @@ def check_scale(tally: ContactTally, prep, best) -> None:
                 + (", or the record read in the wrong unit ([excitation] units)?" if acc else "?")
             )
         elif error > 100.0:
-            hint = "check the channel mapping, its sign and its units"
+            # the grid's runs only (a calibration after it may still fit): the model as much as the data
+            hint = (
+                "no run of the grid comes nearer than rest: check the model's ranges (masses, stiffness, the record "
+                "and its units) as well as the channel mapping, its sign and its units"
+            )
         else:
             continue
         warn(

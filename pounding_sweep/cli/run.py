@@ -146,9 +146,12 @@ def _print_calibration(md: dict, reused: bool) -> None:
     what = "one building's structure, no contact" if one else "contact and structure fitted together"
     print(f"\ncalibration ({what}; 95 % intervals; stored in the best table's metadata{kept}):")
     for f in lt.itertuples():
+        step = getattr(f, "step_error_over_noise", float("nan"))
         print(
             f"  {'the building' if one else f.contact_law}: relative RMS {f.rel_rms_pct:.3f} %, residual {f.misfit_over_noise:.2f} x the noise "
-            f"floor, {f.evaluations} runs, {f.seconds:.0f} s"
+            f"floor"
+            + (f" (the time step's own error {step:.2g} x, by halving it)" if step == step else "")
+            + f", {f.evaluations} runs, {f.seconds:.0f} s"
         )
         for r in ft[ft.contact_law == f.contact_law].itertuples():
             ident = (

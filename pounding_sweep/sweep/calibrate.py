@@ -73,7 +73,7 @@ from pounding_sweep.model.experiment import noise_floor
 from pounding_sweep.scene import Scene
 from pounding_sweep.scene.channels import channel_unit, shown_value
 from pounding_sweep.scene.parameters import channel_offset, default_profiled, is_log, member
-from pounding_sweep.sweep.fitchecks import at_noise_level, reversed_channel_warnings
+from pounding_sweep.sweep.fitchecks import at_noise_level, reversed_channel_warnings, step_error, step_error_warning
 from pounding_sweep.sweep.fitstats import NO_CONTACT, fit_label, gauss_newton, interval, local_fit, misfit_of, on_bound
 from pounding_sweep.sweep.globalsearch import Search, find_basin
 from pounding_sweep.sweep.lawcompare import compare_laws as compare_on_one_basis
@@ -144,6 +144,9 @@ class Fit:
     start: dict[str, dict] = field(default_factory=dict)  # with start_from: name -> {value, from} (_start)
     problem: Problem | None = field(default=None, repr=False)  # the residual function (not stored)
     comparison: object = field(default=None, repr=False)  # lawcompare.LawComparison, several laws calibrated
+    #: per channel the integration error of the fitted run [SI RMS], by halving the step (fitchecks.step_error); {}
+    #: with dt_s = 'auto' (each run's step already meets its tolerance)
+    step_error: dict[str, float] = field(default_factory=dict)
 
 
 class Problem:
@@ -633,6 +636,7 @@ def _calibrate_one(
             "not be the global one; the intervals are around it"
         )
     _identify(fit)
+    _step_error(fit, scene, prob, theta)
     _warnings(fit, z_opt, lo, hi, cal)
     fit.evaluations = prob.evaluations + (again[2] if again is not None else 0)
     fit.seconds = time.perf_counter() - t0 + (again[3] if again is not None else 0.0)
@@ -813,6 +817,21 @@ def fit_table(fits: list[Fit]):
     return pd.DataFrame(rows)
 
 
+def _step_error(fit: Fit, scene: Scene, prob: Problem, theta: np.ndarray) -> None:
+    """The fitted run's integration error per channel (fitchecks.step_error: the same problem at half the step), and
+    a warning where it is a named part of the residual. Not with dt_s = 'auto' (its own tolerance per run)."""
+    if scene.integration.auto:
+        return
+    integ = dataclasses.replace(scene.integration, dt_s=0.5 * scene.integration.dt_s)
+    half = Problem(dataclasses.replace(scene, integration=integ), prob.names, prob.bounds, prob.noise_m,
+                   prob.threads, None, prob.target.sigma)  # fmt: skip
+    order = 1 if scene.integration.scheme == "paper" else 2  # the paper's scheme is explicit in the force
+    fit.step_error = step_error(prob, half, theta, order)
+    said = step_error_warning(fit, scene.integration.dt_s, scene.calibrate.misfit_factor)
+    if said is not None:
+        fit.warnings.append(said)
+
+
 def law_table(fits: list[Fit]):
     """One row per law: the error at its optimum, the noise floor ratio, AIC and BIC on the common effective count
     and their differences, the held-out (cross-validated) residual and its Diebold-Mariano z against the best
@@ -828,6 +847,8 @@ def law_table(fits: list[Fit]):
             "parameters": len(f.names),
             "rel_rms_pct": f.error_pct,
             "misfit_over_noise": f.misfit_ratio,
+            # the fitted run's integration error (by halving the step) over the noise floor, its worst channel
+            "step_error_over_noise": max((e / f.noise_m[c] for c, e in f.step_error.items()), default=np.nan),
             "n_samples": f.n,
             "n_effective": f.n_eff,
             "evaluations": f.evaluations,
@@ -869,7 +890,11 @@ def calibration_metadata(fits: list[Fit]) -> dict:
                 # each channel under its unit's key: displacements [m], accelerations [m/s^2]
                 **{
                     f"{what}_{unit}": {c: v for c, v in values.items() if channel_unit(c)[1] == unit}
-                    for what, values in (("noise_floor", f.noise_m), ("rms_residual", f.rms_m))
+                    for what, values in (
+                        ("noise_floor", f.noise_m),
+                        ("rms_residual", f.rms_m),
+                        ("step_error", f.step_error),
+                    )
                     for unit in ("m", "m_s2")
                 },
                 "misfit_over_noise": f.misfit_ratio,

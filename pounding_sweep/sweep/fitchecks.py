@@ -114,3 +114,44 @@ def at_noise_level(target, columns: dict, sources: dict, window: tuple[float, fl
             f"a fit to them cannot be told from a fit to noise, and its noise-based intervals mean nothing; {why}"
         )
     return out
+
+
+#: a step error whose RMS exceeds this share of the residual's on a channel is a part of the misfit worth naming (its
+#: square, 11 % of the residual's variance); where the fit reaches its noise, a step error above the noise is
+STEP_SHARE = 1.0 / 3.0
+
+
+def step_error(prob, half, theta: np.ndarray, order: int) -> dict[str, float]:
+    """Each fitted channel's integration error at the optimum `theta` [SI RMS over its samples], estimated by halving
+    the step (`half`: the same problem at dt / 2): e(dt) = (x_dt - x_dt/2) / (1 - 2^-order) for a method of that
+    order (Richardson; Newmark average acceleration is second order, 4/3 of the difference)."""
+    r1, r2 = prob.residuals(theta[None, :])[0], half.residuals(theta[None, :])[0]
+    ends = np.cumsum([0, *prob.sizes()])
+    factor = 1.0 / (1.0 - 2.0**-order)
+    out = {}
+    for c, code in enumerate(prob.target.codes):
+        d = (r1[ends[c] : ends[c + 1]] - r2[ends[c] : ends[c + 1]]) * float(prob.target.sigma[c]) * factor
+        out[code] = float(np.sqrt(np.mean(d * d)))
+    return out
+
+
+def step_error_warning(fit, dt: float, misfit_factor: float) -> str | None:
+    """A warning where the step's own error is a named part of the fit's residual (above STEP_SHARE of it on a
+    channel), or, where the fit reaches its noise (misfit at most misfit_factor), above the noise floor, with the
+    step that would bring it under that share (second order: the error falls with dt^2)."""
+    from pounding_sweep.scene.channels import shown_value
+
+    worst, ratio = None, 0.0
+    for code, e in fit.step_error.items():
+        limit = fit.noise_m[code] if fit.misfit_ratio <= misfit_factor else STEP_SHARE * fit.rms_m[code]
+        if limit > 0 and e / limit > ratio:
+            worst, ratio = code, e / limit
+    if worst is None or ratio <= 1.0:
+        return None
+    against = "its noise floor" if fit.misfit_ratio <= misfit_factor else f"{STEP_SHARE:.2g} of its residual"
+    return (
+        f"{fit_label(fit.law)}: the time step's own error at the fit (dt_s = {dt:g} s, estimated by halving it) is "
+        f"{shown_value(worst, fit.step_error[worst])} RMS on {worst}, {ratio:.2g} times {against} "
+        f"({shown_value(worst, fit.rms_m[worst])} residual, {shown_value(worst, fit.noise_m[worst])} noise): part of "
+        f"the misfit is the integration, not the model; a step near {dt / np.sqrt(ratio):.2g} s would bring it under"
+    )

@@ -148,10 +148,17 @@ def step_error_warning(fit, dt: float, misfit_factor: float) -> str | None:
             worst, ratio = code, e / limit
     if worst is None or ratio <= 1.0:
         return None
-    against = "its noise floor" if fit.misfit_ratio <= misfit_factor else f"{STEP_SHARE:.2g} of its residual"
+    at_noise = fit.misfit_ratio <= misfit_factor
+    against = "its noise floor" if at_noise else f"{STEP_SHARE:.2g} of its residual"
+    meaning = (
+        "the fit matches the data to their noise, but at this step the model's integration errs by more: the values "
+        "fitted are those of the discretised model"
+        if at_noise
+        else "part of the misfit is the integration, not the model"
+    )
     return (
         f"{fit_label(fit.law)}: the time step's own error at the fit (dt_s = {dt:g} s, estimated by halving it) is "
         f"{shown_value(worst, fit.step_error[worst])} RMS on {worst}, {ratio:.2g} times {against} "
-        f"({shown_value(worst, fit.rms_m[worst])} residual, {shown_value(worst, fit.noise_m[worst])} noise): part of "
-        f"the misfit is the integration, not the model; a step near {dt / np.sqrt(ratio):.2g} s would bring it under"
+        f"({shown_value(worst, fit.rms_m[worst])} residual, {shown_value(worst, fit.noise_m[worst])} noise): "
+        f"{meaning}; a step near {dt / np.sqrt(ratio):.2g} s would bring it under"
     )

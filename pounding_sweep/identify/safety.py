@@ -18,6 +18,7 @@ resolution to the forcing cannot be told apart from it.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 #: a table motion with this share of its acceleration power in one line is a harmonic test (refused)
@@ -156,7 +157,7 @@ def update_problems(updates, ident, forcing, damping: bool = False) -> list[str]
         if damping and r.modes:
             m = r.modes[0]
             z, ci, method = damping_estimate(m)
-            if not damping_reliable(m, z, ci, method, r.notes):
+            if math.isfinite(z) and not damping_reliable(m, z, ci, method, r.notes):  # NaN: none written
                 out.append(
                     f"{u.section}: its first mode's damping {100 * z:.3g} % ({method}) is one identify does not "
                     "trust (its notes above say why)"

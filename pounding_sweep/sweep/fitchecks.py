@@ -11,8 +11,8 @@ where the model misfits every channel (Northridge IMU, 136 noise floors as measu
 misfit to 268 and negating it back only halved the whole, while that floor's own residual fell by far more.
 It runs only when the misfit already says the model cannot explain the data.
 
-Before any fit, `at_noise_level` names a channel whose scored samples hardly stand above the noise floor the fit
-weighs them by: a noise typed in the wrong unit, a noise window inside the shaking, or a scored window without the
+Before any fit, `at_noise_level` names a channel whose scored samples stand below, or barely above, the noise floor
+the fit weighs them by: a noise typed in the wrong unit, a noise window inside the shaking, or a scored window without the
 shaking (a record cut short) all make a fit to noise look like a fit "within the noise" (a helper's real Sine 1.5
 test: relative error 66 %, "residual 0.14 times the noise floor", a 0.3 % interval on the stiffness)."""
 
@@ -22,10 +22,12 @@ import numpy as np
 
 from pounding_sweep.sweep.fitstats import fit_label, local_fit, misfit_of
 
-#: a channel whose scored samples vary by fewer noise floors than this (their standard deviation) holds no motion a
-#: fit can tell from its noise: its residual is mostly the noise itself whatever the parameters (at 3, the signal's
-#: power is at most 8 times the noise's)
-SIGNAL_MIN_NOISE_FLOORS = 3.0
+#: a channel whose scored samples vary by fewer noise floors than this (their standard deviation) stands barely above
+#: the noise it is weighed by: with the floor right, the spread squared is the signal's power plus the noise's, so
+#: under 1 the floor cannot be right, and at 1.5 the signal's power is at most 1.25 times the noise's (the faults
+#: met: a noise in the wrong unit 0.17-0.26, a record cut to 3 s 0.83-0.89, a noise window in the shaking 0.97-1.0;
+#: real data with the noise stated right, 2.6 and more)
+SIGNAL_MIN_NOISE_FLOORS = 1.5
 #: a negated channel's own residual must fall below this fraction of what it was (a sign fault is not a nuance)
 IMPROVEMENT = 0.5
 #: the continued fit's budget (function evaluations of least squares; each costs a Jacobian of runs)
@@ -107,11 +109,16 @@ def at_noise_level(target, columns: dict, sources: dict, window: tuple[float, fl
             why = f"is noise_window_s at rest (before or after the shaking)? {window_hint}"
         else:
             why = window_hint
+        verdict = (
+            "less than the noise alone would: that floor cannot be right, and neither can the intervals it gives"
+            if spread < sigma
+            else "barely above it: a fit there rests on the noise model, and its noise-based intervals with it"
+        )
         out.append(
             f"[experiment] channel {columns.get(code, code)} ({code}): its samples in the scored window "
             f"{window[0]:.6g}-{window[1]:.6g} s vary by {shown_value(code, spread)} (standard deviation), "
-            f"{spread / sigma:.2g} times the noise floor they are weighed by ({shown_value(code, sigma)}: {source}): "
-            f"a fit to them cannot be told from a fit to noise, and its noise-based intervals mean nothing; {why}"
+            f"{spread / sigma:.2g} times the noise floor they are weighed by ({shown_value(code, sigma)}: {source}), "
+            f"{verdict}; {why}"
         )
     return out
 

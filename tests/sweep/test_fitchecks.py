@@ -73,6 +73,7 @@ def test_a_channel_at_its_noise_floor_is_named_with_what_set_the_floor():
     assert len(out) == 2  # b1f1 stands just above the threshold, b1f2 just below it
     assert "(abs_acc_b1f2)" in out[0] and "noise_window_s at rest" in out[0]
     assert "(abs_acc_b1f3)" in out[1] and "column's own unit" in out[1] and "0.054 times the noise floor" in out[1]
+    assert "barely above it" in out[0] and "that floor cannot be right" in out[1]
 
 
 def test_a_record_that_ends_before_the_shaking_is_named(tmp_path):

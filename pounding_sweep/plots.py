@@ -859,7 +859,11 @@ def _ladder_channel(scene) -> str | None:
     x = scene.experiment
     if x is None:
         return None
-    acc = sorted(c for c in x.channels.values() if c.startswith("abs_acc_"))
+    # by (building, floor): building 1's top floor, f10 above f9
+    acc = sorted(
+        (c for c in x.channels.values() if c.startswith("abs_acc_")),
+        key=lambda c: (-int(c[len("abs_acc_b") :].split("f")[0]), int(c.split("f")[-1])),
+    )
     if acc and (len(acc) == len(x.channels) or x.use == "acceleration"):
         return acc[-1]
     return None

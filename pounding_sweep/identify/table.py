@@ -19,6 +19,7 @@ from pounding_sweep.identify.safety import HARMONIC_INPUT_FRACTION, HARMONIC_OVE
 from pounding_sweep.identify.startfile import damping_estimate
 from pounding_sweep.identify.update import StiffnessUpdate, update_scene
 from pounding_sweep.model.experiment import MAX_TABLE_STEP_S
+from pounding_sweep.model.modal import height_order_fault
 from pounding_sweep.model.records import TIME_UNITS, time_unit_guess
 from pounding_sweep.scene.video import floor_code
 
@@ -257,7 +258,7 @@ def floor_order_note(r: ModalResult) -> str | None:
     floors = [int(floor_code(UNIT_SUFFIX.sub("", c)).split("f")[1]) for c in r.channels]
     shape = np.array([r.modes[0].shape[c] for c in r.channels])[np.argsort(floors)]
     names = [r.channels[k] for k in np.argsort(floors)]
-    if np.all(np.diff(np.concatenate([[0.0], shape])) > 0):
+    if height_order_fault(shape) is None:
         return None
     return (
         f"mode 1 ({r.modes[0].frequency_Hz:.3f} Hz) shape {', '.join(f'{c} {v:+.3f}' for c, v in zip(names, shape))} "

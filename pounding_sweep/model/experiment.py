@@ -49,6 +49,18 @@ class Experiment:
         return float(np.median(np.diff(self.time_s))) if self.time_s.size > 1 else 1.0
 
     @property
+    def sensor_import(self) -> dict:
+        """How the table was imported from raw sensor files ('sensor_import' metadata, cli/import_.py: 'settings'
+        and 'sensors'), {} for a table that was not (or whose record cannot be read)."""
+        import json
+
+        try:
+            record = json.loads(self.metadata.get("sensor_import", "{}"))
+        except (TypeError, ValueError, AttributeError):
+            return {}
+        return record if isinstance(record, dict) else {}
+
+    @property
     def displacements(self) -> dict[str, np.ndarray]:
         """The displacement channels only ('b1f3' -> [m])."""
         return {c: x for c, x in self.channels.items() if self.kinds.get(c, codes.H_DISP) == codes.H_DISP}

@@ -91,3 +91,15 @@ def modal_arrays(sys: SystemArrays, n1: int) -> ModalArrays:
         c(8.0 / (dt * dt) * cf),
         c(0.5 * (W + W.T)),
     )
+
+
+def height_order_fault(values, slack: float = 1.0) -> int | None:
+    """Where a shear frame's first-mode values, floor by floor from the ground, stop growing with height (Chopra,
+    Dynamics of Structures, sec. 10.2: every floor on one side, each further out than the one below): the index of
+    the first floor not above 0 or moving more than `slack` times the floor above it; None where they grow. The one
+    rule for identify's shapes (signed, slack 1) and a scene's measured channels (amplitudes, with slack)."""
+    values = list(values)
+    for k, v in enumerate(values):
+        if not v > 0 or (k + 1 < len(values) and v > slack * values[k + 1]):
+            return k
+    return None

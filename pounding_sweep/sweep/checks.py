@@ -283,8 +283,9 @@ def _check_coverage(prep) -> None:
                 f"[experiment] {exp.columns.get(code, code)} ({code}) varies more after the simulation ends at "
                 f"{end:.6g} s (standard deviation {shown_value(code, s_after)} over the {t_sim[-1] - end:.6g} s "
                 f"after) than within it ({shown_value(code, s_in)}): only its samples in 0-{end:.6g} s (simulation "
-                "time) are scored; is the record cut short, or time_offset_s wrong? ([experiment] window_s scores a "
-                "part on purpose)",
+                "time) are scored; is the record cut short, or time_offset_s wrong? ([excitation] duration_s runs on "
+                "past the record's end, padded with rest, to score a free vibration after it; [experiment] window_s "
+                "scores a part on purpose)",
             )
             return
 
@@ -297,24 +298,31 @@ MODE_BAND_SNR = 5.0
 
 
 def _check_floor_order(prep) -> None:
-    """Warn when a building's measured channels of one kind do not grow with height in its first mode's band: a
-    shear frame's first mode has every floor on the same side, each further out than the one below (Chopra,
-    Dynamics of Structures, sec. 10.2), relative to the table and so also absolutely (|1 + H phi| grows with phi).
-    Two floors' columns exchanged in [experiment] channels fail it (a helper's swap of floors 1 and 3 was told
-    only by a larger misfit; identify's floor_order_note checks the import's files the same way). The band is
-    0.8-1.25 times the model's first mode; the order is judged only where the band stands MODE_BAND_SNR above
-    the channels' noise."""
+    """Warn when a building's measured channels of one kind do not grow with height in its first mode's band
+    (model/modal.py height_order_fault, with FLOOR_ORDER_SLACK): relative to the table and so also absolutely
+    (|1 + H phi| grows with phi). Two floors' columns exchanged in [experiment] channels fail it (a helper's swap
+    of floors 1 and 3 was told only by a larger misfit). The band is 0.8-1.25 times the first resonance the import
+    measured where the table is an import's and names the building, else the model's first mode; up to 0.45 times
+    the slowest sensor's rate; the order is judged only where the band stands MODE_BAND_SNR above the noise."""
     from scipy.signal import butter, sosfiltfilt
 
     from pounding_sweep.model.experiment import noise_floor
+    from pounding_sweep.model.modal import height_order_fault
     from pounding_sweep.scene.channels import ACC_PREFIX, is_acceleration
 
     exp = prep.experiment
     fs = 1.0 / exp.dt_sample
+    settings = exp.sensor_import.get("settings", {})
+    rates = [s.get("rate_Hz") for s in exp.sensor_import.get("sensors", {}).values() if isinstance(s, dict)]
+    slowest = min([fs] + [float(r) for r in rates if isinstance(r, (int, float)) and r > 0])
     inside = _window(prep)
     for b, building in enumerate(prep.model.buildings, 1):
-        f1 = float(building.modes().frequency_Hz[0])
-        if not 1.25 * f1 < 0.45 * fs or inside.sum() < 64:
+        measured = settings.get("first_resonance_Hz")
+        from_data = str(settings.get("first_resonance_from", "")).startswith(f"b{b}f") and isinstance(
+            measured, (int, float)
+        )
+        f1 = float(measured) if from_data and math.isfinite(measured) else float(building.modes().frequency_Hz[0])
+        if not 1.25 * f1 < 0.45 * slowest or inside.sum() < 64:
             continue
         sos = butter(4, (0.8 * f1, 1.25 * f1), btype="bandpass", fs=fs, output="sos")
         for acc in (False, True):
@@ -328,20 +336,20 @@ def _check_floor_order(prep) -> None:
             if len(chans) < 2 or not all(a > MODE_BAND_SNR * s for _, a, s in chans.values()):
                 continue
             order = sorted(chans)
-            for lo, hi in zip(order, order[1:]):
-                (c_lo, a_lo, _), (c_hi, a_hi, _) = chans[lo], chans[hi]
-                if a_lo > FLOOR_ORDER_SLACK * a_hi:
-                    shown = ", ".join(
-                        f"{exp.columns.get(chans[f][0])} {chans[f][1] / chans[order[-1]][1]:.2f}" for f in order
-                    )
-                    warn(
-                        "floor_order",
-                        f"[experiment] channels: near building {b}'s first mode ({0.8 * f1:.3g}-{1.25 * f1:.3g} Hz) "
-                        f"{exp.columns.get(c_lo)} ({c_lo}) moves {a_lo / a_hi:.2f} times {exp.columns.get(c_hi)} "
-                        f"({c_hi}), a floor above it (amplitudes relative to the top: {shown}); in a first mode the "
-                        "floors move more the higher they are: are two floors' columns exchanged in the mapping?",
-                    )
-                    break
+            k = height_order_fault([chans[f][1] for f in order], FLOOR_ORDER_SLACK)
+            if k is None:
+                continue
+            (c_lo, a_lo, _), (c_hi, a_hi, _) = chans[order[k]], chans[order[k + 1]]
+            top = chans[order[-1]][1]
+            shown = ", ".join(f"{exp.columns.get(chans[f][0])} {chans[f][1] / top:.2f}" for f in order)
+            where = "the import's first resonance" if from_data else "the model's first mode (far from the data's?)"
+            warn(
+                "floor_order",
+                f"[experiment] channels: near building {b}'s first mode ({0.8 * f1:.3g}-{1.25 * f1:.3g} Hz, about "
+                f"{where}) {exp.columns.get(c_lo)} ({c_lo}) moves {a_lo / a_hi:.2f} times {exp.columns.get(c_hi)} "
+                f"({c_hi}), a floor above it (amplitudes relative to the top: {shown}); in a first mode the floors "
+                "move more the higher they are: are two floors' columns exchanged in the mapping?",
+            )
 
 
 #: a record whose peak is within this factor of G_STANDARD times the table's measured one (or 1 / G_STANDARD) is
@@ -354,15 +362,13 @@ def _check_record_against_table(prep) -> None:
     for its reference sensor, 'sensor_import' metadata) differ in peak by a factor g: [excitation] units names the
     wrong one of g and m/s^2 (a helper's 'g' on an m/s^2 record drove the frame 9.8 times too hard, and the scoring's
     own unit hint pointed at the table instead). Only where the runs take the record as read (scale 1)."""
-    import json
-
     from pounding_sweep.model.experiment import read_table
 
     scene, exp = prep.scene, prep.experiment
     e = scene.excitation
     if e.type != "record" or e.scaling == "intensity" or e.scale != 1.0 or set(scene.axis_values("scale")) - {1.0}:
         return
-    reference = json.loads(exp.metadata.get("sensor_import", "{}")).get("settings", {}).get("reference")
+    reference = exp.sensor_import.get("settings", {}).get("reference")
     if not reference:
         return
     df, _ = read_table(exp.path)
@@ -422,9 +428,8 @@ def check_scene(prep) -> None:
         if tall:
             warn(
                 "story_height",
-                f"[{section}] story_height_m = {tall[0]:g} is {tall[0]:g} m, taller than any story "
-                f"({MAX_STORY_HEIGHT_M:g} m): metres are meant (for {tall[0]:g} mm write {tall[0] / 1e3:g}); the "
-                "drift ratios divide by it",
+                f"[{section}] story_height_m = {tall[0]:g} is {tall[0]:g} m, more than {MAX_STORY_HEIGHT_M:g} m: "
+                f"metres are meant (for {tall[0]:g} mm write {tall[0] / 1e3:g}); the drift ratios divide by it",
             )
     r_values = scene.axis_values("r")
     laws = [] if scene.contact is None else list(dict.fromkeys(scene.axis_values("law") or (scene.contact.law,)))

@@ -250,12 +250,7 @@ def _building(code: str) -> int:
 def _sensor_rates(exp: Experiment) -> dict[str, float]:
     """Channel code -> the sample rate [Hz] of the sensor that made it, where the table is an import's
     (its 'sensor_import' metadata: cli/import_.py); a sensor slower than the table was interpolated onto it."""
-    import json
-
-    try:
-        sensors = json.loads(exp.metadata.get("sensor_import", "{}")).get("sensors", {})
-    except (TypeError, ValueError, AttributeError):
-        return {}
+    sensors = exp.sensor_import.get("sensors", {})
     if not isinstance(sensors, dict):
         return {}
     out = {}

@@ -141,7 +141,7 @@ def test_a_story_height_in_millimetres_is_named():
         return [w.message for w in seen.items if w.kind == "story_height"]
 
     assert said(200.0) == [
-        "[building1] story_height_m = 200 is 200 m, taller than any story (20 m): metres are meant (for 200 mm write "
-        "0.2); the drift ratios divide by it"
+        "[building1] story_height_m = 200 is 200 m, more than 20 m: metres are meant (for 200 mm write 0.2); the drift "
+        "ratios divide by it"
     ]
     assert said(0.2) == []

@@ -205,14 +205,14 @@ def test_the_aliasing_check_takes_a_slow_sensors_own_rate_for_its_building_only(
     import json
     from types import SimpleNamespace
 
+    from pounding_sweep.model.experiment import Experiment
     from pounding_sweep.sweep.scoring import sensor_warnings
 
     t = np.arange(1200) / 120.0
     frame = SimpleNamespace(modes=lambda: SimpleNamespace(frequency_Hz=np.array([8.0, 25.0, 40.0])))
-    exp = SimpleNamespace(
+    exp = Experiment(  # the real record: its sensor_import reader is the one under test
         path="table.parquet",
         time_s=t,
-        dt_sample=1 / 120.0,
         channels={"abs_acc_b1f3": np.zeros_like(t), "abs_acc_b2f3": np.zeros_like(t)},
         columns={"abs_acc_b1f3": "b1f3_acc_m_s2", "abs_acc_b2f3": "b2f3_acc_m_s2"},
         metadata={"sensor_import": json.dumps({"sensors": {"b1f3": {"rate_Hz": 60.0}, "b2f3": {"rate_Hz": 120.0}}})},

@@ -28,7 +28,7 @@ from pounding_sweep.accuracy import accuracy_ladder, ladder_duration  # the dt-l
 from pounding_sweep.errors import ResultError
 from pounding_sweep.scene import scene_from_dict
 from pounding_sweep.scene.axes import STRUCTURE_AXES
-from pounding_sweep.scene.channels import ACC_PREFIX, is_acceleration
+from pounding_sweep.scene.channels import ACC_PREFIX, building_floor, is_acceleration
 from pounding_sweep.scene.parameters import PARAMETERS, channel_offset, is_log, member
 from pounding_sweep.scene.validate import FITTABLE
 from pounding_sweep.sweep.prepare import with_structure
@@ -220,10 +220,9 @@ def run_text(row, axes) -> str:
 def channel_label(code: str, md: dict) -> str:
     """'b1f3' -> 'Model-1, floor 3' (the building's name from the result file's metadata); 'abs_acc_b1f3' ->
     'Model-1, floor 3 (acceleration)'."""
-    floor = code.removeprefix(ACC_PREFIX)
-    b, f = int(floor[1]), int(floor.split("f")[1])
+    b, f = building_floor(code)
     name = md["buildings"][b - 1].get("name") or f"building {b}"
-    return f"{name}, floor {f}" + (" (acceleration)" if floor != code else "")
+    return f"{name}, floor {f}" + (" (acceleration)" if is_acceleration(code) else "")
 
 
 def score_codes(df: pd.DataFrame) -> list[str]:
@@ -862,7 +861,7 @@ def _ladder_channel(scene) -> str | None:
     # by (building, floor): building 1's top floor, f10 above f9
     acc = sorted(
         (c for c in x.channels.values() if c.startswith("abs_acc_")),
-        key=lambda c: (-int(c[len("abs_acc_b") :].split("f")[0]), int(c.split("f")[-1])),
+        key=lambda c: (-building_floor(c)[0], building_floor(c)[1]),
     )
     if acc and (len(acc) == len(x.channels) or x.use == "acceleration"):
         return acc[-1]

@@ -18,6 +18,7 @@ import pyarrow.parquet as pq
 
 from pounding_sweep import __version__
 from pounding_sweep.scene import Scene
+from pounding_sweep.scene.channels import building_floor
 from pounding_sweep.sweep.simulate import simulate, with_overrides
 
 
@@ -79,7 +80,7 @@ def make_experiment(
     rng = np.random.default_rng(seed)
     table = {"t_s": t + time_offset_s}
     for ch in chans:
-        b, f = ch[len("disp_b")], ch.split("f")[-1]
+        b, f = building_floor(ch)
         x_mm = np.interp(t, hist.t_s.to_numpy(), hist[f"{ch}_m"].to_numpy()) * 1e3
         table[f"model{b}_floor{f}_mm"] = x_mm + ar1_noise(rng, t.size, noise_mm, noise_rho)
     if with_table:

@@ -143,11 +143,11 @@ def _write(out: Path, im, note: str) -> None:
 
 
 def _summary(im, out: Path) -> None:
-    from pounding_sweep.model.sensors.assemble import FLOOR_NAME
+    from pounding_sweep.scene.channels import building_floor
 
     print("\n".join(im.summary()))
     others = [n for n in im.sensors if n != im.reference]
-    floors = [n for n in others if FLOOR_NAME.fullmatch(n)]
+    floors = [n for n in others if building_floor(n, bare=True)]
     chans = ", ".join(f'{im.column(n)} = "abs_acc_{n}"' for n in floors)
     unnamed = [n for n in others if n not in floors]
     q0, q1 = im.settings["quiet_s"]

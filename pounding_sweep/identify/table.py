@@ -21,6 +21,7 @@ from pounding_sweep.identify.update import StiffnessUpdate, update_scene
 from pounding_sweep.model.experiment import MAX_TABLE_STEP_S
 from pounding_sweep.model.modal import height_order_fault
 from pounding_sweep.model.records import TIME_UNITS, time_unit_guess
+from pounding_sweep.scene.channels import building_floor
 from pounding_sweep.scene.video import floor_code
 
 #: a column name's unit suffix ('b1f3_acc_m_s2', 'b1f3_mm'), dropped before its floor is read from it
@@ -80,7 +81,7 @@ def building_groups(columns) -> dict[int, list[str]]:
     g: dict = {}
     for c in columns:
         code = floor_code(UNIT_SUFFIX.sub("", str(c)))
-        b, f = (int(code[1:].split("f")[0]), int(code.split("f")[1])) if code else (0, 0)
+        b, f = building_floor(code) if code else (0, 0)
         g.setdefault(b, []).append((f, c))
     return {b: [c for _, c in sorted(v)] for b, v in g.items()}
 
@@ -255,7 +256,7 @@ def floor_order_note(r: ModalResult) -> str | None:
     shape that does not is two floors' files swapped, or a floor reversed."""
     if not r.modes or len(r.channels) < 2:
         return None
-    floors = [int(floor_code(UNIT_SUFFIX.sub("", c)).split("f")[1]) for c in r.channels]
+    floors = [building_floor(floor_code(UNIT_SUFFIX.sub("", c)))[1] for c in r.channels]
     shape = np.array([r.modes[0].shape[c] for c in r.channels])[np.argsort(floors)]
     names = [r.channels[k] for k in np.argsort(floors)]
     if height_order_fault(shape) is None:

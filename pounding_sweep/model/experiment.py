@@ -24,7 +24,7 @@ from pounding_sweep import codes
 from pounding_sweep.errors import ExperimentError
 from pounding_sweep.model.records import G_STANDARD
 from pounding_sweep.scene import ExperimentConfig
-from pounding_sweep.scene.channels import experiment_channel
+from pounding_sweep.scene.channels import building_floor, experiment_channel
 from pounding_sweep.scene.files import MAX_TABLE_BYTES, open_regular, text_problem
 from pounding_sweep.warn import warn
 
@@ -197,7 +197,7 @@ def experiment_problems(exp) -> list[tuple[str, str]]:
         if kind == codes.H_ABS_ACC:
             if (w := offset_problem(name, x, exp.dt_sample, exp.noise.get(code, 0.0))) is not None:
                 out.append(("channel_offset", w))
-        b, f = (int(v) for v in code.removeprefix("abs_acc_")[1:].split("f"))
+        b, f = building_floor(code)
         floors.setdefault((kind, b), []).append((f, code))
     for group in floors.values():
         group.sort()

@@ -14,6 +14,18 @@ _PATTERNS = {
 }
 
 
+#: a model floor, b<building>f<floor>, behind an optional channel prefix (abs_acc_b1f3, disp_b2f1): the one parse
+#: of a floor's name (floor_dof checks it against a scene as well)
+_FLOOR = re.compile(r"(abs_acc_|disp_|vel_)?b(\d+)f(\d+)")
+
+
+def building_floor(code: str, bare: bool = False) -> tuple[int, int] | None:
+    """'b1f3', 'abs_acc_b1f3' or 'disp_b2f1' -> (building, floor), numbered from 1; None where it names no floor
+    (bare: only 'b1f3' itself, as a floor sensor is named at import)."""
+    m = _FLOOR.fullmatch(code)
+    return (int(m[2]), int(m[3])) if m and not (bare and m[1]) else None
+
+
 def floor_dof(code: str, floors: tuple[int, int], key: str, value: str | None = None) -> int:
     """'b1f3' (building 1, floor 3) -> its DOF index in the coupled model (`value`: what the scene wrote,
     for the message, when code is a part of it)."""

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from pounding_sweep.model.records import G_STANDARD, MAX_ACC_M_S2
-from pounding_sweep.scene.channels import shown_value
+from pounding_sweep.scene.channels import building_floor, shown_value
 from pounding_sweep.scene.parameters import CONTACT, STIFFNESS, names
 from pounding_sweep.warn import warn
 
@@ -308,7 +308,7 @@ def _check_floor_order(prep) -> None:
 
     from pounding_sweep.model.experiment import noise_floor
     from pounding_sweep.model.modal import height_order_fault
-    from pounding_sweep.scene.channels import ACC_PREFIX, is_acceleration
+    from pounding_sweep.scene.channels import is_acceleration
 
     exp = prep.experiment
     fs = 1.0 / exp.dt_sample
@@ -328,11 +328,11 @@ def _check_floor_order(prep) -> None:
         for acc in (False, True):
             chans = {}
             for code in prep.score_codes:
-                floor = code.removeprefix(ACC_PREFIX)
-                if is_acceleration(code) == acc and floor.startswith(f"b{b}f"):
+                building, floor = building_floor(code)
+                if is_acceleration(code) == acc and building == b:
                     y = exp.channels[code][inside]
                     sigma = exp.noise.get(code) or noise_floor(y)[0]
-                    chans[int(floor.split("f")[1])] = (code, float(np.std(sosfiltfilt(sos, y - y.mean()))), sigma)
+                    chans[floor] = (code, float(np.std(sosfiltfilt(sos, y - y.mean()))), sigma)
             if len(chans) < 2 or not all(a > MODE_BAND_SNR * s for _, a, s in chans.values()):
                 continue
             order = sorted(chans)

@@ -358,3 +358,17 @@ def test_a_video_gives_no_accelerations(tmp_path):
     )
     with pytest.raises(Exception, match=r"channels.b1f3 = 'abs_acc_b1f3': a tracked video gives displacements only"):
         load_scene(write(tmp_path, text))
+
+
+def test_one_parse_of_a_floor_name():
+    """scene/channels.py building_floor: the one reading of b<building>f<floor> that the import, the checks, identify
+    and the plots share (floors past 9 included: the ladder sorted f10 above f9)."""
+    from pounding_sweep.scene.channels import building_floor
+
+    assert building_floor("b1f3") == (1, 3)
+    assert building_floor("abs_acc_b2f10") == (2, 10)
+    assert building_floor("disp_b1f1") == (1, 1)
+    assert building_floor("abs_acc_b1f3", bare=True) is None  # a sensor is named b1f3 itself
+    assert building_floor("b2f1", bare=True) == (2, 1)
+    for other in ("ground", "model1_floor3_mm", "b1", "bf3", "acc_b1f3", "b1f3_mm"):
+        assert building_floor(other) is None, other

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import math
 import os
-import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -34,6 +33,7 @@ from pounding_sweep.errors import SensorError
 from pounding_sweep.model.records import G_STANDARD
 from pounding_sweep.model.sensors.formats import SensorFile, clock_gaps, read_sensor
 from pounding_sweep.model.sensors.signals import first_resonance, physical_delay_bound, relation, rigid_band
+from pounding_sweep.scene.channels import building_floor
 
 #: a sensor whose clock range overlaps the reference's by this share of the shorter one shares its clock
 SHARED_CLOCK_OVERLAP = 0.5
@@ -478,9 +478,6 @@ def _moving_std(x: np.ndarray, m: int) -> np.ndarray:
     return np.sqrt(np.maximum(s2 - s1 * s1 / m, 0.0) / (m - 1))
 
 
-#: a floor sensor's name as a scene's channels name floors: b<building>f<floor>
-FLOOR_NAME = re.compile(r"b(\d+)f(\d+)")
-
 #: the first line of every provenance note the import writes: how a folder is known to be its output
 PROVENANCE_HEAD = "# Imported by python -m pounding_sweep import"
 
@@ -489,12 +486,12 @@ def _top_floors(floors: list[str]) -> list[str]:
     """Each building's top floor sensor where every floor sensor is named b<building>f<floor> (as a scene's channels
     are), else every floor sensor: a floor's own strongest peak can be a higher mode, never a lower one, so their
     lowest is then the first mode (a spurious low peak of one sensor would win it: name the sensors)."""
-    named = {n: FLOOR_NAME.fullmatch(n) for n in floors}
+    named = {n: building_floor(n, bare=True) for n in floors}  # b<building>f<floor>, as a scene's channels name floors
     if not all(named.values()):
         return floors
     top: dict[int, tuple[int, str]] = {}
-    for n, m in named.items():
-        b, f = int(m[1]), int(m[2])
+    for n, bf in named.items():
+        b, f = bf
         if b not in top or f > top[b][0]:
             top[b] = (f, n)
     return [n for _f, n in top.values()]

@@ -304,18 +304,23 @@ def _advance(st, h, ag_s, ag_e, cold):
 @inline_kernel
 def _accept(st, hs, t_e, ag_s, ag_e):
     """EventOps.accept: book the piece [t_e - hs, t_e] (energy increments as engine/scalar.py's, the law's
-    spring part k_h delta^1.5) and make its end the start. Outside the event scheme the pairs in contact
-    are those penetrating at the end, and an impact that starts takes its approach speed (Hertz-damp)."""
+    spring part k_h delta^1.5) and make its end the start. Outside the event scheme the pairs in contact are
+    those penetrating at the end (implicit) or, in the paper's scheme, those whose law acted: its forces come
+    from the contact-free trial state (st.work[3]), and a stiff contact at a coarse step can push a pair apart
+    by the step's end (as scalar._paper_forces books the linear laws); an impact that starts takes its approach
+    speed (Hertz-damp)."""
     u, v, un, vn, i1, i2, d, F, en = st.u, st.v, st.un, st.vn, st.i1, st.i2, st.gap, st.F, st.en
     touching, coef, alpha, graze, dt = st.pairs.active, st.pairs.c, st.alpha, st.graze, st.dt
     de, dd = bk.structure_work(u, un, st.m, st.C, st.Cdu, ag_s, ag_e, hs)
     en[EN_IN] += de
     en[EN_ABS] += abs(de)
     en[EN_DST] += dd
+    z_trial = st.work[3]
     for j in range(i1.shape[0]):
         pen = un[i1[j]] - un[i2[j]] - d
         if st.scheme != SCHEME_EVENT:
-            if pen > 0.0 and not touching[j] and st.law == LAW_HERTZDAMP:
+            touch = z_trial[j] - d > 0.0 if st.scheme == SCHEME_PAPER else pen > 0.0
+            if touch and not touching[j] and st.law == LAW_HERTZDAMP:
                 # an impact started in this step: keep its v0; where the contact-free trial did not
                 # close the gap (other pairs' forces did), take v0 from the step
                 if alpha[j] == 0.0 and coef[j] > 0.0:
@@ -325,7 +330,7 @@ def _accept(st, hs, t_e, ag_s, ag_e):
                     alpha[j], graze[j] = _approach(coef[j], rate, st.vmin)
                 if graze[j]:
                     st.flags[0] |= L.STATUS_GRAZING
-            touching[j] = pen > 0.0
+            touching[j] = touch
             if not touching[j]:
                 alpha[j] = 0.0
         sp = spring_part(st.k, pen) if touching[j] else 0.0

@@ -235,8 +235,11 @@ def _plain_step(Q: LawProblem, k, u, v, a, ag, st):
     v1 = P.rounded(2.0 / dt * du - v)
     a1 = P.rounded(4.0 / dt**2 * du - 4.0 / dt * v - a)
     pen = P.G.T @ u1 - P.gap
+    # in contact: penetrating at the end (implicit), or, in the paper's scheme, where the law acted (its forces
+    # come from the contact-free trial, which a stiff contact at a coarse step can push apart by the step's end)
+    touch = z1 > 0.0 if P.scheme == "paper" else pen > 0.0
     for j in range(P.n_pairs):
-        if pen[j] > 0.0 and not active[j]:
+        if touch[j] and not active[j]:
             st["impacts"][j] += 1
             if Q.law == "hertzdamp":
                 if not np.isfinite(v0[j]):  # the contact-free trial did not close the gap: v0 from this step
@@ -244,9 +247,9 @@ def _plain_step(Q: LawProblem, k, u, v, a, ag, st):
                     graze[j] = rate < Q.vmin
                     v0[j] = max(rate, Q.vmin)
                 st["grazing"] |= bool(graze[j])
-        if pen[j] <= 0.0:
+        if not touch[j]:
             v0[j] = np.inf
-    st["active"] = pen > 0.0
+    st["active"] = touch
     st["v0"] = v0
     st["contact_time"] += np.where(st["active"], dt, 0.0)
     st["peak_force"] = np.maximum(st["peak_force"], np.where(st["active"], F, 0.0))

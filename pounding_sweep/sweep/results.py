@@ -48,7 +48,7 @@ COLUMN_DOCS = {
     "peak_force_f*_N": "largest pounding force at floor pair f, positive in compression [N]",
     "min_force_f*_N": "most negative (tensile) contact force of the classic law [N]",
     "impacts_f*": "number of contact phases (penetration > 0) [-]",
-    "contact_time_f*_s": "total time with penetration > 0 [s], resolution dt",
+    "contact_time_f*_s": "total time with penetration > 0 (the paper's scheme: at its contact-free trial, where the law acts) [s], resolution dt",
     "compression_time_f*_s": "total time with contact force > 0 [s], resolution dt",
     "compression_phases_f*": "number of phases with contact force > 0 [-]",
     "median_compression_phase_f*_s": "median duration of those phases [s], resolution dt",

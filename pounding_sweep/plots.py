@@ -646,7 +646,7 @@ def history_figures(
         axes[1].set_title(f"zoom {_time_text(fzoom[0])}-{_time_text(fzoom[1])} s", fontsize=10)
         axes[0].set_title(force_caption(m, top, scene.contact.law), loc="left", fontsize=9)
         fig.suptitle(
-            f"{scene.name}: Kelvin-Voigt pounding force (compression > 0, {scene.contact.law} law); {label}",
+            f"{scene.name}: pounding force (compression > 0, {scene.contact.law} law); {label}",
             x=0.01,
             ha="left",
         )

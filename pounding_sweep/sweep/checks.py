@@ -112,6 +112,7 @@ class ContactTally:
         self.peaks: dict[str, tuple[float, float]] = {}  # peak_disp / peak_abs_acc column -> (least, largest) over runs
         # False: the closest group was left out ([output] metrics): its columns are NaN, the approach is unknown
         self.closest_computed = True
+        self.kept_disp: dict[str, float] = {}  # peak_disp column -> its largest over the runs not flagged diverged
 
     def add(self, table, numpy_column) -> None:
         names = table.column_names
@@ -129,9 +130,14 @@ class ContactTally:
                     self.approach, self.pair = approach, int(j)
         if "gap_m" in names and table.num_rows:
             self.min_gap = min(self.min_gap, float(np.nanmin(numpy_column(table, "gap_m"))))
+        kept = np.array(["diverged" not in s for s in table.column("status").to_pylist()], dtype=bool)
         for name in names:
             if name.startswith(("peak_abs_acc_b", "peak_disp_b")) and not name.startswith("peak_disp_time"):
                 x = numpy_column(table, name)
+                if name.startswith("peak_disp_b"):
+                    k = x[kept & np.isfinite(x)]
+                    if k.size:
+                        self.kept_disp[name] = max(self.kept_disp.get(name, 0.0), float(k.max()))
                 x = x[np.isfinite(x)]
                 if x.size:
                     lo, hi = self.peaks.get(name, (math.inf, -math.inf))
@@ -178,6 +184,39 @@ def check_contact(tally: ContactTally, scene) -> None:
     if swept:
         parts.append(f"the swept {', '.join(swept)} change nothing here")
     warn("no_contact", "; ".join(parts))
+
+
+#: a floor displaced more than this share of its height above the table (a mean drift ratio of 10 %) is past any
+#: frame's linear range: real frames near collapse drift 4-10 % (ASCE 41's collapse-prevention limit for steel
+#: moment frames is 5 %); a shear frame model there says nothing, and the usual cause is the excitation's units
+MAX_MEAN_DRIFT = 0.1
+
+
+def check_response_size(tally: ContactTally, scene) -> None:
+    """After the grid: warn where a building's floor moved more than MAX_MEAN_DRIFT of its height above the table
+    in a run not flagged diverged (where story_height_m is given). A helper's table amplitude typed in mm as m
+    (roof 14 m on a 1 m model) and a record in cm/s^2 read as m/s^2 (0.8 m) ran with every status 'ok'."""
+    for i, section in enumerate(("building1", "building2"), 1):
+        b = getattr(scene, section, None)
+        heights = b.story_height_m if b is not None else None
+        if not heights:
+            continue
+        worst = None
+        for f in range(1, len(heights) + 1):
+            peak = tally.kept_disp.get(f"peak_disp_b{i}f{f}_m")
+            h = float(sum(heights[:f]))
+            if peak is not None and peak > MAX_MEAN_DRIFT * h and (worst is None or peak / h > worst[0]):
+                worst = (peak / h, f, peak, h)
+        if worst is not None:
+            ratio, f, peak, h = worst
+            warn(
+                "response_size",
+                f"[{section}] {b.name or section}: floor {f} moves up to {peak:.4g} m relative to the table in a run "
+                f"not flagged diverged, {ratio:.3g} times its height above it ({h:.4g} m from story_height_m): past "
+                f"any frame's linear range (a mean drift above {MAX_MEAN_DRIFT:.0%}); are the excitation's size and "
+                "units right ([excitation] units, amplitude_m, scale)? Else see the runs' status (energy_residual: "
+                "the contact made energy)",
+            )
 
 
 #: the most memory the calibration's global stage may keep in histories: its Sobol points run as one batch

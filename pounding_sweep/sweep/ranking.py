@@ -34,6 +34,12 @@ def score_columns(codes: list[str]) -> list[tuple[str, str]]:
     return [(name.format(c=c), doc) for c in codes for name, doc in score_names(c)]
 
 
+def combined_meaning(comb: Combination) -> str:
+    """What rel_rms_combined_pct holds for this combination (the result file's column description)."""
+    which = "the channels weighted > 0, by their weights" if comb.weights is not None else "every scored channel"
+    return f"the channels' eq. 20 errors made one per run: their {comb.how} over {which} ([experiment] combine) [%]"
+
+
 def combine_errors(rel_rms: np.ndarray, how: str, weights: np.ndarray | None = None) -> np.ndarray:
     """Channels' eq. 20 errors (runs x channels) -> one error per run: mean, max or rms; with `weights`
     (per channel, summing to 1; sweep/scoring.py combination) over the channels weighted > 0: the weighted

@@ -8,6 +8,7 @@ scored as it finishes and the best runs are kept as running minima.
 
 from __future__ import annotations
 
+import math
 import os
 import threading
 import time
@@ -38,13 +39,14 @@ from pounding_sweep.sweep.checks import (
     ContactTally,
     check_calibration,
     check_contact,
+    check_response_size,
     check_scene,
     check_time_step,
 )
 from pounding_sweep.sweep.gate import pause
 from pounding_sweep.sweep.metricgroups import KEY, groups_facts, left_out_columns, sweep_groups
 from pounding_sweep.sweep.prepare import Prepared, drift_ratio_columns, prepare  # noqa: F401
-from pounding_sweep.sweep.ranking import Ranking, Refinement, score_columns, score_table_columns
+from pounding_sweep.sweep.ranking import Ranking, Refinement, combined_meaning, score_columns, score_table_columns
 from pounding_sweep.sweep.results import (
     PART_NAME,
     column_docs,
@@ -243,6 +245,7 @@ def _run_claimed(scene, folder, threads, progress, executor, kernel, size, notes
             exe.close()
     run_s = time.perf_counter() - t_run
     check_contact(tally.contact, scene)
+    check_response_size(tally.contact, scene)
     if notes.messages() != meta_warnings(meta):
         store_warnings(out_path, notes.messages())
     summary = SweepSummary(
@@ -256,7 +259,9 @@ def _run_claimed(scene, folder, threads, progress, executor, kernel, size, notes
         tally.kernel_s,
         tally.steps,
         exe.workers if exe is not None else 0,
-        {} if scene.single else {"peak_force_N": tally.peak_force},  # one building: no pounding force
+        # one building: no pounding force; else the largest, the largest of the runs flagged ok and the flags of
+        # the run that holds the largest (a diverged run's 'force' is no answer)
+        {} if scene.single else tally.forces(),
         parts=len(chunks),
         resumed_parts=len(done),
         executor=exe.name if exe is not None else ex.executor,
@@ -314,6 +319,8 @@ class _Tally:
         self.steps = 0
         self.kernel_s = 0.0
         self.peak_force = 0.0
+        self.peak_force_ok = math.nan  # ... of the runs with status 'ok' (NaN: none is)
+        self.peak_status = "ok"  # the status of the run with the largest
         self.contact = ContactTally()
         self.resumed = (0, 0, 0.0)  # runs, steps, kernel seconds of the parts kept from an earlier run
 
@@ -322,12 +329,23 @@ class _Tally:
         self.statuses.update(table.column("status").to_pylist())
         self.steps += int(np.nansum(numpy_column(table, "steps")))
         self.kernel_s += float(np.nansum(numpy_column(table, "run_time_s")))
-        for name in table.column_names:
-            if name.startswith("peak_force_f"):
-                self.peak_force = max(self.peak_force, float(np.nanmax(numpy_column(table, name), initial=0.0)))
+        names = [n for n in table.column_names if n.startswith("peak_force_f")]
+        if names and table.num_rows:
+            per_run = np.nanmax(np.column_stack([numpy_column(table, n) for n in names]), axis=1, initial=0.0)
+            ok = np.array(table.column("status").to_pylist()) == "ok"
+            if ok.any():
+                self.peak_force_ok = float(np.fmax(self.peak_force_ok, per_run[ok].max()))
+            k = int(np.argmax(per_run))
+            if per_run[k] > self.peak_force:
+                self.peak_force, self.peak_status = float(per_run[k]), table.column("status")[k].as_py()
         self.contact.add(table, numpy_column)
         if self.ranking is not None:
             self.ranking.update(table)
+
+    def forces(self) -> dict:
+        """The summary's pounding forces: the largest [N], the largest of the runs flagged ok [N] (NaN: no run is),
+        and the status of the run that holds the largest."""
+        return {"peak_force_N": self.peak_force, "peak_force_ok_N": self.peak_force_ok, "peak_status": self.peak_status}
 
     def mark_resumed(self) -> None:
         """What was added so far was resumed: the rest is this call's own work."""
@@ -377,7 +395,8 @@ def _model_facts(prep: Prepared) -> dict:
             "combine": x.combine,
             "window_s": [float(prep.score.t[0]), float(prep.score.t[-1])],
             "samples": int(prep.score.t.size),
-            "score_columns": dict(score_columns(prep.score_codes)),
+            "score_columns": dict(score_columns(prep.score_codes))
+            | {"rel_rms_combined_pct": combined_meaning(prep.combination)},
         }
         facts["experiment"].update(_acceleration_facts(prep))
     return facts

@@ -173,6 +173,9 @@ def test_hidden_parameters_score_best_on_accelerations(tmp_path, accel_table):
         assert md["lowpass"]["cutoff_Hz"] == 50.0 and md["lowpass"]["applied_to"] == ["abs_acc_b1f3", "abs_acc_b2f3"]
         assert set(md["noise"]) == {c for c in chans.values() if use == "both" or c.startswith("abs_acc")}
         assert sum(md["weights"].values()) == pytest.approx(1.0)
+        # the combined error described beside the channels' scores, by the combination it holds
+        assert {"rel_rms_abs_acc_b1f3_pct", "rel_rms_combined_pct"} <= set(md["score_columns"])
+        assert "mean over the channels weighted > 0" in md["score_columns"]["rel_rms_combined_pct"]
 
 
 def test_noise_floor_of_the_synthetic_channels(accel_table):

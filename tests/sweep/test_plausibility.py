@@ -145,3 +145,27 @@ def test_a_story_height_in_millimetres_is_named():
         "ratios divide by it"
     ]
     assert said(0.2) == []
+
+
+def test_a_table_amplitude_in_mm_typed_as_metres_is_said(tmp_path):
+    """The table's amplitude in mm written in amplitude_m (2.0 for 2 mm): every run 'ok', roofs metres away. The
+    first floors drift 15-17 times their height (sweep/checks.py check_response_size names the building, the floor
+    and the keys); the same scene with the amplitude in metres says nothing."""
+    s = load_scene(SWEEPS / "paper_6hz.toml")
+    base = dataclasses.replace(s, sweep=GRID, excitation=dataclasses.replace(s.excitation, duration_s=1.0))
+    assert "response_size" not in warnings_of(base, tmp_path / "m.parquet")
+    mm = dataclasses.replace(base, excitation=dataclasses.replace(base.excitation, amplitude_m=2.0))
+    said = warnings_of(mm, tmp_path / "mm.parquet")["response_size"]
+    assert "[building1] Model-1: floor" in said and "[building2] Model-2: floor" in said
+    assert "story_height_m" in said and "amplitude_m" in said
+
+
+def test_the_largest_force_of_a_diverged_run_is_named_as_such():
+    """The summary's largest pounding force says where a flagged run holds it, beside the runs flagged ok."""
+    from pounding_sweep.cli.run import _force_text
+
+    assert _force_text({"peak_force_N": 161.4, "peak_force_ok_N": 161.4, "peak_status": "ok"}) == "161.400 N"
+    both = _force_text({"peak_force_N": 3.7e8, "peak_force_ok_N": 12.5, "peak_status": "diverged"})
+    assert both == "12.500 N in the runs flagged ok; 3.7e+08 N in a run flagged diverged"
+    none = _force_text({"peak_force_N": 3.7e8, "peak_force_ok_N": float("nan"), "peak_status": "diverged"})
+    assert none.startswith("no run is flagged ok; 3.7e+08 N")

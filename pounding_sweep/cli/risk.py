@@ -52,7 +52,7 @@ def risk_main(argv: list[str]) -> int:
         scene = _with_execution(scene, args)
 
         def progress(name):
-            unit = "contact-free runs" if name == "free" else "contact runs"
+            unit = {"free": "contact-free runs", "bootstrap": "bootstrap replicates"}.get(name, "contact runs")
             return Progress(not args.quiet, unit=unit)
 
         def echo(w):

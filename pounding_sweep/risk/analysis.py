@@ -20,6 +20,7 @@ import pandas as pd
 from pounding_sweep.gaps.rules import RULES, combined_gap, tbec2018_minimum_gap_m
 from pounding_sweep.gaps.study import SEPARATED_GAP_M
 from pounding_sweep.risk.fragility import (
+    Fit,
     bootstrap_interval,
     bootstrap_multiplicities,
     fit_lognormal,
@@ -101,6 +102,11 @@ def probability_table(demand: pd.DataFrame, gaps, scaling: str, confidence: floa
     return pd.concat(rows, ignore_index=True)
 
 
+#: the values of one (replicates, gaps, runs) array a cloud's bootstrap fits at once (2^22 float64: 32 MiB; the fit
+#: holds about a dozen such arrays)
+CLOUD_BLOCK_VALUES = 2**22
+
+
 class FragilityData:
     """The outcomes the fragility fits use: stripes (scaling = 'intensity': the demand per level and motion)
     or a cloud (every run its own point), with the bootstrap's resampling of the motions."""
@@ -119,8 +125,15 @@ class FragilityData:
             self.demand = demand.required_gap_m.to_numpy()
             self.motion = demand.motion_index.to_numpy()
 
-    def fit(self, gaps, mult=None):
-        """Fits for each gap (and each bootstrap replicate when mult (replicates, motions) is given)."""
+    def counts(self, gaps) -> tuple[np.ndarray, np.ndarray]:
+        """Per gap: the outcomes that pounded and all outcomes (runs of a cloud; motions times levels of stripes)."""
+        g = np.asarray(gaps, dtype=float)
+        k = (np.asarray(self.demand)[None] > g.reshape((-1,) + (1,) * np.ndim(self.demand))).reshape(g.size, -1)
+        return k.sum(1), np.full(g.size, k.shape[1])
+
+    def fit(self, gaps, mult=None, progress=None):
+        """Fits for each gap (and each bootstrap replicate when mult (replicates, motions) is given; a cloud's
+        replicates a block at a time, `progress(done, total)` told after each)."""
         g = np.asarray(gaps, dtype=float)
         if self.scaling == "intensity":
             if mult is None:
@@ -133,9 +146,19 @@ class FragilityData:
         y = (self.demand[None, :] > g[:, None]).astype(float)  # (gaps, runs)
         if mult is None:
             return fit_lognormal(np.broadcast_to(self.x, y.shape), y, np.ones_like(y))
-        w = mult[:, self.motion].astype(float)  # (replicates, runs)
-        x = np.broadcast_to(self.x, (mult.shape[0], g.size, self.x.size))
-        return fit_lognormal(x, y[None], np.ones_like(y)[None], weights=w[:, None, :])
+        # a cloud's replicates a block at a time: each fit holds about a dozen (replicates, gaps, runs) arrays, and
+        # 1000 replicates x 100 gaps x 4000 runs at once filled 24 GiB (a helper's default study, killed)
+        per = max(1, CLOUD_BLOCK_VALUES // max(y.size, 1))
+        fits = []
+        for r0 in range(0, mult.shape[0], per):
+            w = mult[r0 : r0 + per, self.motion].astype(float)  # (replicates, runs)
+            x = np.broadcast_to(self.x, (w.shape[0], g.size, self.x.size))
+            fits.append(fit_lognormal(x, y[None], np.ones_like(y)[None], weights=w[:, None, :]))
+            if progress is not None:
+                progress(r0 + w.shape[0], mult.shape[0])
+        return Fit(
+            *(np.concatenate([getattr(f, name) for f in fits]) for name in ("theta", "beta", "loglik", "status"))
+        )
 
 
 def fragility_table(data: FragilityData, gaps, boot_fits, confidence: float) -> pd.DataFrame:
@@ -159,7 +182,20 @@ def fragility_table(data: FragilityData, gaps, boot_fits, confidence: float) -> 
         out["beta_ci_low"], out["beta_ci_high"], _ = bootstrap_interval(be, np.where(ok, fit.beta, np.nan), confidence)
         out["bootstrap_ok_fraction"] = found
     out["motions"] = data.n_motions
+    out["poundings"], out["outcomes"] = data.counts(gaps)
     return out
+
+
+#: a fragility fitted from fewer poundings, or fewer outcomes without one, is weakly identified: the rule of at
+#: least 10 events of the rarer outcome per estimated slope (Peduzzi et al. 1996, J. Clin. Epidemiol. 49:1373)
+MIN_EVENTS = 10
+
+
+def few_events(frag: pd.DataFrame) -> np.ndarray:
+    """The fitted ('ok') gaps whose rarer outcome has fewer than MIN_EVENTS: their median and beta rest on a handful
+    of runs, and their curves may cross their neighbours' (a wider gap pounding more at some intensity)."""
+    rare = np.minimum(frag.poundings, frag.outcomes - frag.poundings)
+    return ((frag.status == "ok") & (rare < MIN_EVENTS)).to_numpy()
 
 
 def required_gap_table(
@@ -198,6 +234,7 @@ def required_gap_table(
                 )
             est = float(gap_for_probability(fit, gaps, float(x), float(p)))
             row["lognormal_gap_m"] = est
+            row["lognormal_interpolation_m"] = interpolation_error(fit, gaps, float(x), float(p), est)
             if not math.isfinite(est):
                 notes.append("lognormal: " + _why_no_gap(fit, gaps, float(x), float(p)))
             if boot_fits is not None:
@@ -205,6 +242,16 @@ def required_gap_table(
                 lo, hi, found = bootstrap_interval(reps, est, confidence)
                 row.update(lognormal_ci_low_m=float(lo), lognormal_ci_high_m=float(hi))
                 row["bootstrap_found_fraction"] = float(found)
+                spread = row["lognormal_interpolation_m"]
+                if spread > COARSE_SHARE * (float(hi) - float(lo)):
+                    g = np.asarray(gaps, dtype=float)
+                    i = int(np.searchsorted(g, est))
+                    notes.append(
+                        f"lognormal: the gaps studied bracket it at {g[max(i - 1, 0)] * 1e3:.4g}-"
+                        f"{g[min(i, g.size - 1)] * 1e3:.4g} mm; interpolating through a third gap moves it by "
+                        f"{spread * 1e3:.3g} mm, against its interval's {(float(hi) - float(lo)) * 1e3:.3g} mm: the "
+                        f"grid is coarse here (a finer [risk] gaps_m near {est * 1e3:.4g} mm)"
+                    )
                 if math.isfinite(est) and not math.isfinite(float(lo)):
                     notes.append(
                         f"lognormal interval: {found:.1%} of the bootstrap replicates give a gap, fewer than the "
@@ -214,6 +261,39 @@ def required_gap_table(
             row["note"] = "; ".join(notes)
             rows.append(row)
     return pd.DataFrame(rows)
+
+
+#: an interpolation error above this share of the interval's width is said (the interval holds only sampling)
+COARSE_SHARE = 0.25
+
+
+def interpolation_error(fit, gaps, x: float, p: float, est: float) -> float:
+    """How far the gap for P(pounding | x) = p moves when the fragilities' probits Phi^-1(P) are interpolated
+    through three gaps (inverse quadratic in ln gap: the bracketing two and the nearer neighbour) instead of two
+    (gap_for_probability): the grid's own error, which the bootstrap interval does not hold. NaN where there is no
+    estimate or no third gap with a probability strictly between 0 and 1."""
+    from scipy.special import ndtri
+
+    if not math.isfinite(est):
+        return math.nan
+    g = np.asarray(gaps, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = ndtri(fit.probability(np.array([x]))[..., 0])  # the probits (+-inf at 0 and 1)
+    zt = float(ndtri(p))
+    i1 = int(np.clip(np.searchsorted(g, est), 1, g.size - 1))
+    i0 = i1 - 1
+    third = [i for i in (i0 - 1, i1 + 1) if 0 <= i < g.size and np.isfinite(z[i])]
+    if not third or not (np.isfinite(z[i0]) and np.isfinite(z[i1])):
+        return math.nan
+    i2 = min(third, key=lambda i: abs(np.log(g[i]) - np.log(est)))
+    pts = [(float(z[i]), float(np.log(g[i]))) for i in (i0, i1, i2)]
+    if len({q for q, _ in pts}) < 3:
+        return math.nan
+    lg = sum(
+        yj * math.prod((zt - qk) / (qj - qk) for k, (qk, _) in enumerate(pts) if k != j)
+        for j, (qj, yj) in enumerate(pts)
+    )
+    return abs(math.exp(lg) - est)
 
 
 def _why_no_gap(fit, gaps, x: float, p: float) -> str:
@@ -375,12 +455,13 @@ def annual_rate_table(hazard, fit, boot_fits, gaps, confidence: float, integrate
     return out
 
 
-def bootstrap(data: FragilityData, gaps, replicates: int, seed: int):
-    """(multiplicities, fits) of the bootstrap over motions, or (None, None) without one."""
+def bootstrap(data: FragilityData, gaps, replicates: int, seed: int, progress=None):
+    """(multiplicities, fits) of the bootstrap over motions, or (None, None) without one; `progress(done, total)`
+    follows the replicates fitted."""
     if replicates <= 0:
         return None, None
     mult = bootstrap_multiplicities(data.n_motions, replicates, seed)
-    return mult, data.fit(gaps, mult)
+    return mult, data.fit(gaps, mult, progress)
 
 
 __all__ = [

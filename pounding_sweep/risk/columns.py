@@ -50,6 +50,8 @@ COLUMN_DOCS = {
         "beta_ci_high": "its upper end [-]",
         "bootstrap_ok_fraction": "fraction of bootstrap replicates whose fit is 'ok' [-]",
         "motions": "motions of the study [-]",
+        "poundings": "outcomes that pounded at this gap (runs of a cloud; motions x levels of stripes) [-]",
+        "outcomes": "all outcomes the fit weighs; fewer than 10 of the rarer outcome: weakly identified [-]",
     },
     "required_gap": {
         "intensity_g": "intensity [g]",
@@ -59,12 +61,14 @@ COLUMN_DOCS = {
         "empirical_ci_high_m": "its upper end [m]",
         "motions": "motions behind it [-]",
         "lognormal_gap_m": "gap at which the lognormal fragilities give the target (interpolated in ln gap) [m]",
+        "lognormal_interpolation_m": "how far it moves interpolated through three gaps instead of two: the gap grid's "
+        "own error, not in the interval (a note where it exceeds a quarter of the interval) [m]",
         "lognormal_ci_low_m": "bootstrap percentile interval; NaN without an estimate or where more than "
         "(1 - confidence) / 2 of the replicates give no gap [m]",
         "lognormal_ci_high_m": "its upper end [m]",
         "bootstrap_found_fraction": "fraction of replicates that give a gap (target inside the gaps studied, fits "
         "identified) [-]",
-        "note": "why a value of the row is NaN ('' when none is)",
+        "note": "why a value of the row is NaN, or the gap grid is coarse for it ('' when neither)",
     },
     "code_rules": {
         "intensity_g": "intensity [g]",

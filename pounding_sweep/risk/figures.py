@@ -61,13 +61,15 @@ def fragility_figure(study, most: int = 5):
     gaps studied), with the stripes' fractions (and their intervals) as points."""
     fig = _figure(figsize=(8.0, 4.8))
     ax = fig.subplots()
-    frag = study.fragility[study.fragility.status == "ok"]
+    from pounding_sweep.risk.analysis import few_events
+
+    frag = study.fragility[(study.fragility.status == "ok") & ~few_events(study.fragility)]
     if frag.empty:
         frag = study.fragility
     pick = frag.iloc[np.unique(np.linspace(0, len(frag) - 1, most).round().astype(int))]
-    levels = study.probability.intensity_g.unique()
-    xmax = max(float(np.max(levels)) * 1.5, float(np.nanmax(pick.median_g.replace(np.inf, np.nan).fillna(0))) * 2)
-    x = np.geomspace(max(1e-3, float(np.min(levels)) / 3), xmax, 300)
+    # the intensities the runs had, a little beyond: past them a curve is an extrapolation of the lognormal form
+    seen = study.demand.intensity_g.to_numpy(dtype=float)
+    x = np.geomspace(max(1e-3, float(np.min(seen)) / 1.5), float(np.max(seen)) * 1.5, 300)
     from scipy.special import ndtr
 
     for i, row in enumerate(pick.itertuples()):

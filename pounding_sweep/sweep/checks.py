@@ -186,10 +186,11 @@ def check_contact(tally: ContactTally, scene) -> None:
     warn("no_contact", "; ".join(parts))
 
 
-#: a floor displaced more than this share of its height above the table (a mean drift ratio of 10 %) is past any
-#: frame's linear range: real frames near collapse drift 4-10 % (ASCE 41's collapse-prevention limit for steel
-#: moment frames is 5 %); a shear frame model there says nothing, and the usual cause is the excitation's units
-MAX_MEAN_DRIFT = 0.1
+#: a floor displaced more than this share of its height above the table (a mean drift ratio of 25 %) is far past any
+#: frame's linear range: real frames collapse at 4-10 % (ASCE 41's collapse-prevention limit for steel moment
+#: frames is 5 %), so a study scaled to high intensities on purpose reaches 10 % (the shipped risk scenes at
+#: 1.5 g), while a unit slip moves floors by their height or more (a helper's: 1.1 to 17 times)
+MAX_MEAN_DRIFT = 0.25
 
 
 def check_response_size(tally: ContactTally, scene) -> None:

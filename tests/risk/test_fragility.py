@@ -257,3 +257,64 @@ def test_bad_hazard_tables_are_refused(tmp_path, text, message):
     path.write_text(text)
     with pytest.raises(InputError, match=message):
         read_hazard(str(path))
+
+
+def test_a_clouds_bootstrap_fitted_in_blocks_is_the_bootstrap_fitted_at_once(monkeypatch):
+    """risk/analysis.py FragilityData.fit takes a cloud's replicates a block at a time (a helper's default study,
+    1000 replicates x 100 gaps x 4000 runs at once, filled 24 GiB). Blocks of 7 replicates give the fits of all
+    at once, to the iteration's stopping rule: Fisher scoring stops when every fit's step in (a, b) = (-ln theta /
+    beta, 1 / beta) is below TOL (1 + |a| + |b|), and a block may stop one step earlier than the whole (quadratic
+    convergence: the step after is far smaller), so a and b agree within that."""
+    import pandas as pd
+
+    from pounding_sweep.risk import analysis
+    from pounding_sweep.risk.fragility import TOL, bootstrap_multiplicities
+
+    rng = np.random.default_rng(5)
+    n = 300
+    pga = np.exp(rng.normal(np.log(0.3), 0.4, n))
+    demand = pd.DataFrame(
+        {
+            "motion_index": np.arange(n),
+            "intensity_g": pga,
+            "required_gap_m": 0.1 * pga * np.exp(rng.normal(0.0, 0.5, n)),
+        }
+    )
+    data = analysis.FragilityData(demand, "factor")
+    gaps = np.array([0.02, 0.03, 0.05])
+    mult = bootstrap_multiplicities(n, 40, seed=1)
+    whole = data.fit(gaps, mult)
+    monkeypatch.setattr(analysis, "CLOUD_BLOCK_VALUES", 7 * gaps.size * n)
+    told: list[tuple[int, int]] = []
+    blocks = data.fit(gaps, mult, lambda done, total: told.append((done, total)))
+    assert told == [(min(d, 40), 40) for d in range(7, 47, 7)]  # the replicates done after each block of 7
+    assert (blocks.status == whole.status).all() and (whole.status == "ok").mean() > 0.9
+    ok = whole.status == "ok"
+
+    def ab(f):
+        return -np.log(f.theta[ok]) / f.beta[ok], 1.0 / f.beta[ok]
+
+    (a, b), (a_blocks, b_blocks) = ab(whole), ab(blocks)
+    bound = TOL * (1.0 + np.abs(a) + np.abs(b))
+    assert np.all(np.abs(a_blocks - a) <= bound) and np.all(np.abs(b_blocks - b) <= bound)
+
+
+def test_the_gap_for_a_probability_is_exact_on_a_coarse_grid_where_the_demand_is_lognormal():
+    """gap_for_probability interpolates the probit of P in ln gap: with lognormal required gaps (median 0.1 x g,
+    beta 0.3: P(pounding | x, gap) = Phi((ln(0.1 x) - ln gap) / 0.3)) that is a straight line, so 8 gaps 20 mm apart
+    give the closed form up to rounding (1e-12 relative: a few ulps through ndtri and exp), where interpolating P
+    itself missed by about 1 % (a helper's 20 mm grid: 98.19 mm against 97.35 on a fine one); and
+    analysis.interpolation_error, the grid's own error by a third gap, is rounding too."""
+    from scipy.special import ndtri
+
+    from pounding_sweep.risk.analysis import interpolation_error
+    from pounding_sweep.risk.fragility import Fit
+
+    gaps = np.arange(0.05, 0.21, 0.02)
+    # a fragility per gap: P(demand > gap | x) = Phi(ln(x / (gap / 0.1)) / 0.3), i.e. median theta = gap / 0.1 g
+    fit = Fit(gaps / 0.1, np.full(gaps.size, 0.3), np.zeros(gaps.size), np.full(gaps.size, "ok", dtype=object))
+    for x, p in ((1.0, 0.1), (1.0, 0.02), (1.2, 0.5)):
+        want = 0.1 * x * math.exp(-0.3 * ndtri(p))
+        got = float(gap_for_probability(fit, gaps, x, p))
+        assert got == pytest.approx(want, rel=1e-12)
+        assert interpolation_error(fit, gaps, x, p, got) <= 1e-12 * want

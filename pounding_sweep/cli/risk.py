@@ -109,14 +109,20 @@ def print_study(study, written) -> None:
     print(show.rename(columns=cols).to_string(index=False, float_format=lambda x: f"{x:.4g}"))
     for row in req.itertuples():
         if getattr(row, "note", ""):
-            print(f"  NaN at {row.intensity_g:g} g, target {row.target_probability:g}: {row.note}")
+            print(f"  at {row.intensity_g:g} g, target {row.target_probability:g}: {row.note}")
     if study.annual_rate is not None:
-        unknown = study.annual_rate[study.annual_rate.status != "ok"]
+        rates = study.annual_rate.sort_values("gap_m").reset_index(drop=True)
+        unknown = rates[rates.status != "ok"]
         for _status, d in unknown.groupby("status", sort=False):
-            print(
-                f"annual rate not given at {len(d)} gap(s), {1e3 * d.gap_m.min():.4g}-{1e3 * d.gap_m.max():.4g} mm: "
-                f"{d.note.iloc[0]}"
+            # one band of gaps, or gaps scattered among those with a rate: say which
+            band = d.index.max() - d.index.min() + 1 == len(d)
+            where = (
+                f"{len(d)} gap(s), {1e3 * d.gap_m.min():.4g}-{1e3 * d.gap_m.max():.4g} mm"
+                if band
+                else f"{len(d)} of the {len(rates)} gaps, scattered between {1e3 * d.gap_m.min():.4g} and "
+                f"{1e3 * d.gap_m.max():.4g} mm among gaps with a rate (annual_rate.parquet names each)"
             )
+            print(f"annual rate not given at {where}: {d.note.iloc[0]}")
     rules = study.code_rules
     print(f"\nprobability of pounding each code rule's gap leaves ({conf} Clopper-Pearson):")
     show = rules[["intensity_g", "rule", "gap_m", "pounding", "motions", "probability", "ci_low", "ci_high"]].copy()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import os
 import signal
@@ -12,6 +13,26 @@ from collections.abc import Callable
 from pathlib import Path
 
 EXIT_BAD_INPUT = 2
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse with the commands' rule for bad input: one line `error: ...`, exit status 2 (argparse prints its
+    usage first). A value that starts with '-' (a negative number list, '-1,0.5') reads as an option unless
+    written KEY=VALUE: the message says so."""
+
+    def parse_known_args(self, args=None, namespace=None):  # type: ignore[override]
+        self._given = list(sys.argv[1:] if args is None else args)
+        return super().parse_known_args(args, namespace)
+
+    def error(self, message: str):  # type: ignore[override]
+        given = getattr(self, "_given", [])
+        if message.startswith("argument ") and "expected one argument" in message:
+            opts = message.split()[1].rstrip(":").split("/")
+            nxt = [given[i + 1] for i, a in enumerate(given[:-1]) if a in opts]
+            if nxt and nxt[0].startswith("-"):
+                message += f" ({nxt[0]!r} reads as an option: write {opts[-1]}={nxt[0]})"
+        print(f"error: {self.prog}: {message} (see --help)", file=sys.stderr)
+        sys.exit(EXIT_BAD_INPUT)
 
 
 def print_warning(w) -> None:

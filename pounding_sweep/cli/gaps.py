@@ -20,7 +20,7 @@ import os
 import sys
 from pathlib import Path
 
-from pounding_sweep.cli.common import EXIT_BAD_INPUT, Bad, hidden_temporary, print_warning, split_list
+from pounding_sweep.cli.common import EXIT_BAD_INPUT, Bad, OneLineParser, hidden_temporary, print_warning, split_list
 
 #: the files a study writes into its folder, the one that marks the folder as a study's first
 FILES = (
@@ -34,7 +34,7 @@ FILES = (
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="python -m pounding_sweep gaps", description=__doc__.split("\n\n")[0])
+    p = OneLineParser(prog="python -m pounding_sweep gaps", description=__doc__.split("\n\n")[0])
     p.add_argument("scene", help="scene file (TOML); its records (or harmonic motion) and buildings are studied")
     p.add_argument("--out", help="output folder (default: <scene's output folder>/<scene name>.gaps)")
     p.add_argument(

@@ -17,7 +17,15 @@ import os
 import sys
 from pathlib import Path
 
-from pounding_sweep.cli.common import EXIT_BAD_INPUT, Bad, check_replaceable, first_line, hidden_temporary, split_list
+from pounding_sweep.cli.common import (
+    EXIT_BAD_INPUT,
+    Bad,
+    OneLineParser,
+    check_replaceable,
+    first_line,
+    hidden_temporary,
+    split_list,
+)
 
 VIDEO_SUFFIXES = {".mkv", ".avi", ".mp4", ".mov", ".m4v", ".webm"}
 #: the first line of every file identify writes: what marks an existing --out as one it may replace
@@ -29,7 +37,7 @@ def _written_by_identify(path: Path) -> bool:
 
 
 def _identify_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = OneLineParser(
         prog="python -m pounding_sweep identify",
         description="Modal identification from a displacement table (e.g. one written by track): spectrum peaks, "
         "damping (half-power bandwidth; logarithmic decrement with --free-vibration) and mode-shape ratios per "

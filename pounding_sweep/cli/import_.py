@@ -17,13 +17,13 @@ import shlex
 import sys
 from pathlib import Path
 
-from pounding_sweep.cli.common import EXIT_BAD_INPUT, Bad, numbers
+from pounding_sweep.cli.common import EXIT_BAD_INPUT, Bad, OneLineParser, numbers
 
 OUTPUTS = ("table.parquet", "record.csv", "provenance.md")
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = OneLineParser(
         prog="python -m pounding_sweep import",
         description="Import raw sensor exports (one file per sensor, e.g. Xsens DOT CSV) into an experiment table "
         "and a record: the shaking axis, the clocks aligned (a shared device clock, else cross-correlation), one "

@@ -2,16 +2,15 @@
 
 from __future__ import annotations
 
-import argparse
 import sys
 
-from pounding_sweep.cli.common import EXIT_BAD_INPUT
+from pounding_sweep.cli.common import EXIT_BAD_INPUT, OneLineParser
 from pounding_sweep.errors import InputError
 
 
 def plot_main(argv: list[str]) -> int:
     """`python -m pounding_sweep plot RESULTS [--out DIR]`: the figures of a result file as PNGs."""
-    p = argparse.ArgumentParser(
+    p = OneLineParser(
         prog="python -m pounding_sweep plot",
         description="Write PNG figures of a sweep's result: error or peak-response heatmaps over two swept "
         "axes ((k_s/k, r) where both are swept), the best run's displacement and force histories over the "

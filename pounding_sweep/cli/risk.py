@@ -15,11 +15,11 @@ import dataclasses
 import sys
 from pathlib import Path
 
-from pounding_sweep.cli.common import EXIT_BAD_INPUT, print_warning
+from pounding_sweep.cli.common import EXIT_BAD_INPUT, OneLineParser, print_warning
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="python -m pounding_sweep risk", description=__doc__.split("\n\n")[0])
+    p = OneLineParser(prog="python -m pounding_sweep risk", description=__doc__.split("\n\n")[0])
     p.add_argument("scene", help="scene file (TOML) with a [risk] section and a [sweep] record or seed axis")
     p.add_argument("--out", help="study folder (default: the scene's [risk] path)")
     p.add_argument("--threads", type=int, default=None, help="worker threads (default: the scene's, 0 = all cores)")

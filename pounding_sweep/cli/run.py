@@ -13,7 +13,7 @@ import signal
 import sys
 import threading
 
-from pounding_sweep.cli.common import EXIT_BAD_INPUT, interruptible, print_warning
+from pounding_sweep.cli.common import EXIT_BAD_INPUT, OneLineParser, interruptible, print_warning
 from pounding_sweep.errors import InputError
 from pounding_sweep.progress import Progress
 from pounding_sweep.scene import describe, load_scene
@@ -42,7 +42,7 @@ SUBCOMMAND_HELP = {
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = OneLineParser(
         prog="python -m pounding_sweep",
         usage="%(prog)s [options] SCENE.toml\n       %(prog)s {track,identify,plot,gaps,import,risk} ... (see below)",
         description="Run a pounding scene: every grid point of its [sweep] through the Newmark/Kelvin-Voigt "

@@ -12,7 +12,15 @@ import sys
 import tomllib
 from pathlib import Path
 
-from pounding_sweep.cli.common import EXIT_BAD_INPUT, Bad, check_replaceable, first_line, numbers, split_list
+from pounding_sweep.cli.common import (
+    EXIT_BAD_INPUT,
+    Bad,
+    OneLineParser,
+    check_replaceable,
+    first_line,
+    numbers,
+    split_list,
+)
 
 
 def _written_by_track(path: Path) -> bool:
@@ -30,7 +38,7 @@ def _written_by_track(path: Path) -> bool:
 
 
 def _track_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = OneLineParser(
         prog="python -m pounding_sweep track",
         description="Track the LED markers of a shake-table video and write the displacement of every floor marker "
         "relative to the table (mm) with a per-frame quality flag: the tracked-displacement table that "

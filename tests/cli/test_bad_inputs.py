@@ -293,3 +293,25 @@ def test_no_reader_can_run_code():
     assert set(found) <= set(ALLOWED_READERS), found
     for call, files in found.items():
         assert files <= ALLOWED_READERS[call], (call, files)
+
+
+@pytest.mark.parametrize(
+    "argv, said",
+    [
+        (["gaps", "s.toml", "--relative-gaps", "-1,0.5"], "write --relative-gaps=-1,0.5"),
+        (["s.toml", "--threads"], "argument --threads: expected one argument (see --help)"),
+        (["s.toml", "--bogus"], "unrecognized arguments: --bogus"),
+        (["risk"], "the following arguments are required: scene"),
+    ],
+)
+def test_a_command_line_argparse_refuses_is_one_line(argv, said, capsys):
+    """cli/common.py OneLineParser: what argparse refuses is one `error: ...` line with exit status 2, no usage
+    block (a helper's `--relative-gaps -1,0.5` got the multi-line usage); a value that starts with '-' is told
+    how to write it."""
+    from pounding_sweep.cli import main
+
+    with pytest.raises(SystemExit) as e:
+        main(argv)
+    err = capsys.readouterr().err
+    assert e.value.code == 2 and err.count("\n") == 1 and err.startswith("error: python -m pounding_sweep")
+    assert said in err

@@ -147,6 +147,7 @@ def test_gaps_command_writes_the_study_and_refuses_bad_options(tmp_path):
     import pyarrow.parquet as pq
 
     md = json.loads(pq.read_schema(out / "required_gaps.parquet").metadata[b"pounding_sweep"])
+    assert {"version", "numpy_version", "scipy_version", "numba_version", "python_version"} <= set(md)  # what made it
     c = md["contact"]
     assert (c["law"], c["ks_ratio"], c["ks_N_per_m"], c["r"]) == ("classic", 1.0, None, 0.2)
     # the scene's own k_s/k and r axes (4 x 5 values): one point of them is run, and said

@@ -164,10 +164,12 @@ def study_files(study, scene) -> dict[str, bytes]:
 
     from pounding_sweep.gaps.figures import required_gap_figure, response_ratio_figure
     from pounding_sweep.gaps.study import COLUMN_DOCS
+    from pounding_sweep.sweep.results import versions
 
     meta = {
         b"pounding_sweep": json.dumps(
             {
+                **versions(),
                 "kind": "gap_study",
                 "scene_name": scene.name,
                 "config_hash": scene.config_hash(),

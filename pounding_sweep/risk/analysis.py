@@ -414,6 +414,7 @@ def consequence_table(contact: pd.DataFrame, free: pd.DataFrame, floors: tuple[i
                 "scale": float(scale),
                 "intensity_g": float(np.median(d.intensity_g)),
                 "quantity": name,
+                "unit": "N" if name.endswith("_N") else "-",  # forces; the ratios and impact counts have none
                 "motions": v.size,
                 "pounded": pounded,
                 "mean": float(np.mean(v)),

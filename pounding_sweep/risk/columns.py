@@ -94,6 +94,7 @@ COLUMN_DOCS = {
         "quantity": "disp_ratio_b* (top floor peak displacement with / without contact), drift_ratio_b* (largest "
         "story drift), acc_ratio_b* (top floor peak absolute acceleration), peak_force_N (largest pounding force "
         "over the pairs [N]), impacts (contact phases over the pairs)",
+        "unit": "the quantity's unit, that of its mean and quantiles ('N': the force; '-': the ratios and counts)",
         "motions": "motions [-]",
         "pounded": "motions with at least one impact [-]",
         "mean": "mean over the motions (the quantity's unit)",

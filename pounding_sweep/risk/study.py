@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import platform
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -420,22 +419,13 @@ def risk_study(
 def metadata(study: RiskStudy, table: str) -> dict[bytes, bytes]:
     """A table's key-value metadata: what it is, the scene (TOML, canonical config, hash), [risk], the model
     facts, the versions, what each column means."""
-    import numba
-    import pyarrow
-    import scipy
-
     from pounding_sweep.risk.columns import COLUMN_DOCS
+    from pounding_sweep.sweep.results import versions
 
     scene = study.scene
     info = {
-        "package": "pounding_sweep",
+        **versions(),
         "kind": f"risk_{table}",
-        "version": __version__,
-        "numpy_version": np.__version__,
-        "scipy_version": scipy.__version__,
-        "numba_version": numba.__version__,
-        "pyarrow_version": pyarrow.__version__,
-        "python_version": platform.python_version(),
         "scene_name": scene.name,
         "scene_file": str(Path(scene.source).resolve()),
         "config_hash": scene.config_hash(),

@@ -181,17 +181,27 @@ def column_docs(left_out: list[str], groups_left_out: list[str], key: str) -> di
     return out
 
 
-def file_metadata(scene, extra: dict, columns: dict[str, str] | None = None) -> dict[bytes, bytes]:
-    """Key-value metadata: scene TOML, canonical config and hash, versions, units, model facts; `columns`: what
-    each column means (default COLUMN_DOCS; a sweep leaving metric groups out passes column_docs)."""
+def versions() -> dict[str, str]:
+    """The package's and its numerical libraries' versions: every file the package writes says what made it."""
     import numba
+    import scipy
 
-    info = {
+    return {
         "package": "pounding_sweep",
         "version": __version__,
         "numba_version": numba.__version__,
         "numpy_version": np.__version__,
+        "scipy_version": scipy.__version__,
+        "pyarrow_version": pa.__version__,
         "python_version": platform.python_version(),
+    }
+
+
+def file_metadata(scene, extra: dict, columns: dict[str, str] | None = None) -> dict[bytes, bytes]:
+    """Key-value metadata: scene TOML, canonical config and hash, versions, units, model facts; `columns`: what
+    each column means (default COLUMN_DOCS; a sweep leaving metric groups out passes column_docs)."""
+    info = {
+        **versions(),
         "scene_name": scene.name,
         "scene_file": str(Path(scene.source).resolve()),
         "config_hash": scene.config_hash(),

@@ -269,8 +269,8 @@ def heatmap(
     """Value over two swept axes (rows axes[0], columns axes[1]; default the paper's (k_s/k, r)),
     annotated like the paper's tables (up to 150 cells).
 
-    The annotation's colour follows the cell's brightness; `mark_best` outlines the lowest cell;
-    a cell holding a run whose status is not 'ok' gets a '*'.
+    The annotation's colour follows the cell's brightness and its size the cells' count (a dozen columns
+    side by side); `mark_best` outlines the lowest cell; a cell holding a run whose status is not 'ok' gets a '*'.
     """
     t = _grid_pivot(df, value, axes=axes)
     v = t.to_numpy(dtype=float)
@@ -278,11 +278,14 @@ def heatmap(
     sx, sy = max(1, math.ceil(t.shape[1] / 12)), max(1, math.ceil(t.shape[0] / 12))
     ax.set_xticks(range(0, t.shape[1], sx), [_value_text(axes[1], c) for c in t.columns[::sx]])
     ax.set_yticks(range(0, t.shape[0], sy), [_value_text(axes[0], i) for i in t.index[::sy]])
+    if t.shape[1] > 6:  # side by side they run together
+        ax.tick_params(axis="x", labelrotation=45)
     ax.set_xlabel(AXES.get(axes[1], (axes[1],))[0])
     ax.set_ylabel(AXES.get(axes[0], (axes[0],))[0])
     ax.set_title(title)
     if v.size <= 150:
         flagged = np.zeros(v.shape, bool)
+        size = 8 if t.shape[1] <= 8 else max(5.0, 8 - 0.5 * (t.shape[1] - 8))
         if flag_cells and "status" in df:
             flags = df.assign(_flag=(df["status"] != "ok").astype(float))
             flagged = _grid_pivot(flags, "_flag", "max", axes).to_numpy() > 0
@@ -293,13 +296,22 @@ def heatmap(
                 text = fmt.format(x)
             else:
                 color, text = "k", "n/a"
-            ax.text(j, i, text + ("*" if flagged[i, j] else ""), ha="center", va="center", color=color, fontsize=8)
+            ax.text(j, i, text + ("*" if flagged[i, j] else ""), ha="center", va="center", color=color, fontsize=size)
     if mark_best and np.isfinite(v).any():
         from matplotlib.patches import Rectangle
 
         i, j = np.unravel_index(np.nanargmin(v), v.shape)
         ax.add_patch(Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False, ec="red", lw=2.2))
     return im
+
+
+def _map_axis_label(axis: str, md: dict) -> str:
+    """A map axis's label; a record's scale is its intensity in g where the scene scales records to an intensity
+    ([excitation] scaling = 'intensity': Sa or PGA)."""
+    exc = md.get("config", {}).get("excitation", {})
+    if axis == "scale" and exc.get("scaling") == "intensity":
+        return f"intensity, {'Sa' if exc.get('intensity') == 'sa' else 'PGA'} [g]"
+    return AXES.get(axis, (axis,))[0]
 
 
 def has_grid(df: pd.DataFrame, md: dict | None = None) -> bool:
@@ -356,15 +368,24 @@ def heatmap_figure(df: pd.DataFrame, md: dict, best: pd.DataFrame | None = None)
             notes.append("no run made contact: no pounding-force map")
         unit = None
         what = f"peak response over the grid{over}"
-    fig = _figure(figsize=(5.6 * len(maps), 4.8))
+    ncols = df[axes[1]].nunique() if axes[1] in df else 1
+    fig = _figure(figsize=(max(5.6, 2.6 + 0.62 * ncols) * len(maps), 4.8))
     panels = fig.subplots(1, len(maps), squeeze=False)[0]
+    labels = [_map_axis_label(a, md) for a in axes]
     for ax, (col, title, norm, is_err) in zip(panels, maps):
         im = heatmap(ax, df, col, title, "{:.3g}", norm=norm, mark_best=is_err, axes=axes)
+        ax.set_ylabel(labels[0])
+        ax.set_xlabel(labels[1])
         cb = fig.colorbar(im, ax=ax, label=unit or title.rsplit(": ", 1)[-1])
         if isinstance(norm, LogNorm):
             _plain_log(cb.ax.yaxis, _nice_log_ticks(norm.vmin, norm.vmax))
+    import textwrap
+
     swept = "; ".join(values_text(a, df[a]) for a in swept_axes(df, md))
-    lines = [f"{md['scene_name']}: {what}; {len(df)} runs", f"swept: {swept}" if swept else "nothing swept"]
+    width = int(fig.get_figwidth() * 12)  # characters of the title's font across the figure
+    lines = textwrap.wrap(f"{md['scene_name']}: {what}; {len(df)} runs", width) + (
+        textwrap.wrap(f"swept: {swept}", width, max_lines=3, placeholder=" ...") if swept else ["nothing swept"]
+    )
     if codes:
         notes.insert(0, "red box: lowest error")
         ref = best[best.criterion == "refined_combined"] if best is not None and "criterion" in best else ()

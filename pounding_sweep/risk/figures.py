@@ -40,11 +40,22 @@ def probability_figure(study):
         g = d.gap_m.to_numpy() * 1e3
         ax.fill_between(g, d.ci_low, d.ci_high, color=color, alpha=0.2, lw=0, step="post")
         ax.step(g, d.probability, where="post", color=color, label=f"{xg:.3g} g ({int(d.motions.iloc[0])} motions)")
+        # rules whose markers would overlap (SRSS and DDC for far-apart periods: gaps within 1 %, one probability)
+        # share a marker and a label; near P = 1 the label goes below, inside the axes
+        at: list[tuple[float, float, list[str]]] = []
         for rule, row in rules[np.isclose(rules.intensity_g, x)].set_index("rule").iterrows():
-            c, ls = RULE_STYLE.get(rule, ("k", "-"))
-            ax.plot([row.gap_m * 1e3], [row.probability], marker="o", mfc="white", mec=color, ms=6)
-            ax.annotate(rule.replace("2018_min", " min"), (row.gap_m * 1e3, row.probability), textcoords="offset points",
-                        xytext=(4, 4), fontsize=7, color=color)  # fmt: skip
+            gap_mm, p, name = float(row.gap_m) * 1e3, float(row.probability), str(rule).replace("2018_min", " min")
+            same = [a for a in at if abs(np.log(a[0] / gap_mm)) < 0.01 and abs(a[1] - p) < 0.01]
+            if same:
+                same[0][2].append(name)
+            else:
+                at.append((gap_mm, p, [name]))
+        for gap_mm, p, names in at:
+            ax.plot([gap_mm], [p], marker="o", mfc="white", mec=color, ms=6)
+            below = (5, -11) if p > 0.9 else (5, 4)
+            ax.annotate(
+                ", ".join(names), (gap_mm, p), textcoords="offset points", xytext=below, fontsize=7, color=color
+            )
     ax.set_xscale("log")
     ax.set_xlabel("gap at rest [mm]")
     ax.set_ylabel("P(pounding)")

@@ -153,7 +153,7 @@ def gaps_main(argv: list[str]) -> int:
         )
         return EXIT_BAD_INPUT
     if not args.quiet:
-        print_study(study, out)
+        print_study(study, out, scene)
     return 0
 
 
@@ -234,10 +234,14 @@ def _contact_text(study) -> str:
     return "contact: " + ", ".join(parts)
 
 
-def print_study(study, out: Path) -> None:
+def print_study(study, out: Path, scene=None) -> None:
     req = study.required
     lam = study.length_scale
-    print(f"required gap per floor pair [mm, model scale{f'; x {lam:g} for full scale' if lam != 1 else ''}]:")
+    scale = f"model scale; x {lam:g} for full scale" if lam != 1 else "the scene's scale (length_scale = 1)"
+    e = scene.excitation if scene is not None else None
+    if e is not None and e.type == "record" and e.scaling == "intensity":  # which intensity the one run per record had
+        scale += f"; each record at {'Sa' if e.intensity == 'sa' else 'PGA'} = {e.scale:g} g ([excitation] scale)"
+    print(f"required gap per floor pair [mm, {scale}]:")
     cols = ["record", "pair", "exact_m", "abs_m", "srss_m", "ddc_m", "tbec2018_min_m"]
     show = req[cols].copy()
     for c in cols[2:]:

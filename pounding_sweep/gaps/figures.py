@@ -46,8 +46,8 @@ def required_gap_figure(required, title: str = ""):
                 alpha=0.9 if col == "exact_m" else 0.7,
             )
         ax.set_xticks(x, [f"floor {p}" for p in d.pair])
-        ax.set_ylabel("required gap [mm], model scale")
         lam = float(d.length_scale.iloc[0])
+        ax.set_ylabel("required gap [mm]" + (", model scale" if lam != 1 else ""))
         ax.set_title(f"{rec}" + (f"  (full scale: x {lam:g})" if lam != 1 else ""), loc="left", fontsize=10)
         if lam != 1:
             sec = ax.secondary_yaxis("right", functions=(lambda y, lam=lam: y * lam, lambda y, lam=lam: y / lam))

@@ -87,12 +87,15 @@ def _run_text(s) -> str:
 
 
 def _force_text(x: dict) -> str:
-    """The largest pounding force, and where a flagged run holds it (a diverged run's force is no answer), the
-    largest of the runs flagged ok beside it."""
+    """The largest pounding force, and where a run whose force is no answer holds it (diverged, or its contact
+    made energy: sweep/run.py untrusted_force), the largest of the other runs beside it."""
+    from pounding_sweep.sweep.run import UNTRUSTED_FORCE_FLAGS, untrusted_force
+
     top, ok, status = x["peak_force_N"], x.get("peak_force_ok_N", x["peak_force_N"]), x.get("peak_status", "ok")
-    if status == "ok" or top <= ok:
+    if not untrusted_force(status) or top <= ok:
         return f"{top:.3f} N"
-    among_ok = f"{ok:.3f} N in the runs flagged ok" if ok == ok else "no run is flagged ok"
+    others = f"the runs not flagged {' or '.join(UNTRUSTED_FORCE_FLAGS)}"
+    among_ok = f"{ok:.3f} N in {others}" if ok == ok else f"no run among {others}"
     return f"{among_ok}; {top:.4g} N in a run flagged {status}"
 
 

@@ -333,7 +333,10 @@ def _accept(st, hs, t_e, ag_s, ag_e):
             touching[j] = touch
             if not touching[j]:
                 alpha[j] = 0.0
-        sp = spring_part(st.k, pen) if touching[j] else 0.0
+        # the law's spring part of the force applied: in the paper's scheme that of its trial state (so a pure
+        # Hertz law books no dashpot work, and what the applied spring force did on the motion against what the
+        # spring stores at the end shows as the residual: the energy the explicit force made or lost)
+        sp = spring_part(st.k, z_trial[j] - d if st.scheme == SCHEME_PAPER else pen) if touching[j] else 0.0
         dp = F[j] - sp if touching[j] else 0.0
         en[EN_WSP] += 0.5 * (st.Sprev[j] + sp) * (pen - st.pen_prev[j])
         en[EN_WDA] += 0.5 * (st.Dprev[j] + dp) * (pen - st.pen_prev[j])

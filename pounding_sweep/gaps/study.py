@@ -120,8 +120,8 @@ def required_gaps(scene: Scene, length_scale: float | None = None, threads: int 
     w1, z1 = frame_first_mode(model.b1)
     w2, z2 = frame_first_mode(model.b2)
     rho = cqc_correlation(w1, w2, z1, z2)
-    h = scene.building1.story_height_m
-    heights = floor_heights_m(h * model.b1.n_floors if len(h or ()) == 1 else h) if h else None
+    h = scene.building1.story_heights()
+    heights = floor_heights_m(h) if h else None
     rows = []
     for rec in _records(scene):
         # the separated run: any contact makes none at this gap, but the scene must be whole (contact: the study's

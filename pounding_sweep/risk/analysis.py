@@ -271,14 +271,14 @@ def interpolation_error(fit, gaps, x: float, p: float, est: float) -> float:
     """How far the gap for P(pounding | x) = p moves when the fragilities' probits Phi^-1(P) are interpolated
     through three gaps (inverse quadratic in ln gap: the bracketing two and the nearer neighbour) instead of two
     (gap_for_probability): the grid's own error, which the bootstrap interval does not hold. NaN where there is no
-    estimate or no third gap with a probability strictly between 0 and 1."""
+    estimate, no third gap with a fitted curve ('ok'), or where the three probits do not fall with the gap (weakly
+    identified fits: a finer grid would not help there) or their curve puts the gap outside the three."""
     from scipy.special import ndtri
 
     if not math.isfinite(est):
         return math.nan
     g = np.asarray(gaps, dtype=float)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        z = ndtri(fit.probability(np.array([x]))[..., 0])  # the probits (+-inf at 0 and 1)
+    z = fit.probit(np.array([x]))[..., 0]  # (+-inf: 'none', 'all')
     zt = float(ndtri(p))
     i1 = int(np.clip(np.searchsorted(g, est), 1, g.size - 1))
     i0 = i1 - 1
@@ -286,13 +286,15 @@ def interpolation_error(fit, gaps, x: float, p: float, est: float) -> float:
     if not third or not (np.isfinite(z[i0]) and np.isfinite(z[i1])):
         return math.nan
     i2 = min(third, key=lambda i: abs(np.log(g[i]) - np.log(est)))
-    pts = [(float(z[i]), float(np.log(g[i]))) for i in (i0, i1, i2)]
-    if len({q for q, _ in pts}) < 3:
+    pts = sorted((float(np.log(g[i])), float(z[i])) for i in (i0, i1, i2))
+    if not (pts[0][1] > pts[1][1] > pts[2][1]):  # the probit must fall with the gap
         return math.nan
     lg = sum(
-        yj * math.prod((zt - qk) / (qj - qk) for k, (qk, _) in enumerate(pts) if k != j)
-        for j, (qj, yj) in enumerate(pts)
+        yj * math.prod((zt - qk) / (qj - qk) for k, (_, qk) in enumerate(pts) if k != j)
+        for j, (yj, qj) in enumerate(pts)
     )
+    if not pts[0][0] <= lg <= pts[2][0]:
+        return math.nan
     return abs(math.exp(lg) - est)
 
 

@@ -62,7 +62,8 @@ COLUMN_DOCS = {
         "motions": "motions behind it [-]",
         "lognormal_gap_m": "gap at which the lognormal fragilities give the target (interpolated in ln gap) [m]",
         "lognormal_interpolation_m": "how far it moves interpolated through three gaps instead of two: the gap grid's "
-        "own error, not in the interval (a note where it exceeds a quarter of the interval) [m]",
+        "own error, not in the interval (a note where it exceeds a quarter of the interval); NaN without a third "
+        "fitted gap or where the fits' probits do not fall with the gap (weakly identified fits) [m]",
         "lognormal_ci_low_m": "bootstrap percentile interval; NaN without an estimate or where more than "
         "(1 - confidence) / 2 of the replicates give no gap [m]",
         "lognormal_ci_high_m": "its upper end [m]",

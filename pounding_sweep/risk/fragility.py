@@ -54,20 +54,25 @@ class Fit:
     loglik: np.ndarray
     status: np.ndarray  # str
 
+    def probit(self, x) -> np.ndarray:
+        """Phi^-1(P(pounding | x)) on the fitted curves, ln(x / theta) / beta, straight from the fit (a round trip
+        through P saturates at 1 beyond z = 8.3): (..., len(x)); -inf where no point pounded, +inf where every point
+        did, NaN for separated data (no fragility is identified)."""
+        x = np.asarray(x, dtype=float)
+        th, be = self.theta[..., None], self.beta[..., None]
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            z = np.log(x / th) / be
+        z = np.where(self.status[..., None] == "none", -np.inf, z)
+        z = np.where(self.status[..., None] == "all", np.inf, z)
+        bad = (self.status[..., None] == "separated") | (self.status[..., None] == "flat")
+        return np.where(bad, np.nan, z)  # not identified: no curve to give
+
     def probability(self, x) -> np.ndarray:
         """P(pounding | x) on the fitted curves: (..., len(x)); 0 where no point pounded, 1 where every point did,
         NaN for separated data (no fragility is identified)."""
         from scipy.special import ndtr
 
-        x = np.asarray(x, dtype=float)
-        th, be = self.theta[..., None], self.beta[..., None]
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            z = np.log(x / th) / be
-        out = ndtr(z)
-        out = np.where(self.status[..., None] == "none", 0.0, out)
-        out = np.where(self.status[..., None] == "all", 1.0, out)
-        bad = (self.status[..., None] == "separated") | (self.status[..., None] == "flat")
-        return np.where(bad, np.nan, out)  # not identified: no curve to give
+        return ndtr(self.probit(x))
 
 
 def fit_lognormal(x, k, n, weights=None) -> Fit:
@@ -255,13 +260,14 @@ def gap_for_probability(fit: Fit, gaps, x: float, p: float) -> np.ndarray:
     P(pounding | x) = p, by linear interpolation of the probability's probit Phi^-1(P) in ln(gap) between the two
     grid gaps that bracket p: exact where the required gaps at x are lognormal (P = Phi((ln median - ln gap) /
     beta): the probit is linear in ln gap), where P itself falls convexly (a helper's 20 mm grid, interpolated in
-    P, put a 10 % gap at 98.19 mm, a 2.5 mm grid at 97.35; in the probit: 97.1). Linear in P where a bracketing
-    probability is 0 or 1 (no probit). NaN where the grid does not bracket p (the target lies beyond the gaps
+    P, put a 10 % gap at 98.19 mm, a 2.5 mm grid at 97.35; in the probit: 97.1). The probits come from the fits
+    (Fit.probit), not back from P. Linear in P where a bracketing fit is 'none' or 'all' (P exactly 0 or 1). NaN where the grid does not bracket p (the target lies beyond the gaps
     studied) or a bracketing fit is not identified (separated data)."""
-    from scipy.special import ndtri
+    from scipy.special import ndtr, ndtri
 
     g = np.asarray(gaps, dtype=float)
-    prob = fit.probability(np.array([x]))[..., 0]  # (..., gaps)
+    zg = fit.probit(np.array([x]))[..., 0]  # (..., gaps)
+    prob = ndtr(zg)
     # P decreases with the gap: the first grid gap at which it drops to p or below
     below = prob <= p
     first = np.argmax(below, axis=-1)
@@ -272,8 +278,10 @@ def gap_for_probability(fit: Fit, gaps, x: float, p: float) -> np.ndarray:
     p1 = np.take_along_axis(prob, i1[..., None], -1)[..., 0]
     found &= np.isfinite(p0) & np.isfinite(p1)
     lg = np.log(g)
+    z0 = np.take_along_axis(zg, i0[..., None], -1)[..., 0]
+    z1 = np.take_along_axis(zg, i1[..., None], -1)[..., 0]
     with np.errstate(divide="ignore", invalid="ignore"):
-        z0, z1, zt = ndtri(p0), ndtri(p1), ndtri(p)
+        zt = ndtri(p)
         probit = np.isfinite(z0) & np.isfinite(z1) & (z0 != z1)
         t = np.where(probit, (z0 - zt) / (z0 - z1), np.where(p0 != p1, (p0 - p) / (p0 - p1), 0.0))
     out = np.exp(lg[i0] + np.clip(np.nan_to_num(t), 0.0, 1.0) * (lg[i1] - lg[i0]))

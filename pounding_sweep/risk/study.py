@@ -267,11 +267,11 @@ def model_facts(scene: Scene) -> dict:
     model = CoupledModel.from_scene(scene)
     w1, z1 = frame_first_mode(model.b1)
     w2, z2 = frame_first_mode(model.b2)
-    h = scene.building1.story_height_m
+    h = scene.building1.story_heights()
     lam = float(scene.excitation.length_scale)
     top = None
     if h:
-        heights = floor_heights_m(h * model.b1.n_floors if len(h) == 1 else h)
+        heights = floor_heights_m(h)
         top = float(heights[model.n_pairs - 1]) * lam
     e = scene.excitation
     return {
@@ -370,13 +370,12 @@ def _check_few_events(frag) -> None:
         rows = frag[few]
         rare = np.minimum(rows.poundings, rows.outcomes - rows.poundings)
 
-        def span(lo, hi, fmt):
-            return f"{lo:{fmt}}" if f"{lo:{fmt}}" == f"{hi:{fmt}}" else f"{lo:{fmt}}-{hi:{fmt}}"
-
+        gaps = ", ".join(f"{g * 1e3:.4g}" for g in rows.gap_m[:6]) + (", ..." if len(rows) > 6 else "")
+        counts = f"{int(rare.min())}" if rare.min() == rare.max() else f"{int(rare.min())}-{int(rare.max())}"
         warn(
             "few_events",
-            f"[risk] the fragility at {int(few.sum())} gap(s) ({span(rows.gap_m.min() * 1e3, rows.gap_m.max() * 1e3, '.4g')}"
-            f" mm) rests on {span(int(rare.min()), int(rare.max()), 'd')} of its {int(rows.outcomes.iloc[0])} outcomes "
+            f"[risk] the fragility at {int(few.sum())} gap(s) ({gaps} mm; fragility.parquet: poundings, outcomes) "
+            f"rests on {counts} of its {int(rows.outcomes.iloc[0])} outcomes "
             f"pounding (or not), fewer than {A.MIN_EVENTS}: its median and beta are weakly identified (see their "
             "intervals) and its curve may cross its neighbours'; more motions, or gaps nearer the runs' required "
             "gaps, identify it",

@@ -110,6 +110,13 @@ class BuildingConfig:
         when="optional; one value per story",
     )
 
+    def story_heights(self) -> tuple[float, ...] | None:
+        """Each story's height [m], story 1 first (one value given: every story's); None where none is given."""
+        h = self.story_height_m
+        if not h:
+            return None
+        return tuple(h) * len(self.masses_kg) if len(h) == 1 else tuple(h)
+
 
 @dataclass(frozen=True)
 class ContactConfig:

@@ -71,7 +71,7 @@ from pounding_sweep import codes as C
 from pounding_sweep.errors import ConfigError
 from pounding_sweep.model.experiment import noise_floor
 from pounding_sweep.scene import Scene
-from pounding_sweep.scene.channels import channel_unit, shown_value
+from pounding_sweep.scene.channels import building_floor, channel_unit, shown_value
 from pounding_sweep.scene.parameters import channel_offset, default_profiled, is_log, member
 from pounding_sweep.sweep.fitchecks import at_noise_level, reversed_channel_warnings, step_error, step_error_warning
 from pounding_sweep.sweep.fitstats import NO_CONTACT, fit_label, gauss_newton, interval, local_fit, misfit_of, on_bound
@@ -415,7 +415,7 @@ def check_channel_offsets(prep: Prepared, bounds: dict) -> None:
         code = channel_offset(name)
         if code is None:
             continue
-        b = int(code.removeprefix("abs_acc_")[1:].split("f")[0])
+        b = building_floor(code)[0]
         half = 0.5 * float(buildings[b - 1].modes().period_s.max())
         if lo < -half or hi > half:
             raise ConfigError(

@@ -199,7 +199,7 @@ def check_response_size(tally: ContactTally, scene) -> None:
     (roof 14 m on a 1 m model) and a record in cm/s^2 read as m/s^2 (0.8 m) ran with every status 'ok'."""
     for i, section in enumerate(("building1", "building2"), 1):
         b = getattr(scene, section, None)
-        heights = b.story_height_m if b is not None else None
+        heights = b.story_heights() if b is not None else None  # one value given: every story's
         if not heights:
             continue
         worst = None

@@ -332,11 +332,9 @@ def drift_ratio_columns(scene: Scene, metrics: np.ndarray, names: list[str]) -> 
     for b, cfg in ((1, scene.building1), (2, scene.building2)):
         if cfg is None:
             continue
-        h = cfg.story_height_m
-        if not h:
+        heights = cfg.story_heights()
+        if heights is None:
             continue
-        n = len(cfg.masses_kg)
-        heights = h * n if len(h) == 1 else h
-        for s in range(1, n + 1):
+        for s in range(1, len(heights) + 1):
             out[f"peak_drift_ratio_b{b}s{s}"] = metrics[:, names.index(f"peak_drift_b{b}s{s}_m")] / heights[s - 1]
     return out

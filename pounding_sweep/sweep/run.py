@@ -259,8 +259,8 @@ def _run_claimed(scene, folder, threads, progress, executor, kernel, size, notes
         tally.kernel_s,
         tally.steps,
         exe.workers if exe is not None else 0,
-        # one building: no pounding force; else the largest, the largest of the runs flagged ok and the flags of
-        # the run that holds the largest (a diverged run's 'force' is no answer)
+        # one building: no pounding force; else the largest, the largest of the runs whose force can be trusted and
+        # the flags of the run that holds the largest (a diverged run's 'force' is no answer)
         {} if scene.single else tally.forces(),
         parts=len(chunks),
         resumed_parts=len(done),
@@ -309,6 +309,16 @@ class _InFlight:
             self.runs = 0
 
 
+#: the flags under which a run's pounding force is no answer: the run blew up, or its contact made energy
+UNTRUSTED_FORCE_FLAGS = ("diverged", "energy_residual")
+
+
+def untrusted_force(status: str) -> bool:
+    """Whether a run's status says its pounding force is no answer (UNTRUSTED_FORCE_FLAGS); flags such as
+    contact_underresolved or grazing_impact leave it an answer, with its flag."""
+    return any(f in status.split("+") for f in UNTRUSTED_FORCE_FLAGS)
+
+
 class _Tally:
     """Counts, timings, extremes, contact and the ranking over the parts of a sweep (new or resumed)."""
 
@@ -319,7 +329,7 @@ class _Tally:
         self.steps = 0
         self.kernel_s = 0.0
         self.peak_force = 0.0
-        self.peak_force_ok = math.nan  # ... of the runs with status 'ok' (NaN: none is)
+        self.peak_force_ok = math.nan  # ... of the runs whose force is trusted (untrusted_force; NaN: none is)
         self.peak_status = "ok"  # the status of the run with the largest
         self.contact = ContactTally()
         self.resumed = (0, 0, 0.0)  # runs, steps, kernel seconds of the parts kept from an earlier run
@@ -332,7 +342,7 @@ class _Tally:
         names = [n for n in table.column_names if n.startswith("peak_force_f")]
         if names and table.num_rows:
             per_run = np.nanmax(np.column_stack([numpy_column(table, n) for n in names]), axis=1, initial=0.0)
-            ok = np.array(table.column("status").to_pylist()) == "ok"
+            ok = ~np.array([untrusted_force(s) for s in table.column("status").to_pylist()], dtype=bool)
             if ok.any():
                 self.peak_force_ok = float(np.fmax(self.peak_force_ok, per_run[ok].max()))
             k = int(np.argmax(per_run))
@@ -343,7 +353,7 @@ class _Tally:
             self.ranking.update(table)
 
     def forces(self) -> dict:
-        """The summary's pounding forces: the largest [N], the largest of the runs flagged ok [N] (NaN: no run is),
+        """The summary's pounding forces: the largest [N], the largest of the runs whose force is trusted [N] (NaN: none),
         and the status of the run that holds the largest."""
         return {"peak_force_N": self.peak_force, "peak_force_ok_N": self.peak_force_ok, "peak_status": self.peak_status}
 

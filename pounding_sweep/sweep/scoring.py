@@ -20,7 +20,7 @@ from pounding_sweep.model.experiment import (
     read_table,
 )
 from pounding_sweep.scene import ExperimentConfig
-from pounding_sweep.scene.channels import channel_unit
+from pounding_sweep.scene.channels import building_floor, channel_unit
 from pounding_sweep.scene.schema import USES
 from pounding_sweep.warn import warn
 
@@ -244,7 +244,7 @@ def combination(exp: Experiment, cfg: ExperimentConfig, spec: ScoreSpec, raw: np
 
 def _building(code: str) -> int:
     """The building a channel code measures ('b1f3', 'abs_acc_b2f1' -> 1, 2)."""
-    return int(code.removeprefix("abs_acc_")[1:].split("f")[0])
+    return building_floor(code)[0]
 
 
 def _sensor_rates(exp: Experiment) -> dict[str, float]:
@@ -292,11 +292,11 @@ def sensor_warnings(exp: Experiment, cfg: ExperimentConfig, model, excitation) -
     if inside.sum() < 16:
         return out
     ground = np.interp(t_sim[inside], rec.time_s, rec.acc_m_s2)
-    lowest: dict[str, str] = {}
+    lowest: dict[int, str] = {}
     for code in exp.channels:
         if exp.kinds.get(code) == codes.H_ABS_ACC:
-            b = code.removeprefix("abs_acc_").split("f")[0]
-            if b not in lowest or int(code.split("f")[-1]) < int(lowest[b].split("f")[-1]):
+            b, f = building_floor(code)
+            if b not in lowest or f < building_floor(lowest[b])[1]:
                 lowest[b] = code
     for code in lowest.values():
         name = f"{exp.path}: column '{exp.columns[code]}' ({code})"

@@ -65,6 +65,7 @@ import pandas as pd
 from scipy.interpolate import CubicSpline
 from scipy.optimize import linear_sum_assignment
 
+from pounding_sweep.scene.channels import building_floor
 from pounding_sweep.scene.video import VideoSpec, floor_code
 from pounding_sweep.video.io import VideoError, VideoReader, cv2_module
 
@@ -362,7 +363,7 @@ class Tracker:
             idx[self.names.index(name)] = j
         rest = [j for j in order[nref:]]
         codes = {m: floor_code(m) for m in s.floor_markers}
-        buildings = sorted({int(codes[m][1:].split("f")[0]) for m in codes})
+        buildings = sorted({building_floor(codes[m])[0] for m in codes})
         xs = sorted(rest, key=lambda j: c.x[j])
         groups = {}
         if len(buildings) == 1:
@@ -375,7 +376,9 @@ class Tracker:
             )
             groups[left_b], groups[right_b] = xs[:cut], xs[cut:]
         for b in buildings:
-            ms = sorted([m for m in codes if codes[m].startswith(f"b{b}f")], key=lambda m: int(codes[m].split("f")[1]))
+            ms = sorted(
+                [m for m in codes if building_floor(codes[m])[0] == b], key=lambda m: building_floor(codes[m])[1]
+            )
             js = sorted(groups[b], key=lambda j: -c.y[j])  # floor 1 lowest
             if len(js) != len(ms):
                 raise VideoError(

@@ -318,3 +318,28 @@ def test_the_gap_for_a_probability_is_exact_on_a_coarse_grid_where_the_demand_is
         got = float(gap_for_probability(fit, gaps, x, p))
         assert got == pytest.approx(want, rel=1e-12)
         assert interpolation_error(fit, gaps, x, p, got) <= 1e-12 * want
+
+
+def test_the_grid_error_is_not_given_where_the_fits_do_not_fall_with_the_gap():
+    """analysis.interpolation_error on fits whose probability does not fall with the gap (weakly identified: a
+    reviewer's P = .30, .12, .08, .125 on a 10 mm grid) is NaN, not a 30 mm 'error' or an overflow; and a fit far in
+    its tail (z = 9: P = 1.0 in double precision) is interpolated by its probit, not by P."""
+    from scipy.special import ndtri
+
+    from pounding_sweep.risk.analysis import interpolation_error
+    from pounding_sweep.risk.fragility import Fit
+
+    gaps = np.array([0.04, 0.05, 0.06, 0.07])
+    for last in (0.125, 0.1201, 0.1199999):
+        z = ndtri(np.array([0.30, 0.12, 0.08, last]))
+        fit = Fit(np.exp(-z * 0.5), np.full(4, 0.5), np.zeros(4), np.full(4, "ok", dtype=object))  # P(x = 1) as given
+        est = float(gap_for_probability(fit, gaps, 1.0, 0.1))
+        assert 0.05 < est < 0.06 and math.isnan(interpolation_error(fit, gaps, 1.0, 0.1, est))
+    # median theta = gap / 0.1 g, beta 0.05: at x = 1 g the smallest gap's z = ln(1 / 0.4) / 0.05 = 18 (P = 1.0)
+    gaps = np.array([0.04, 0.08, 0.12])
+    fit = Fit(gaps / 0.1, np.full(3, 0.5), np.zeros(3), np.full(3, "ok", dtype=object))
+    want = 0.1 * math.exp(-0.5 * ndtri(0.5))  # P = 0.5 at 0.1 m
+    assert float(gap_for_probability(fit, gaps, 1.0, 0.5)) == pytest.approx(want, rel=1e-12)
+    steep = Fit(gaps / 0.1, np.full(3, 0.05), np.zeros(3), np.full(3, "ok", dtype=object))
+    assert float(steep.probability(np.array([1.0]))[0, 0]) == 1.0 and steep.probit(np.array([1.0]))[0, 0] > 18
+    assert float(gap_for_probability(steep, gaps, 1.0, 0.5)) == pytest.approx(0.1, rel=1e-12)

@@ -127,9 +127,8 @@ class FragilityData:
 
     def counts(self, gaps) -> tuple[np.ndarray, np.ndarray]:
         """Per gap: the outcomes that pounded and all outcomes (runs of a cloud; motions times levels of stripes)."""
-        g = np.asarray(gaps, dtype=float)
-        k = (np.asarray(self.demand)[None] > g.reshape((-1,) + (1,) * np.ndim(self.demand))).reshape(g.size, -1)
-        return k.sum(1), np.full(g.size, k.shape[1])
+        d = np.ravel(self.demand)
+        return exceedance_counts(d, gaps), np.full(np.size(gaps), d.size)
 
     def fit(self, gaps, mult=None, progress=None):
         """Fits for each gap (and each bootstrap replicate when mult (replicates, motions) is given; a cloud's

@@ -261,8 +261,9 @@ def gap_for_probability(fit: Fit, gaps, x: float, p: float) -> np.ndarray:
     grid gaps that bracket p: exact where the required gaps at x are lognormal (P = Phi((ln median - ln gap) /
     beta): the probit is linear in ln gap), where P itself falls convexly (a helper's 20 mm grid, interpolated in
     P, put a 10 % gap at 98.19 mm, a 2.5 mm grid at 97.35; in the probit: 97.1). The probits come from the fits
-    (Fit.probit), not back from P. Linear in P where a bracketing fit is 'none' or 'all' (P exactly 0 or 1). NaN where the grid does not bracket p (the target lies beyond the gaps
-    studied) or a bracketing fit is not identified (separated data)."""
+    (Fit.probit), not back from P. Linear in P where a bracketing fit is 'none' or 'all' (P exactly 0 or 1). NaN
+    where the grid does not bracket p (the target lies beyond the gaps studied) or a bracketing fit is not
+    identified (separated data)."""
     from scipy.special import ndtr, ndtri
 
     g = np.asarray(gaps, dtype=float)

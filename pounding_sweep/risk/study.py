@@ -369,7 +369,6 @@ def _check_few_events(frag) -> None:
     if few.any():
         rows = frag[few]
         rare = np.minimum(rows.poundings, rows.outcomes - rows.poundings)
-
         gaps = ", ".join(f"{g * 1e3:.4g}" for g in rows.gap_m[:6]) + (", ..." if len(rows) > 6 else "")
         counts = f"{int(rare.min())}" if rare.min() == rare.max() else f"{int(rare.min())}-{int(rare.max())}"
         warn(

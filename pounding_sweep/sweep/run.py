@@ -336,18 +336,19 @@ class _Tally:
 
     def add(self, table) -> None:
         self.runs += table.num_rows
-        self.statuses.update(table.column("status").to_pylist())
+        status = table.column("status").to_pylist()
+        self.statuses.update(status)
         self.steps += int(np.nansum(numpy_column(table, "steps")))
         self.kernel_s += float(np.nansum(numpy_column(table, "run_time_s")))
         names = [n for n in table.column_names if n.startswith("peak_force_f")]
         if names and table.num_rows:
             per_run = np.nanmax(np.column_stack([numpy_column(table, n) for n in names]), axis=1, initial=0.0)
-            ok = ~np.array([untrusted_force(s) for s in table.column("status").to_pylist()], dtype=bool)
+            ok = ~np.array([untrusted_force(s) for s in status], dtype=bool)
             if ok.any():
                 self.peak_force_ok = float(np.fmax(self.peak_force_ok, per_run[ok].max()))
             k = int(np.argmax(per_run))
             if per_run[k] > self.peak_force:
-                self.peak_force, self.peak_status = float(per_run[k]), table.column("status")[k].as_py()
+                self.peak_force, self.peak_status = float(per_run[k]), status[k]
         self.contact.add(table, numpy_column)
         if self.ranking is not None:
             self.ranking.update(table)

@@ -30,6 +30,8 @@ import tempfile
 import time
 from pathlib import Path
 
+import llvmlite.binding as llvm
+
 REPO = Path(__file__).resolve().parents[1]
 
 
@@ -49,11 +51,14 @@ def short(name: str) -> str:
     return ".".join(parts)
 
 
-def compiled_functions(dispatcher) -> list[tuple[int, str]]:
-    """(address, name) of every function defined in the dispatcher's linked modules."""
-    out = []
-    for cres in dispatcher.overloads.values():
+def compiled_functions(*dispatchers) -> tuple[list[tuple[int, str]], list[int]]:
+    """(address, name) of every function defined in the dispatchers' linked modules, by address, and where each
+    library's code ends (its first function's address plus its object's text size: the last function of a library
+    ends there, not at the next library's first symbol, which can lie far on)."""
+    out, ends = [], []
+    for cres in (c for d in dispatchers for c in d.overloads.values()):
         lib = cres.library
+        found = []
         for f in lib._final_module.functions:
             if f.is_declaration:
                 continue
@@ -62,8 +67,24 @@ def compiled_functions(dispatcher) -> list[tuple[int, str]]:
             except Exception:  # noqa: BLE001 (a name the engine did not export)
                 continue
             if addr:
-                out.append((addr, f.name))
-    return sorted(set(out))
+                found.append((addr, f.name))
+        if found:
+            # the object code Numba cached, else the final module's made again (numba core/codegen.py)
+            buf = getattr(lib, "_compiled_object", None) or lib._codegen._tm.emit_object(lib._final_module)
+            obj = llvm.ObjectFileRef.from_data(buf)
+            text = sum(s.size() for s in obj.sections() if s.is_text())
+            ends.append(min(found)[0] + text)
+        out += found
+    return sorted(set(out)), sorted(set(ends))
+
+
+def function_end(syms: list, ends: list, k: int) -> int:
+    """Where function k of syms ends: the next symbol, or its library's end (compiled_functions), whichever is
+    first; at most MAX_FUNCTION_BYTES on."""
+    addr = syms[k][0]
+    nxt = syms[k + 1][0] if k + 1 < len(syms) else addr + MAX_FUNCTION_BYTES
+    lib_end = min((e for e in ends if e > addr), default=nxt)
+    return min(nxt, lib_end, addr + MAX_FUNCTION_BYTES)
 
 
 #: the most bytes read as one function's code: its end is taken as the next symbol's address, which can lie
@@ -164,10 +185,16 @@ def _profile(a, perf: str, tmp: Path, pmap: Path) -> None:
     t0 = time.perf_counter()
     driver.run_chunk_lanes(prep.sysarr, runs, rec, prep.opts, 1)
     print(f"compiled the lane kernel in {time.perf_counter() - t0:.0f} s")
-    syms = compiled_functions(_integrate_groups)
+    try:  # the vector loops of each pair of floor counts: libraries of their own, called by address
+        from pounding_sweep.engine.lanes.loops import made_loops
+
+        loops = made_loops()
+    except ImportError:  # before engine/lanes/loops.py: linked into the driver
+        loops = []
+    syms, ends = compiled_functions(_integrate_groups, *loops)
     with open(pmap, "w") as fh:
         for k, (addr, name) in enumerate(syms):
-            end = min(syms[k + 1][0] if k + 1 < len(syms) else addr + 65536, addr + MAX_FUNCTION_BYTES)
+            end = function_end(syms, ends, k)
             fh.write(f"{addr:x} {end - addr:x} {short(name)}\n")
 
     data = tmp / "perf.data"
@@ -210,7 +237,7 @@ def _profile(a, perf: str, tmp: Path, pmap: Path) -> None:
         return
     addr, name = hot
     hot_name = short(name)
-    end = syms[k + 1][0] if k + 1 < len(syms) else addr + 65536
+    end = function_end(syms, ends, k)
     binf = tmp / "hot.bin"
     binf.write_bytes(_mapped_bytes(addr, end - addr))
     asm = subprocess.run(
@@ -238,7 +265,7 @@ def _profile(a, perf: str, tmp: Path, pmap: Path) -> None:
     print(
         f"\ninstruction mix of {hot_name} ({total} samples; stack frame "
         f"{int(frame.group(1), 16) if frame else 0:,} bytes; {len(binf.read_bytes()):,} bytes read as its code, up to "
-        "the next symbol or MAX_FUNCTION_BYTES)"
+        "the next symbol or its library's end)"
     )
     print("share of samples   class   (instructions of that class in the code)")
     for c, n in by_class.most_common():

@@ -174,8 +174,8 @@ class LaneModel(NamedTuple):
     """The lane kernel's model (engine/lanes): modal data of the coupled model at dt (model.modal.ModalArrays)."""
 
     dt: float  # time step [s]
-    nt: tuple  # a tuple of N zeros: the floor count N, fixed at compile time
-    n1t: tuple  # a tuple of N1 zeros: building 1's floor count
+    n: int  # the floor count N (the vector loops are compiled for it: engine/lanes/loops.py)
+    n1: int  # building 1's floor count N1
     gt: tuple  # (0,): every metric group, fixed at compile time; (): the groups in KernelOptions.groups, at run time
     phi: np.ndarray  # (N, N) mode shapes, mass-normalised, block-diagonal (a mode moves one building)
     psi: np.ndarray  # (N, P) Phi^T G: the modes' share of each pair's relative displacement

@@ -43,14 +43,18 @@ for law in laws:
     sig = piece.signatures[0]
     print(law, len(piece.signatures), piece.stats.cache_hits.get(sig, 0), piece.stats.cache_misses.get(sig, 0))
 if sys.argv[1] == "lanes":  # a new pair of floor counts (4 + 2), the step cached: the contact loop is aside
-    from pounding_sweep.engine.lanes.vector import _contact
+    from pounding_sweep.engine.lanes.groups import _integrate_groups
+    from pounding_sweep.engine.lanes.loops import contact_loop
 
     b1 = dataclasses.replace(scene.building1, masses_kg=(1.7, 1.7, 1.6, 1.6))
     b2 = dataclasses.replace(scene.building2, masses_kg=(0.56, 0.45))
     prep = prepare(dataclasses.replace(scene, building1=b1, building2=b2))
     driver.compile_kernel(prep.sysarr, prep.opts, prep.hist, prep.score, "lanes", prep.law_codes_used)
-    sig = _contact.signatures[-1]
-    print("4+2", len(_contact.signatures), _contact.stats.cache_hits.get(sig, 0), _contact.stats.cache_misses.get(sig, 0))
+    loop = contact_loop(6, 4)
+    sig = loop.signatures[-1]
+    print("4+2", len(loop.signatures), loop.stats.cache_hits.get(sig, 0), loop.stats.cache_misses.get(sig, 0))
+    # the group driver holds no floor count in its types: the new pair compiled no new one
+    print("driver", len(_integrate_groups.signatures))
     # the step, loaded from the cache, is linked into the kernels after their optimisation (engine/linking.py)
     from pounding_sweep.engine import linking
 
@@ -136,13 +140,14 @@ def test_both_scalar_kernels_load_the_scoring_code_the_second_process_compiled(t
 
 def test_the_lane_kernel_loads_the_step_the_second_process_compiled(tmp_path):
     """The same for the lane kernel's scalar step (groups._lane_step_signature against groups._scalar_steps' call);
-    then, for a new pair of floor counts with the step cached, its contact loop (groups._contact_signature against
-    _integrate_groups' call): compiled for the first pair here, for the second loaded from the cache. The second
+    then, for a new pair of floor counts with the step cached, that pair's contact loop (loops.loop_signatures
+    against _integrate_groups' call), loaded from the cache, and no new compile of the group driver. The second
     compile's time is recorded apart from the first's (engine/compile_times.py AGAIN)."""
     got = _compile_with_an_empty_cache(tmp_path, "lanes")
     assert got == [
         ["classic", "1", "1", "0"],
-        ["4+2", "2", "1", "0"],
+        ["4+2", "1", "1", "0"],
+        ["driver", "1"],
         ["optimised_once", "True"],
         ["recorded", "lanes", "lanes_again"],
     ]

@@ -10,18 +10,20 @@ agree with the scalar kernel to rounding (tests/engine/test_lanes.py states the 
 State per lane: modal displacement q and scaled velocity r = (dt / 2) q' (so that r+ = dq - r
 is an addition), contact forces F at the step start and their modal resultant g = Psi F, the
 contact set, the penetrations at the step start; the acceleration is never stored (equilibrium).
-Floor counts are compile-time constants of the vector code (the lengths of the tuples nt, n1t).
+Floor counts are compile-time constants of the vector loops only (compiled per pair: loops.py), not of the
+group driver that calls them.
 
 Modules, by concern: rows (where everything is kept: the lane-major rows W, one lane's scalar rows,
 the coefficient table), vector (the vector steps: quiet and contact), lane_step (one lane's step in
 scalar code at a contact event: engine/events.py's located step with modal pieces, or the implicit
 scheme's active-set iteration), groups (the group driver), excitation (ground-motion profiles),
-eligibility (why the lane kernel cannot run a chunk), model (its model record). A run that diverges is
+eligibility (why the lane kernel cannot run a chunk), model (its model record), loops (the vector loops of one
+pair of floor counts, called by their addresses). A run that diverges is
 handed back to the driver, which reruns it with the scalar kernel.
 """
 
 from pounding_sweep.engine.lanes.eligibility import LAWS, lane_modes
-from pounding_sweep.engine.lanes.excitation import excitation_profiles, size_tuples
+from pounding_sweep.engine.lanes.excitation import excitation_profiles
 from pounding_sweep.engine.lanes.groups import group_work, integrate_lanes, step_pieces
 from pounding_sweep.engine.lanes.model import lane_model
 from pounding_sweep.engine.lanes.rows import LANES, ST_CALLS, ST_FIX_NS, ST_FIXUPS, ST_N, ST_VSTEPS, coefficient_table
@@ -40,6 +42,5 @@ __all__ = [
     "integrate_lanes",
     "lane_model",
     "lane_modes",
-    "size_tuples",
     "step_pieces",
 ]

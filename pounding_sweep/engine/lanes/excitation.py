@@ -1,13 +1,11 @@
 """The lane kernel's ground motion: each run's ground acceleration as coef[run] * prof[pid[run], step],
-the profiles shared by the runs of a chunk (one per harmonic frequency or record), and the floor
-counts as tuple lengths (compile-time constants of the vector code)."""
+the profiles shared by the runs of a chunk (one per harmonic frequency or record)."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from pounding_sweep.codes import EXC_HARMONIC, EXC_RECORD
-from pounding_sweep.engine.inputs import building_split
 from pounding_sweep.engine.jit import njit_lanes
 
 
@@ -47,8 +45,3 @@ def excitation_profiles(runs, rec, dt):
             m = min(ln, nmax + 1)
             prof[k, :m] = rec_flat[off : off + m]
     return coef, pid, prof
-
-
-def size_tuples(sys):
-    """(nt, n1t): tuples whose lengths are the floor counts N and N1, fixed at compile time."""
-    return (0,) * sys.m.size, (0,) * building_split(sys)

@@ -17,6 +17,7 @@ from pounding_sweep.engine.clock import _monotonic_ns
 from pounding_sweep.engine.inputs import LaneWork, RunArrays
 from pounding_sweep.engine.jit import inline, njit_lanes, njit_step
 from pounding_sweep.engine.lanes.lane_step import end_phase, lane_step
+from pounding_sweep.engine.lanes.loops import call_contact, call_quiet, contact_loop, floor_loops, loop_signatures
 from pounding_sweep.engine.lanes.model import lane_model
 from pounding_sweep.engine.lanes.rows import (
     BR,
@@ -44,7 +45,6 @@ from pounding_sweep.engine.lanes.rows import (
     ZR,
     row_offsets,
 )
-from pounding_sweep.engine.lanes.vector import _contact, _quiet
 
 
 class Group(NamedTuple):
@@ -73,7 +73,7 @@ def _aligned_zeros(n: int, align: int = 64) -> np.ndarray:
 
 def group_work(model, max_iter: int) -> Group:
     """The arrays integrate_lanes works in, for a model (engine/inputs.py LaneModel)."""
-    n, n1 = len(model.nt), len(model.n1t)
+    n, n1 = model.n, model.n1
     p = min(n1, n - n1)
     rows = row_offsets.py_func(n, p)[12] + ML.PER_DOF * n + ML.PER_PAIR * p
     lane = LaneWork(
@@ -344,8 +344,9 @@ def _finish_lanes(gw, step, metrics, model, max_nst):
 
 
 @njit_lanes
-def _integrate_groups(order, groups, model, opts, runs, excitation, out, gw):
-    """integrate_lanes' loop over groups (g_start, g_stop) and steps."""
+def _integrate_groups(order, groups, model, opts, runs, excitation, out, gw, loops):
+    """integrate_lanes' loop over groups (g_start, g_stop) and steps; loops: the addresses of the vector loops
+    for the model's floor counts (loops.floor_loops), so that no type here holds a floor count."""
     N, N1, P, nrows = gw.sizes
     r_q0, r_q1, r_g, r_f, r_pen, r_act, r_inc, r_cac, r_end, r_cd, r_R, r_s, r_met = row_offsets(N, P)
     W, stats, Z = gw.W, out.stats, gw.lane.Z
@@ -360,11 +361,9 @@ def _integrate_groups(order, groups, model, opts, runs, excitation, out, gw):
         # the group's law: the runs of one call share it (run_chunk_lanes)
         law = runs.law[lanes[0]]
         max_nst, uniform, pid0 = _start_group(gw, lanes, model, opts, runs, excitation)
-        dt, scheme, nt, n1t, Cv, prof, pid = (
+        dt, scheme, Cv, prof, pid = (
             model.dt,
             opts.scheme,
-            model.nt,
-            model.n1t,
             model.Cv,
             excitation.prof,
             gw.pid,
@@ -386,8 +385,8 @@ def _integrate_groups(order, groups, model, opts, runs, excitation, out, gw):
             step_before = step
             last = next_end if next_end <= max_nst else max_nst
             if n_act == 0:
-                step, nevt, nbad = _quiet(
-                    W, step + 1, last, dt, scheme, law, nt, n1t, Cv, prof, pid, uniform, pid0, (model.gt, opts.groups)
+                step, nevt, nbad = call_quiet(
+                    loops[0], W, step + 1, last, dt, scheme, law, Cv, prof, pid, uniform, pid0, (model.gt, opts.groups)
                 )
                 nend = 0
             else:
@@ -395,15 +394,14 @@ def _integrate_groups(order, groups, model, opts, runs, excitation, out, gw):
                 for j in range(P):
                     if gw.act_pair[j] > 0:
                         pon |= 1 << j
-                step, nevt, nbad, nend = _contact(
+                step, nevt, nbad, nend = call_contact(
+                    loops[1],
                     W,
                     step + 1,
                     last,
                     dt,
                     scheme,
                     law,
-                    nt,
-                    n1t,
                     Cv,
                     pon,
                     prof,
@@ -439,27 +437,28 @@ def integrate_lanes(order, g_start, g_stop, model, opts, runs, excitation, out, 
     and what its row holds); add the work counters (rows.ST_*) to out.stats. The runs share one contact
     law (runs.law: codes.LAW_CLASSIC or LAW_NO_TENSION).
 
-    Records (engine/inputs.py): model LaneModel (its nt, n1t are tuples of length N and N1: the floor
-    counts, fixed at compile time), opts KernelOptions, runs RunArrays, excitation LaneExcitation
+    Records (engine/inputs.py): model LaneModel, opts KernelOptions, runs RunArrays, excitation LaneExcitation
     (ground acceleration coef[run] * prof[pid[run], step]), out LaneOutputs; work: group_work(model,
     opts.max_iter), made here when not given. The compiled loop allocates nothing, so it runs without
     Numba's reference counts (on the records' arrays they cost the scalar steps a fifth of their time)."""
     gw = work if work is not None else group_work(model, opts.max_iter)
-    _integrate_groups(order, (g_start, g_stop), model, opts, runs, excitation, out, gw)
+    loops = floor_loops(model, opts, runs, gw, excitation.prof)
+    _integrate_groups(order, (g_start, g_stop), model, opts, runs, excitation, out, gw, loops)
 
 
 def step_pieces(sys, opts, law) -> tuple:
     """What a compile of the lane kernel for this system (model.coupled.SystemArrays), options and contact law
     can leave to a second process (engine/aside.py), in the order it takes them (the first not cached): the
     scalar step, lane_step (17 s of its 30 s compile), whose types do not depend on the floor counts; once that
-    is cached, for a new pair of floor counts, the contact loop _contact (3 s of 10 s), which this process
-    types after the quiet loop."""
+    is cached, for a new pair of floor counts, that pair's contact loop (loops.py contact_loop_N_N1), which this
+    process compiles after the quiet loop."""
     model = lane_model(sys, opts)
     runs = RunArrays.one_at_rest(sys.i1.size, law)
     gw = group_work(model, opts.max_iter)
+    _quiet_sig, contact_sig = loop_signatures(model, opts, runs, gw)
     return (
         (lane_step, _lane_step_signature(model, opts, runs, gw)),
-        (_contact, _contact_signature(model, opts, runs, gw)),
+        (contact_loop(model.n, model.n1), contact_sig),
     )
 
 
@@ -484,32 +483,4 @@ def _lane_step_signature(model, opts, runs, gw) -> tuple:
         typeof(modal),
         typeof(runs.cdash),
         typeof(gw.lane),
-    )
-
-
-def _contact_signature(model, opts, runs, gw) -> tuple:
-    """The argument types _integrate_groups calls _contact with for this model (LaneModel), options, runs
-    (RunArrays) and work arrays (group_work): W, two steps, dt, scheme, law, the floor-count tuples, the
-    coefficient table, the pairs in contact (int64), the excitation profiles (2-d), the lanes' profile ids,
-    uniform (a bool), the first profile id and the metric groups (tests/engine/test_aside.py checks that the
-    kernel finds it)."""
-    from numba import typeof, types
-
-    i64 = types.int64
-    return (
-        typeof(gw.W),
-        i64,
-        i64,
-        typeof(model.dt),
-        typeof(opts.scheme),
-        typeof(runs.law).dtype,
-        typeof(model.nt),
-        typeof(model.n1t),
-        typeof(model.Cv),
-        typeof(gw.act_pair).dtype,
-        types.Array(types.float64, 2, "C"),
-        typeof(gw.pid),
-        types.boolean,
-        i64,
-        typeof((model.gt, opts.groups)),
     )

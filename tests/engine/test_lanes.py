@@ -315,8 +315,14 @@ def test_uneven_lengths_and_a_diverging_run_in_one_group(scheme):
 
 @pytest.mark.parametrize("scheme", SCHEMES)
 def test_other_floor_counts(scheme):
-    """A 4-story building beside a 2-story one (two contact pairs): compiled for those sizes."""
+    """A 4-story building beside a 2-story one (two contact pairs): the vector loops compiled for those sizes, the
+    group driver not again (its types hold no floor count: engine/lanes/loops.py)."""
+    from pounding_sweep.engine.lanes.groups import _integrate_groups
+
     s = implicit(load_scene(SWEEPS / "paper_6hz.toml"), duration=0.4, scheme=scheme)
+    three = prepare(dataclasses.replace(s, sweep=(Axis("gap_m", (0.0,)),)))
+    driver.run_chunk_lanes(three.sysarr, *chunk_inputs(three), three.opts, 1)
+    drivers = set(_integrate_groups.signatures)
     s = dataclasses.replace(
         s,
         building1=dataclasses.replace(s.building1, masses_kg=(1.7, 1.7, 1.6, 1.5)),
@@ -327,6 +333,7 @@ def test_other_floor_counts(scheme):
     assert prep.model.floors == (4, 2)
     runs, rec = chunk_inputs(prep)
     lanes, scalar = both(prep, runs, rec)
+    assert set(_integrate_groups.signatures) == drivers
     assert assert_rows_agree(prep, runs, rec, lanes, scalar, floors=(4, 2)).sum() >= 12
     assert (col(scalar, "impacts_f2", (4, 2)) > 0).any()
 

@@ -113,10 +113,11 @@ PROFILES = types.Array(types.float64, 2, "C")
 
 def loop_signatures(model, opts, runs, gw) -> tuple:
     """The argument types the group driver (groups._integrate_groups) calls the quiet and the contact loop with,
-    for this model (LaneModel), options, runs (RunArrays) and work arrays (groups.group_work): W, two steps, dt, scheme, law, the coefficient table, (contact: the pairs in contact, int64), the
-    profiles, the lanes' profile ids, uniform (a bool), the first profile id and the metric groups. The
-    driver's call must pass exactly these types (the callee is reached by its address, unchecked):
-    tests/engine/test_lanes.py and tests/engine/test_aside.py compile and run both."""
+    for this model (LaneModel), options, runs (RunArrays) and work arrays (groups.group_work): W, two steps, dt,
+    scheme, law, the coefficient table, (contact: the pairs in contact, int64), the profiles, the lanes' profile
+    ids, uniform (a bool), the first profile id and the metric groups. The driver's call must pass exactly these
+    types (the callee is reached by its address, unchecked): tests/engine/test_lanes.py and
+    tests/engine/test_aside.py compile and run both."""
     i64 = types.int64
     head = (typeof(gw.W), i64, i64, typeof(model.dt), typeof(opts.scheme), typeof(runs.law).dtype, typeof(model.Cv))
     tail = (PROFILES, typeof(gw.pid), types.boolean, typeof(gw.pid).dtype, typeof((model.gt, opts.groups)))

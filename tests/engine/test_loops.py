@@ -4,6 +4,7 @@
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 import pytest
 
@@ -29,3 +30,15 @@ def test_profiles_of_another_layout_are_refused_before_any_call():
     prof = np.zeros((3, 2), order="F")
     with pytest.raises(TypeError, match="must be array\\(float64, 2d, C\\)"):
         loops.floor_loops(None, None, None, None, prof)
+
+
+def test_a_call_with_other_argument_types_than_the_loops_were_compiled_for_does_not_compile():
+    """The loop is reached by its address, so arguments of other types would be read wrongly: the call's typing
+    refuses them, naming the types it was given and those the loops were compiled for."""
+
+    @numba.njit
+    def driver(W):
+        return loops.call_quiet(0, W, 1, 2, 1e-4, 0, 0, W, W, W, True, 0, ((), 0))
+
+    with pytest.raises(numba.core.errors.TypingError, match="calls the quiet loop with .* make them agree"):
+        driver(np.zeros(8))

@@ -17,6 +17,7 @@ from llvmlite import ir
 from numba import typeof, types
 from numba.core import cgutils
 from numba.core.callconv import excinfo_t
+from numba.core.errors import TypingError
 from numba.extending import intrinsic
 
 from pounding_sweep.engine.jit import njit_step
@@ -51,18 +52,38 @@ def _codegen(returns):
     return codegen
 
 
+#: the argument types each loop was compiled for in this process (floor_loops), by loop: "quiet", "contact"
+COMPILED_FOR: dict = {"quiet": set(), "contact": set()}
+
+
+def _typed(kind: str, returns, addr, args):
+    """The call's signature, where the loop was compiled for exactly these argument types (floor_loops runs
+    before the driver compiles); None while an argument is still a literal (Numba then types the call again
+    without literals); else a typing error naming both, as a callee reached by its address would read
+    arguments of other types wrongly."""
+    if any(isinstance(a, types.Literal) for a in args):
+        return None
+    if tuple(args) not in COMPILED_FOR[kind]:
+        raise TypingError(
+            f"the group driver calls the {kind} loop with {tuple(args)}, but it was compiled for "
+            f"{sorted(map(str, COMPILED_FOR[kind]))} (engine/lanes/loops.py loop_signatures): make them agree"
+        )
+    return returns(addr, *args), _codegen(returns)
+
+
 @intrinsic
 def call_quiet(typingctx, addr, W, step0, step1, dt, scheme, law, Cv, prof, pid_lane, uniform, pid0, mg):
     """A pair's quiet loop (_wrappers) at address addr: vector._quiet without the floor-count tuples."""
-    sig = QUIET_RETURNS(addr, W, step0, step1, dt, scheme, law, Cv, prof, pid_lane, uniform, pid0, mg)
-    return sig, _codegen(QUIET_RETURNS)
+    return _typed(
+        "quiet", QUIET_RETURNS, addr, (W, step0, step1, dt, scheme, law, Cv, prof, pid_lane, uniform, pid0, mg)
+    )
 
 
 @intrinsic
 def call_contact(typingctx, addr, W, step0, step1, dt, scheme, law, Cv, pon, prof, pid_lane, uniform, pid0, mg):
     """A pair's contact loop (_wrappers) at address addr: vector._contact without the floor-count tuples."""
-    sig = CONTACT_RETURNS(addr, W, step0, step1, dt, scheme, law, Cv, pon, prof, pid_lane, uniform, pid0, mg)
-    return sig, _codegen(CONTACT_RETURNS)
+    args = (W, step0, step1, dt, scheme, law, Cv, pon, prof, pid_lane, uniform, pid0, mg)
+    return _typed("contact", CONTACT_RETURNS, addr, args)
 
 
 _made: dict = {}  # (n, n1) -> (quiet, contact): the pairs' loops made in this process
@@ -116,8 +137,7 @@ def loop_signatures(model, opts, runs, gw) -> tuple:
     for this model (LaneModel), options, runs (RunArrays) and work arrays (groups.group_work): W, two steps, dt,
     scheme, law, the coefficient table, (contact: the pairs in contact, int64), the profiles, the lanes' profile
     ids, uniform (a bool), the first profile id and the metric groups. The driver's call must pass exactly these
-    types (the callee is reached by its address, unchecked): tests/engine/test_lanes.py and
-    tests/engine/test_aside.py compile and run both."""
+    types (the callee is reached by its address): the call's typing checks them (_typed, against COMPILED_FOR)."""
     i64 = types.int64
     head = (typeof(gw.W), i64, i64, typeof(model.dt), typeof(opts.scheme), typeof(runs.law).dtype, typeof(model.Cv))
     tail = (PROFILES, typeof(gw.pid), types.boolean, typeof(gw.pid).dtype, typeof((model.gt, opts.groups)))
@@ -139,8 +159,9 @@ def floor_loops(model, opts, runs, gw, prof) -> tuple:
     with _lock:  # the threads of one chunk ask at once: one compiles, the others find it
         if key not in _addresses:
             out = []
-            for fn, sig, returns in zip(_wrappers(n, n1), sigs, (QUIET_RETURNS, CONTACT_RETURNS)):
+            for kind, fn, sig, returns in zip(COMPILED_FOR, _wrappers(n, n1), sigs, (QUIET_RETURNS, CONTACT_RETURNS)):
                 fn.compile(sig)
+                COMPILED_FOR[kind].add(sig)
                 cres = fn.overloads[sig]
                 if cres.signature.return_type != returns:
                     raise TypeError(f"{fn.__name__} returns {cres.signature.return_type}, its call expects {returns}")

@@ -20,7 +20,7 @@ from pounding_sweep.engine import jit
 TYPICAL_COMPILE_S = {
     "lanes": (24.0, 47.0),
     # the lane kernel again with its step cached (a new pair of floor counts: its two vector loops, engine/lanes/
-    # loops.py); benchmarks/bench_compile.py's "a new pair" case: 4.1-5.0 s on the Zen 4 (d71796d; not measured
+    # loops.py); benchmarks/bench_compile.py's "a new pair" case: 4.0-5.0 s on the Zen 4 (d71796d; not measured
     # since on the Zen 3, which compiles about twice as slowly: the upper end is that guess)
     "lanes_again": (4.0, 10.0),
     "scalar": (13.0, 26.0),

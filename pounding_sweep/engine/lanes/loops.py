@@ -52,10 +52,6 @@ def _codegen(returns):
     return codegen
 
 
-#: the argument types each loop was compiled for in this process (floor_loops), by loop: "quiet", "contact"
-COMPILED_FOR: dict = {"quiet": set(), "contact": set()}
-
-
 def _typed(kind: str, returns, addr, args):
     """The call's signature, where the loop was compiled for exactly these argument types (floor_loops runs
     before the driver compiles); None while an argument is still a literal (Numba then types the call again
@@ -63,10 +59,12 @@ def _typed(kind: str, returns, addr, args):
     arguments of other types wrongly."""
     if any(isinstance(a, types.Literal) for a in args):
         return None
-    if tuple(args) not in COMPILED_FOR[kind]:
+    which = 1 if kind == "contact" else 0
+    compiled = {tuple(sig) for pair in _made.values() for sig in pair[which].signatures}
+    if tuple(args) not in compiled:
         raise TypingError(
             f"the group driver calls the {kind} loop with {tuple(args)}, but it was compiled for "
-            f"{sorted(map(str, COMPILED_FOR[kind]))} (engine/lanes/loops.py loop_signatures): make them agree"
+            f"{sorted(map(str, compiled))} (engine/lanes/loops.py loop_signatures): make them agree"
         )
     return returns(addr, *args), _codegen(returns)
 
@@ -137,7 +135,7 @@ def loop_signatures(model, opts, runs, gw) -> tuple:
     for this model (LaneModel), options, runs (RunArrays) and work arrays (groups.group_work): W, two steps, dt,
     scheme, law, the coefficient table, (contact: the pairs in contact, int64), the profiles, the lanes' profile
     ids, uniform (a bool), the first profile id and the metric groups. The driver's call must pass exactly these
-    types (the callee is reached by its address): the call's typing checks them (_typed, against COMPILED_FOR)."""
+    types (the callee is reached by its address): the call's typing checks them (_typed, against every pair's compiled loops)."""
     i64 = types.int64
     head = (typeof(gw.W), i64, i64, typeof(model.dt), typeof(opts.scheme), typeof(runs.law).dtype, typeof(model.Cv))
     tail = (PROFILES, typeof(gw.pid), types.boolean, typeof(gw.pid).dtype, typeof((model.gt, opts.groups)))
@@ -159,9 +157,8 @@ def floor_loops(model, opts, runs, gw, prof) -> tuple:
     with _lock:  # the threads of one chunk ask at once: one compiles, the others find it
         if key not in _addresses:
             out = []
-            for kind, fn, sig, returns in zip(COMPILED_FOR, _wrappers(n, n1), sigs, (QUIET_RETURNS, CONTACT_RETURNS)):
+            for fn, sig, returns in zip(_wrappers(n, n1), sigs, (QUIET_RETURNS, CONTACT_RETURNS)):
                 fn.compile(sig)
-                COMPILED_FOR[kind].add(sig)
                 cres = fn.overloads[sig]
                 if cres.signature.return_type != returns:
                     raise TypeError(f"{fn.__name__} returns {cres.signature.return_type}, its call expects {returns}")

@@ -39,7 +39,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from pounding_sweep.codes import EXC_HARMONIC, LAW_NO_TENSION, SCHEME_EVENT, SCHEME_IMPLICIT, SCHEME_PAPER
+from pounding_sweep.codes import EXC_HARMONIC, LAW_NO_TENSION, SCHEME_EVENT, SCHEME_IMPLICIT, SCHEME_PAPER, SCHEMES
 from pounding_sweep.engine import bookkeeping as bk
 from pounding_sweep.engine import floors
 from pounding_sweep.engine import layout as L
@@ -334,90 +334,107 @@ class StepWork(NamedTuple):
     iw: ImplicitWork
 
 
-@njit_inner
-def _time_loop(run, model, opts, runs, records, histories, experiment, out, st, wk):
-    """The run's steps from rest (st: its state, reset): the end state of each step by the scheme, its
-    pieces (the event scheme's located switches), the per-step metrics, experiment samples and histories.
-    Compiled without Numba's reference counts (it allocates nothing): on the records' arrays they cost this
-    loop a third of its time. Returns (status bits, unsettled steps, most iterations or located switches in
-    a step, steps done, experiment samples filled)."""
-    dt, Kinv, H, i1, i2, n1 = model.dt, model.Kinv, model.H, model.i1, model.i2, model.n1
-    scheme, max_iter = opts.scheme, opts.max_iter
-    w, rhs0, u0, ustep, astep, xs, iw = wk
-    u, v, a, F, pr, row = st.u, st.v, st.a, st.F, st.pairs, st.row
-    z0, wrel, bb, ke = iw.z0, iw.wrel, iw.bb, iw.ke
-    channels = (experiment.t, experiment.dof, experiment.kind)
-    has_acc = bk.any_acceleration(experiment.kind)  # then keep the step's starting acceleration too
-    hist = out.hist
-    keep_hist = hist.shape[0] > 0
-    npair = i1.shape[0]
-    b1 = 2.0 / dt
-    hmin = EVENT_MIN_FRACTION * dt
-    d, k_s, c = st.gap, pr.k_s, pr.c
-    kind = runs.exc_kind[run]
-    ground = Ground(kind == EXC_HARMONIC, runs.exc_amp[run], runs.exc_omega[run])
-    rec_flat = records.flat
-    roff, rlen, ag = bk.start_at_rest(run, runs, records, dt, u, v, a)
-    if keep_hist:
-        bk.keep_history(hist, run, 0, histories.kinds, histories.index, u, v, a, F, ag)
-    for j in range(npair):
-        ke[j] = k_s + b1 * c[j]
-    ke_next = bk.samples_at_rest(experiment.t, xs)  # next experiment sample to fill
-    status = 0
-    unsettled = 0
-    ag_prev = ag
-    max_it_seen = 0
-    steps_done = 0
-    for step in range(1, runs.nsteps[run] + 1):
-        ag = ground_acceleration(kind, ground.amp, ground.omega, rec_flat, roff, rlen, step, dt)
-        agstep = ag_prev  # the table's acceleration at the step start
-        floors.step_start(st, ustep, astep, has_acc)
-        floors.free_end(st, Kinv, ag, dt, w, rhs0, u0)
+def _time_loop_for(scheme: int):
+    """The time loop compiled for one scheme (codes.SCHEME_*): `scheme` is a closure constant, so Numba prunes
+    the other schemes' branches, and a scene compiles only its own scheme's code (the paper's scheme never
+    the event step; benchmarks/profile_compile.py). A closure over an int is cached as a plain function is
+    (Numba keys it by the int)."""
+
+    @njit_inner
+    def _time_loop(run, model, opts, runs, records, histories, experiment, out, st, wk):
+        """The run's steps from rest (st: its state, reset): the end state of each step by the scheme, its
+        pieces (the event scheme's located switches), the per-step metrics, experiment samples and histories.
+        Compiled without Numba's reference counts (it allocates nothing): on the records' arrays they cost
+        this loop a third of its time. Returns (status bits, unsettled steps, most iterations or located
+        switches in a step, steps done, experiment samples filled)."""
+        dt, Kinv, H, i1, i2, n1 = model.dt, model.Kinv, model.H, model.i1, model.i2, model.n1
+        max_iter = opts.max_iter
+        w, rhs0, u0, ustep, astep, xs, iw = wk
+        u, v, a, F, pr, row = st.u, st.v, st.a, st.F, st.pairs, st.row
+        z0, wrel, bb, ke = iw.z0, iw.wrel, iw.bb, iw.ke
+        channels = (experiment.t, experiment.dof, experiment.kind)
+        has_acc = bk.any_acceleration(experiment.kind)  # then keep the step's starting acceleration too
+        hist = out.hist
+        keep_hist = hist.shape[0] > 0
+        npair = i1.shape[0]
+        b1 = 2.0 / dt
+        hmin = EVENT_MIN_FRACTION * dt
+        d, k_s, c = st.gap, pr.k_s, pr.c
+        kind = runs.exc_kind[run]
+        ground = Ground(kind == EXC_HARMONIC, runs.exc_amp[run], runs.exc_omega[run])
+        rec_flat = records.flat
+        roff, rlen, ag = bk.start_at_rest(run, runs, records, dt, u, v, a)
+        if keep_hist:
+            bk.keep_history(hist, run, 0, histories.kinds, histories.index, u, v, a, F, ag)
         for j in range(npair):
-            z0[j] = u0[i1[j]] - u0[i2[j]]
-            wrel[j] = w[i1[j]] - w[i2[j]]
-            bb[j] = k_s * d + c[j] * wrel[j]
-        locate = False  # the implicit scheme found no consistent set: the event step takes the step
-        if scheme == SCHEME_IMPLICIT:
-            it, settled = _implicit_forces(iw, pr, F, max_iter, d, st.was_active)
-            locate = not settled
-            if it > max_it_seen:
-                max_it_seen = it
-        elif scheme == SCHEME_PAPER:
-            _paper_forces(iw, pr, F, b1, d)
-        else:
-            # event scheme: the whole step with the contact set of its start (the event step splits it
-            # where a pair's state at the end disagrees with that set)
-            idx, Asmall, rsmall = iw.small
-            _contact_forces(iw.S, z0, bb, ke, pr.active, idx, Asmall, rsmall, F)
-        floors.end_state(st, u0, H, dt)
-        if locate or (scheme == SCHEME_EVENT and _contradicts(st)):
-            finite, n_ev, uns = _event_step(st, ground, (step - 1) * dt, dt, ag_prev, ag, hmin)
-            unsettled += uns
-            if n_ev > max_it_seen:
-                max_it_seen = n_ev
-        else:
-            finite = floors.finite(st)
-            if finite:
-                _accept(st, dt, (step - 1) * dt + dt, ag_prev, ag)
-        if not finite:
-            status |= L.STATUS_NONFINITE
-            break
+            ke[j] = k_s + b1 * c[j]
+        ke_next = bk.samples_at_rest(experiment.t, xs)  # next experiment sample to fill
+        status = 0
+        unsettled = 0
         ag_prev = ag
-        t = step * dt
-        if ke_next < experiment.t.size:
-            ke_next = bk.sample_experiment(ke_next, channels, xs, (ustep, astep, agstep), (u, a, ag), t, dt)
-        steps_done = step
-        bk.floor_peaks(row, u, a, ag, t, n1)
-        if keep_hist and step % histories.decimate == 0:
-            bk.keep_history(hist, run, step // histories.decimate, histories.kinds, histories.index, u, v, a, F, ag)
-    return status, unsettled, max_it_seen, steps_done, ke_next
+        max_it_seen = 0
+        steps_done = 0
+        for step in range(1, runs.nsteps[run] + 1):
+            ag = ground_acceleration(kind, ground.amp, ground.omega, rec_flat, roff, rlen, step, dt)
+            agstep = ag_prev  # the table's acceleration at the step start
+            floors.step_start(st, ustep, astep, has_acc)
+            floors.free_end(st, Kinv, ag, dt, w, rhs0, u0)
+            for j in range(npair):
+                z0[j] = u0[i1[j]] - u0[i2[j]]
+                wrel[j] = w[i1[j]] - w[i2[j]]
+                bb[j] = k_s * d + c[j] * wrel[j]
+            locate = False  # the implicit scheme found no consistent set: the event step takes the step
+            if scheme == SCHEME_IMPLICIT:
+                it, settled = _implicit_forces(iw, pr, F, max_iter, d, st.was_active)
+                locate = not settled
+                if it > max_it_seen:
+                    max_it_seen = it
+            elif scheme == SCHEME_PAPER:
+                _paper_forces(iw, pr, F, b1, d)
+            else:
+                # event scheme: the whole step with the contact set of its start (the event step splits it
+                # where a pair's state at the end disagrees with that set)
+                idx, Asmall, rsmall = iw.small
+                _contact_forces(iw.S, z0, bb, ke, pr.active, idx, Asmall, rsmall, F)
+            floors.end_state(st, u0, H, dt)
+            # (the paper's scheme never locates: its branch is pruned with the event step's code)
+            if scheme != SCHEME_PAPER and (locate or (scheme == SCHEME_EVENT and _contradicts(st))):
+                finite, n_ev, uns = _event_step(st, ground, (step - 1) * dt, dt, ag_prev, ag, hmin)
+                unsettled += uns
+                if n_ev > max_it_seen:
+                    max_it_seen = n_ev
+            else:
+                finite = floors.finite(st)
+                if finite:
+                    _accept(st, dt, (step - 1) * dt + dt, ag_prev, ag)
+            if not finite:
+                status |= L.STATUS_NONFINITE
+                break
+            ag_prev = ag
+            t = step * dt
+            if ke_next < experiment.t.size:
+                ke_next = bk.sample_experiment(ke_next, channels, xs, (ustep, astep, agstep), (u, a, ag), t, dt)
+            steps_done = step
+            bk.floor_peaks(row, u, a, ag, t, n1)
+            if keep_hist and step % histories.decimate == 0:
+                bk.keep_history(hist, run, step // histories.decimate, histories.kinds, histories.index, u, v, a, F, ag)
+        return status, unsettled, max_it_seen, steps_done, ke_next
+
+    return _time_loop
 
 
-def _batch_kernel(scored: bool):
+#: the time loop of each scheme, compiled when a scene first uses it (module names: a compiled caller holding a
+#: loop in a closure cell could not be cached, jit.njit_generic)
+_time_loop_event = _time_loop_for(SCHEME_EVENT)
+_time_loop_implicit = _time_loop_for(SCHEME_IMPLICIT)
+_time_loop_paper = _time_loop_for(SCHEME_PAPER)
+
+
+def _batch_kernel(scored: bool, scheme: int):
     """The scalar kernel compiled with or without the scoring code (eq. 20 against the experiment, its lag
-    search): `scored` is a closure constant, so Numba prunes the branch, and a scene that scores nothing
-    never compiles the scoring (4.6 s of the 20 s compile: benchmarks/profile_compile.py --case 3)."""
+    search) and for one scheme: `scored` and `scheme` are closure constants, so Numba prunes the branches,
+    and a scene that scores nothing never compiles the scoring (4.6 s of the 20 s compile:
+    benchmarks/profile_compile.py --case 3), nor another scheme's time loop."""
 
     @njit_kernel
     def integrate_batch(start, stop, model, opts, runs, records, histories, experiment, out):
@@ -468,9 +485,14 @@ def _batch_kernel(scored: bool):
             bk.start_pairs(active, F, bufs, phases, d)
             for q in range(EN_N):
                 en[q] = 0.0
-            status, unsettled, max_it_seen, steps_done, ke_next = _time_loop(
-                run, model, opts, runs, records, histories, experiment, out, st, wk
-            )
+            # one branch stays (closure constants): the scene's scheme's loop
+            if scheme == SCHEME_IMPLICIT:
+                done = _time_loop_implicit(run, model, opts, runs, records, histories, experiment, out, st, wk)
+            elif scheme == SCHEME_PAPER:
+                done = _time_loop_paper(run, model, opts, runs, records, histories, experiment, out, st, wk)
+            else:
+                done = _time_loop_event(run, model, opts, runs, records, histories, experiment, out, st, wk)
+            status, unsettled, max_it_seen, steps_done, ke_next = done
             status |= runs.status_in[run]
             status = bk.close_row(row, pbase, npair, phases, status)
             if scored:  # a closure constant: the other variant has no scoring code
@@ -490,7 +512,8 @@ def _batch_kernel(scored: bool):
     return integrate_batch
 
 
-_VARIANTS = (_batch_kernel(False), _batch_kernel(True))
+#: scheme code -> (unscored, scored) compiled entries; each compiles on its first call
+_VARIANTS = {scheme: (_batch_kernel(False, scheme), _batch_kernel(True, scheme)) for scheme in SCHEMES.values()}
 
 
 def integrate_batch(start, stop, model, opts, runs, records, histories, experiment, out):
@@ -501,4 +524,4 @@ def integrate_batch(start, stop, model, opts, runs, records, histories, experime
 
     Records (engine/inputs.py): model Structure, opts KernelOptions, runs RunArrays, records Records,
     histories HistorySpec, experiment ScoreSpec, out Outputs."""
-    _VARIANTS[experiment.active](start, stop, model, opts, runs, records, histories, experiment, out)
+    _VARIANTS[opts.scheme][experiment.active](start, stop, model, opts, runs, records, histories, experiment, out)

@@ -89,7 +89,8 @@ def test_registered_pieces():
     from pounding_sweep.engine import scalar
     from pounding_sweep.engine.lanes import lane_step, vector
 
-    assert scalar._time_loop.py_func in linking._REGISTERED
+    for loop in (scalar._time_loop_event, scalar._time_loop_implicit, scalar._time_loop_paper):
+        assert loop.py_func in linking._REGISTERED
     assert scalar._event_step.py_func in linking._REGISTERED
     assert median_inplace.py_func in linking._REGISTERED
     assert lane_step.lane_step.py_func not in linking._REGISTERED

@@ -45,6 +45,8 @@ def probability_figure(study):
         at: list[tuple[float, float, list[str]]] = []
         for rule, row in rules[np.isclose(rules.intensity_g, x)].set_index("rule").iterrows():
             gap_mm, p, name = float(row.gap_m) * 1e3, float(row.probability), str(rule).replace("2018_min", " min")
+            if not gap_mm > 0.0:  # a gap of 0 (identical buildings: no relative motion) has no place on a log axis
+                continue
             same = [a for a in at if abs(np.log(a[0] / gap_mm)) < 0.01 and abs(a[1] - p) < 0.01]
             if same:
                 same[0][2].append(name)
@@ -111,9 +113,11 @@ def fragility_figure(study, most: int = 5):
 
 def required_gap_figure(study, targets=None):
     """The gap a target probability needs, against the target, per intensity: the lognormal fragilities'
-    answer with its bootstrap band, the stripes' order statistics with their distribution-free intervals."""
+    answer with its bootstrap band (the table's interval: none where too few replicates give a gap), the
+    stripes' order statistics with their distribution-free intervals. None where no intensity has a gap to draw
+    (every run pounds, or none: the table's notes say why): a figure with nothing in it is not drawn."""
     import pounding_sweep.risk.analysis as A
-    from pounding_sweep.risk.fragility import gap_for_probability, percentile_interval
+    from pounding_sweep.risk.fragility import bootstrap_interval, gap_for_probability
 
     fig = _figure(figsize=(8.0, 4.8))
     ax = fig.subplots()
@@ -122,22 +126,31 @@ def required_gap_figure(study, targets=None):
     gaps = study.fragility.gap_m.to_numpy()
     fit = data.fit(gaps)
     boot = study.boot
+    drawn = 0
     for i, x in enumerate(_shown_intensities(study)):
         color = f"C{i % 10}"
         g = np.array([float(gap_for_probability(fit, gaps, x, p)) for p in targets])
-        ax.plot(targets, g * 1e3, color=color, label=f"{x:.3g} g, lognormal")
+        g = np.where(g > 0.0, g, np.nan)  # a log axis: no gap (NaN) and a gap of 0 leave the curve open there
+        if np.isfinite(g).any():
+            ax.plot(targets, g * 1e3, color=color, label=f"{x:.3g} g, lognormal")
+            drawn += 1
         if boot is not None:
-            band = np.array([percentile_interval(gap_for_probability(boot, gaps, x, p), study.scene.risk.confidence)
-                             for p in targets])  # fmt: skip
+            conf = study.scene.risk.confidence
+            band = np.array([bootstrap_interval(gap_for_probability(boot, gaps, x, p), g[k], conf)[:2]
+                             for k, p in enumerate(targets)])  # fmt: skip
+            band = np.where(band > 0.0, band, np.nan)
             ax.fill_between(targets, band[:, 0] * 1e3, band[:, 1] * 1e3, color=color, alpha=0.15, lw=0)
         req = study.required_gap[np.isclose(study.required_gap.intensity_g, x)]
-        ok = np.isfinite(req.empirical_gap_m)
+        ok = np.isfinite(req.empirical_gap_m) & (req.empirical_gap_m > 0.0)
+        drawn += int(ok.any())
         if ok.any():
             r = req[ok]
             lo = (r.empirical_gap_m - r.empirical_ci_low_m.fillna(r.empirical_gap_m)) * 1e3
             hi = (r.empirical_ci_high_m.fillna(r.empirical_gap_m) - r.empirical_gap_m) * 1e3
             ax.errorbar(r.target_probability, r.empirical_gap_m * 1e3, yerr=[lo, hi], fmt="s", ms=4, color=color,
                         capsize=3, label=f"{x:.3g} g, order statistics")  # fmt: skip
+    if not drawn:
+        return None
     for rule, (c, ls) in RULE_STYLE.items():
         rows = study.code_rules[study.code_rules.rule == rule]
         if len(rows) and rule == "TBEC2018_min":

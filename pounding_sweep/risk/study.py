@@ -391,6 +391,13 @@ def _check_gap_units(r, largest_m: float) -> None:
     millimetres are written in a key in metres."""
     from pounding_sweep.warn import warn
 
+    if not largest_m > 0.0:  # no gap is too large for a demand of 0: say what the 0 is instead
+        warn(
+            "no_relative_motion",
+            "[risk]: no run requires a gap (largest required gap 0 m: the facing floors never move relative to "
+            "each other, as identical buildings do): every probability of pounding is 0",
+        )
+        return
     for key in ("gaps_m", "contact_gaps_m"):
         values = getattr(r, key)
         if values and min(values) > GAP_UNITS_FACTOR * largest_m:
@@ -441,6 +448,7 @@ def write_study(study: RiskStudy, figures: bool = True) -> list[Path]:
     import pyarrow as pa
 
     from pounding_sweep.sweep.results import write_table_atomic
+    from pounding_sweep.warn import warn
 
     folder = study.folder
     written = []
@@ -460,6 +468,13 @@ def write_study(study: RiskStudy, figures: bool = True) -> list[Path]:
                 ("fragility.png", fragility_figure(study)),
                 ("required_gap.png", required_gap_figure(study)),
             ):
+                if fig is None:
+                    warn(
+                        "empty_figure",
+                        f"{fname} not drawn: no intensity of the study has a required gap to show (every run "
+                        "pounds at every gap studied, or none does; required_gap's notes say which)",
+                    )
+                    continue
                 fig.savefig(folder / fname, dpi=120)
                 written.append(folder / fname)
         except SystemExit:  # no matplotlib: the tables are the study

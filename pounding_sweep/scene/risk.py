@@ -99,7 +99,8 @@ def check_ensemble(scene) -> None:
     same scene runs as a plain sweep, or one point of it with simulate): an ensemble of motions, [risk]'s
     intensities among the levels, no gap axis."""
     r, e = scene.risk, scene.excitation
-    motions = len(scene.axis_values("record") or scene.axis_values("seed"))
+    # no record or seed axis: the one motion of [excitation] (a record, or a stochastic motion's one seed)
+    motions = len(scene.axis_values("record") or scene.axis_values("seed")) or 1
     if motions < MIN_MOTIONS:
         raise ConfigError(
             f"[risk]: the ensemble has {motions} motion(s); give at least {MIN_MOTIONS} as a [sweep] record or seed axis"

@@ -194,6 +194,8 @@ def test_dask_gives_the_same_study_bit_for_bit(tmp_path):
         ({"risk": {"targets": [1.5]}}, "probabilities lie in"),
         ({"stochastic": {"filter": "kanai"}}, "expected one of"),
         ({"stochastic": {"highpass_frequency_Hz": None}}, "missing key 'highpass_frequency_Hz'"),
+        # no seed axis: the one motion of [excitation] (a helper's trial: it was called "0 motion(s)")
+        ({"sweep": {"seed": None}}, r"the ensemble has 1 motion\(s\)"),
     ],
 )
 def test_bad_risk_scenes_are_refused(change, message):
@@ -204,6 +206,8 @@ def test_bad_risk_scenes_are_refused(change, message):
         for k, v in values.items():
             if v is None:
                 raw[section].pop(k)
+                if section == "sweep" and not raw[section]:  # an empty [sweep]: one point
+                    raw.pop(section)
             else:
                 raw[section][k] = v
     with pytest.raises(ConfigError, match=message):  # when the scene is read, or when a study would start
@@ -306,3 +310,28 @@ def test_gaps_in_metres_beyond_every_demand_and_no_bootstrap_are_warned(tmp_path
     assert "[risk] gaps_m = [20.0, 50.0]: every gap is more than 10 times the largest gap" in kinds["gap_units"]
     assert "(for 20 mm write 0.02)" in kinds["gap_units"]
     assert "[risk] bootstrap = 0" in kinds["no_bootstrap"]
+
+
+def test_identical_buildings_give_probability_zero_and_no_empty_figure(tmp_path):
+    """A helper's trial: two identical buildings (no relative motion, every required gap 0, the closed-form
+    P = 0 at every gap) crashed the figures (a log axis with a 0 mm rule gap; the required-gap figure with nothing
+    to draw) and warned that the gaps were in the wrong unit. Now: P = 0 with its Clopper-Pearson bound, the empty
+    figure not drawn and said so, the others drawn, and one warning saying what the 0 is."""
+    from pounding_sweep.warn import collecting
+
+    scene = small(tmp_path, seeds=8, levels=(0.4, 0.8))
+    scene = dataclasses.replace(scene, building2=dataclasses.replace(scene.building1))
+    with collecting() as got:
+        study = risk_study(scene, threads=2)
+        written = write_study(study)
+    assert (study.demand.required_gap_m == 0.0).all()
+    p = study.probability
+    assert (p.probability == 0.0).all() and (p.ci_low == 0.0).all()
+    assert np.allclose(p.ci_high, 1.0 - 0.025 ** (1.0 / p.motions))  # Clopper-Pearson upper bound for 0 of n
+    kinds = {w.kind: w.message for w in got.items}
+    assert "gap_units" not in kinds and "largest required gap 0 m" in kinds["no_relative_motion"]
+    assert "required_gap.png not drawn" in kinds["empty_figure"]
+    pngs = sorted(f.name for f in written if f.suffix == ".png")
+    assert pngs == ["fragility.png", "probability_vs_gap.png"]
+    for f in pngs:
+        assert (study.folder / f).stat().st_size > 10_000

@@ -69,7 +69,7 @@ class Excitation:
     intensity: str = "none"  # [excitation] intensity: 'none', 'pga' or 'sa'
     scaling: str = "factor"  # [excitation] scaling: 'factor' or 'intensity'
     period_s: float | None = None  # the Sa period
-    rec_intensity: np.ndarray | None = None  # records: each one's intensity as read [m/s^2]
+    rec_intensity: np.ndarray | None = None  # records: the intensity of each one as run (cut at duration_s) [m/s^2]
     motion: object | None = None  # stochastic: model.stochastic.StochasticMotion
 
     @classmethod
@@ -121,9 +121,7 @@ class Excitation:
         flat = np.ascontiguousarray(np.concatenate(arrays))
         im = None
         if e.intensity != "none":
-            from pounding_sweep.model.intensity import intensity
-
-            im = np.array([float(intensity(r.acc_m_s2, r.dt_s, e.intensity, period)) for r in recs])
+            im = np.array([_run_intensity(r, p, e, period) for r, p in zip(recs, paths, strict=True)])
             if e.scaling == "intensity" and not (im > 0).all():
                 from pounding_sweep.scene import ConfigError
 
@@ -242,6 +240,34 @@ class Excitation:
 
     def record_name(self, path: str) -> str:
         return self.records[self.paths.index(path)].name
+
+
+#: a cut record's intensity below this share of the whole record's is said (the cut dropped its strong part)
+CUT_SHARE = 0.99
+
+
+def _run_intensity(rec: GroundRecord, path: str, e, period: float | None) -> float:
+    """The intensity [m/s^2] of the motion a run applies: the record up to [excitation] duration_s where that cuts
+    it (the runs never see the rest; their intensity, and the factor scaling them to a level, are of what they
+    see), with a warning where the cut leaves less than CUT_SHARE of the whole record's intensity."""
+    from pounding_sweep.model.intensity import intensity
+
+    whole = float(intensity(rec.acc_m_s2, rec.dt_s, e.intensity, period))
+    if e.duration_s is None or e.duration_s >= rec.duration_s:
+        return whole
+    kept = rec.time_s <= e.duration_s + 1e-9 * rec.dt_s
+    cut = float(intensity(rec.acc_m_s2[kept], rec.dt_s, e.intensity, period)) if kept.sum() >= 2 else 0.0
+    if cut < CUT_SHARE * whole:
+        what = f"Sa({period:.3g} s, 5 %)" if e.intensity == "sa" else "PGA"
+        peak = float(rec.time_s[int(np.argmax(np.abs(rec.acc_m_s2)))])
+        warn(
+            "record_cut",
+            f"[excitation] duration_s = {e.duration_s!r} cuts record {path} ({rec.duration_s:.4g} s long, its peak "
+            f"acceleration at {peak:.4g} s): the motion run has {what} {cut / G_STANDARD:.4g} g against the whole "
+            f"record's {whole / G_STANDARD:.4g} g; the runs' intensity (and scaling to it) is the motion run's: "
+            "leave duration_s out to run the whole record",
+        )
+    return cut
 
 
 def intensity_period(scene: Scene) -> float | None:

@@ -133,6 +133,30 @@ def test_records_are_scaled_to_their_intensity_exactly():
     assert exc.period_s == pytest.approx(0.702, abs=1e-3)  # sqrt(0.912 x 0.540)
 
 
+def test_a_record_cut_by_duration_is_scaled_by_the_motion_run():
+    """A helper's trial: duration_s = 8 s on records whose strong motion comes later scaled each record by the whole
+    record's Sa, so the runs (which see only 8 s) carried an intensity label 70 times too large. Now the motion run
+    (the record up to duration_s) has Sa(T*) = the level, and the cut is warned, naming the key and both Sa."""
+    from pounding_sweep.warn import collecting
+
+    s = load_scene(SWEEPS / "risk_records.toml")
+    s = dataclasses.replace(s, excitation=dataclasses.replace(s.excitation, duration_s=8.0))
+    with collecting() as got:
+        exc = Excitation.from_scene(s, s.integration.dt_s)
+    from pounding_sweep.model.grid import Grid
+
+    params = Grid.from_scene(s).chunk(0, Grid.from_scene(s).size)
+    ex, _ = exc.chunk_inputs(params)
+    for i in range(0, params["run_id"].size, 5):
+        rec = exc.records[ex["rec_id"][i]]
+        run = rec.acc_m_s2[rec.time_s <= 8.0]
+        sa = float(intensity(run * ex["exc_amp"][i], rec.dt_s, "sa", exc.period_s))
+        assert sa / G_STANDARD == pytest.approx(params["scale"][i], rel=1e-12)
+    cut = [w.message for w in got.items if w.kind == "record_cut"]
+    assert cut and all("[excitation] duration_s = 8.0 cuts record" in m for m in cut)
+    assert any("BOL000" in m for m in cut)  # Bolu's peak acceleration comes at 10.8 s
+
+
 class Interrupt(Exception):
     pass
 

@@ -55,11 +55,7 @@ def risk_main(argv: list[str]) -> int:
             unit = {"free": "contact-free runs", "bootstrap": "bootstrap replicates"}.get(name, "contact runs")
             return Progress(not args.quiet, unit=unit)
 
-        def echo(w):
-            if w.kind != "no_contact":  # the contact-free runs make no contact: that is their point
-                print_warning(w)
-
-        with collecting(echo=echo):
+        with collecting(echo=print_warning):
             study = risk_study(scene, args.threads, None, progress, args.overwrite, args.yes)
             written = write_study(study, figures=not args.no_figures)
     except InputError as e:

@@ -229,8 +229,9 @@ def run_runs(scene: Scene, threads=None, executor=None, progress_for=None, overw
             continue
         p = progress_for(name) if progress_for is not None else None
         out[name] = run_scene(
-            sub, threads=threads, progress=p, executor=executor, overwrite=overwrite, confirmed=confirmed
-        )
+            sub, threads=threads, progress=p, executor=executor, overwrite=overwrite, confirmed=confirmed,
+            contact_free=name == "free",  # no contact is their point: not a finding (nor stored as one)
+        )  # fmt: skip
     return out
 
 

@@ -108,13 +108,15 @@ def run_scene(
     overwrite: bool = False,
     confirmed: bool = False,
     kernel: str = "auto",
+    contact_free: bool = False,
 ) -> SweepSummary:
     """Run every grid point of the scene into a Parquet dataset folder (one part per chunk); return
     a summary. Parts already in the folder from an interrupted run of the same scene (same config
     hash and package version) are kept and skipped, and so is a refinement already stored in the best
     table; other results there are refused unless `overwrite`. `executor`: one from
     executors.make_executor (default: the scene's [execution]); `kernel`: engine.driver.KERNELS
-    ("scalar": every chunk on the scalar kernel). `progress(done, total)` is called as runs finish
+    ("scalar": every chunk on the scalar kernel); `contact_free`: the scene is separated on purpose (a study's
+    contact-free runs), so no run making contact is no finding to warn of. `progress(done, total)` is called as runs finish
     (within a chunk on the local executor); when it has them, its `compiling` method is told when a
     kernel is compiled (engine.driver.Announce) and `restart(done)` when the runs start.
 
@@ -122,12 +124,16 @@ def run_scene(
     an enclosing `warn.collecting()` (the command line prints them), stored in the result metadata
     (`warnings`; part 0 holds all of them) and listed in the summary."""
     with collecting() as notes:
-        summary = _run_scene(scene, out_path, threads, progress, executor, overwrite, confirmed, kernel, notes)
+        summary = _run_scene(
+            scene, out_path, threads, progress, executor, overwrite, confirmed, kernel, notes, contact_free
+        )
     summary.warnings = notes.messages()
     return summary
 
 
-def _run_scene(scene, out_path, threads, progress, executor, overwrite, confirmed, kernel, notes) -> SweepSummary:
+def _run_scene(
+    scene, out_path, threads, progress, executor, overwrite, confirmed, kernel, notes, contact_free
+) -> SweepSummary:
     out_path = Path(out_path or scene.output.path)
     ex = scene.execution
     size = Grid.from_scene(scene).size
@@ -143,14 +149,14 @@ def _run_scene(scene, out_path, threads, progress, executor, overwrite, confirme
     folder = OutputFolder(out_path, hpath, overwrite, best_path).claim()
     ok = False
     try:
-        summary = _run_claimed(scene, folder, threads, progress, executor, kernel, size, notes)
+        summary = _run_claimed(scene, folder, threads, progress, executor, kernel, size, notes, contact_free)
         ok = True
     finally:
         folder.release(ok)
     return summary
 
 
-def _run_claimed(scene, folder, threads, progress, executor, kernel, size, notes) -> SweepSummary:
+def _run_claimed(scene, folder, threads, progress, executor, kernel, size, notes, contact_free) -> SweepSummary:
     from pounding_sweep.sweep.executors import make_executor
 
     out_path, hpath, ex = folder.out, folder.hpath, scene.execution
@@ -244,7 +250,8 @@ def _run_claimed(scene, folder, threads, progress, executor, kernel, size, notes
         if executor is None and exe is not None:
             exe.close()
     run_s = time.perf_counter() - t_run
-    check_contact(tally.contact, scene)
+    if not contact_free:
+        check_contact(tally.contact, scene)
     check_response_size(tally.contact, scene)
     if notes.messages() != meta_warnings(meta):
         store_warnings(out_path, notes.messages())

@@ -133,6 +133,20 @@ def test_records_are_scaled_to_their_intensity_exactly():
     assert exc.period_s == pytest.approx(0.702, abs=1e-3)  # sqrt(0.912 x 0.540)
 
 
+def test_the_contact_free_runs_store_no_no_contact_warning(tmp_path):
+    """A helper's trial: every study's contact-free runs (at the gap no motion closes, 100 m) stored 'no run made
+    contact ... gap_m = 100 is 100 m (for 100 mm write 0.1)' in their metadata: a unit hint about the study's own
+    choice. They are separated on purpose; the same scene as a plain sweep still gets the warning."""
+    from pounding_sweep.risk.study import run_runs
+    from pounding_sweep.sweep.run import run_scene
+
+    scene = small(tmp_path, seeds=4, levels=(0.4, 0.8))
+    summaries = run_runs(scene, threads=2)
+    assert summaries["free"].warnings == [w for w in summaries["free"].warnings if "no run made contact" not in w]
+    plain = run_scene(free_scene(scene), out_path=tmp_path / "plain.parquet", threads=2)
+    assert any("no run made contact" in w and "write 0.1" in w for w in plain.warnings)
+
+
 def test_a_record_cut_by_duration_is_scaled_by_the_motion_run():
     """A helper's trial: duration_s = 8 s on records whose strong motion comes later scaled each record by the whole
     record's Sa, so the runs (which see only 8 s) carried an intensity label 70 times too large. Now the motion run

@@ -11,6 +11,7 @@ Extra columns (quality flags, other floors) are ignored unless the scene maps th
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -159,10 +160,13 @@ def experiment_from_table(
                 f"{where}: no column '{col}' (mapped to floor {code}); columns: {', '.join(map(str, df.columns))}"
             )
         kinds[code], dofs[code] = experiment_channel(code, floors, f"[experiment] channels.{col}")
+    recorded = _recorded_units(md)
     for col, code in cfg.channels.items():
         x = _numeric(df[col], where, col)
         acc = kinds[code] == codes.H_ABS_ACC
         units = cfg.acc_units if acc else cfg.units
+        if col in recorded:
+            _check_recorded_unit(where, col, code, recorded[col], acc, units)
         if np.all(x == x[0]):
             what = "zero throughout" if x[0] == 0 else f"constant ({float(x[0])!r} {units} throughout)"
             why = (
@@ -265,6 +269,42 @@ def channel_noise(t, chans, cols, kinds, cfg: ExperimentConfig, where) -> tuple[
 
 #: SI factor of each unit a table's columns may be in (scene/schema.py ExperimentConfig units, acc_units)
 UNIT_FACTORS = {"mm": 1e-3, "m": 1.0, "m/s2": 1.0, "g": G_STANDARD}
+#: a table's recorded column unit (its 'column_units' metadata) as the scene's keys spell it, and whether it is an
+#: acceleration
+RECORDED_UNITS = {"mm": ("mm", False), "m": ("m", False), "m/s^2": ("m/s2", True), "m/s2": ("m/s2", True),
+                  "g": ("g", True)}  # fmt: skip
+
+
+def _recorded_units(md: dict) -> dict:
+    """The table's own record of its columns' units ('column_units' metadata: a JSON object, column -> unit, as
+    `python -m pounding_sweep import` writes it); {} where it has none or it cannot be read."""
+    try:
+        units = json.loads(md.get("column_units", "{}"))
+    except (TypeError, ValueError):
+        return {}
+    return {str(k): str(v) for k, v in units.items()} if isinstance(units, dict) else {}
+
+
+def _check_recorded_unit(where, col: str, code: str, recorded: str, acc: bool, units: str) -> None:
+    """ExperimentError where the scene reads a column otherwise than the table records it: an acceleration
+    mapped to a displacement channel (or the reverse), or another unit than the recorded one."""
+    spelled, is_acc = RECORDED_UNITS.get(recorded.strip(), (None, None))
+    if spelled is None:
+        return  # a unit of its own: the scene's word stands
+    if is_acc != acc:
+        what = "an acceleration" if is_acc else "a displacement"
+        fix = f"'abs_acc_{code}'" if is_acc else f"'{code.removeprefix('abs_acc_')}'"
+        raise ExperimentError(
+            f"{where}: column '{col}' is {what} in {recorded} (the table's column_units) but [experiment] "
+            f"channels.{col} = '{code}' reads it as {'a displacement' if is_acc else 'an acceleration'}: map it "
+            f"to {fix}"
+        )
+    if spelled != units:
+        key = "acc_units" if acc else "units"
+        raise ExperimentError(
+            f"{where}: column '{col}' is in {recorded} (the table's column_units) but [experiment] {key} = "
+            f"'{units}': write {key} = '{spelled}'"
+        )
 
 
 def _repeated(col: str) -> str:

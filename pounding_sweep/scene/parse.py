@@ -11,12 +11,14 @@ import types
 import typing
 from pathlib import Path
 
+from pounding_sweep import codes
 from pounding_sweep.errors import ConfigError, shown
 from pounding_sweep.scene.axes import SWEEPABLE
 from pounding_sweep.scene.files import MAX_SCENE_BYTES, read_regular, resolve, text_problem
 from pounding_sweep.scene.keys import check_keys
 from pounding_sweep.scene.risk import RiskConfig
 from pounding_sweep.scene.schema import (
+    ACC_UNITS,
     MAX_AXIS_VALUES,
     SECTIONS,
     TOP_KEYS,
@@ -157,6 +159,9 @@ def scene_from_dict(raw: dict, base_dir: Path, source: str = "<dict>", toml_text
             )
         if experiment.table is not None:
             experiment = dataclasses.replace(experiment, table=str(resolve(base_dir / experiment.table)))
+        acc_units = codes.canonical_unit(experiment.acc_units)
+        if acc_units in ACC_UNITS:  # one spelling inside ('m/s^2' as the import prints it is 'm/s2')
+            experiment = dataclasses.replace(experiment, acc_units=acc_units)
     calibrate = None
     if "calibrate" in raw:
         if not isinstance(raw["calibrate"], dict):

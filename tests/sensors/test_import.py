@@ -212,6 +212,60 @@ def test_import_command_writes_table_record_and_provenance_and_refuses_a_folder_
 # ------------------------------------------------------------------ data faults, each named (a helper's trial)
 
 
+@pytest.mark.parametrize(
+    "channels, acc_units, message",
+    [
+        # an accelerometer's column read as a tracked displacement: it ran, its m/s^2 read as mm
+        ('b1f3_acc_m_s2 = "b1f3"', "m/s2", "is an acceleration in m/s^2 (the table's column_units) but "
+         "[experiment] channels.b1f3_acc_m_s2 = 'b1f3' reads it as a displacement: map it to 'abs_acc_b1f3'"),
+        # the table's units contradicted: only one channel of three was flagged, by its size
+        ('b1f3_acc_m_s2 = "abs_acc_b1f3"', "g", "is in m/s^2 (the table's column_units) but [experiment] acc_units "
+         "= 'g': write acc_units = 'm/s2'"),
+    ],
+)  # fmt: skip
+def test_a_scene_reading_an_import_against_its_recorded_units_is_one_error(tmp_path, truth, capsys, channels,
+                                                                          acc_units, message):  # fmt: skip
+    """An import records each column's unit (column_units): a scene reading a column as another kind or in another
+    unit is refused, naming the column, the key and the fix; as the import prints it, 'm/s^2' is a spelling of
+    acc_units (it was refused)."""
+    files = _files(tmp_path, truth, shared_clock=True)
+    out = tmp_path / "imported"
+    assert main(["import", *[f"{n}={p}" for n, p in files.items()], "--out", str(out)]) == 0
+    scene = tmp_path / "s.toml"
+    text = f"""name = "s"
+[building1]
+masses_kg = [0.142, 0.142, 0.142]
+story_stiffness_N_per_m = 1833.3
+story_height_m = 0.2
+damping_ratio = 0.005
+[excitation]
+type = "record"
+record = "{out}/record.csv"
+[integration]
+dt_s = 0.001
+[output]
+path = "{tmp_path}/r.parquet"
+[experiment]
+table = "{out}/table.parquet"
+acc_units = "{{}}"
+channels = {{{{ {channels} }}}}
+"""
+    capsys.readouterr()
+    assert main([str(_write(scene, text.format(acc_units)))]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("error: ") and message in err[-1]
+    assert not (tmp_path / "r.parquet").exists()
+    if acc_units == "m/s2":  # the spelling the import prints is accepted, and reads the same
+        ok = text.format("m/s^2").replace(channels, 'b1f3_acc_m_s2 = "abs_acc_b1f3"')
+        assert main([str(_write(scene, ok)), "--quiet"]) == 0
+        assert (tmp_path / "r.parquet").is_dir()
+
+
+def _write(path: Path, text: str) -> Path:
+    path.write_text(text)
+    return path
+
+
 def _rows(path: Path) -> tuple[list[str], int]:
     """The export's lines and the index of its first data row (after the PacketCounter header row)."""
     lines = path.read_text(encoding="utf-8").splitlines()

@@ -789,8 +789,8 @@ def measured_figure(scene, pick: dict, label: str, md: dict, noise: dict | None 
         tk, xe, xm, res = data[code]
         quantity, unit, factor = channel_quantity(code)
         rms, sigma = float(np.sqrt(np.mean(res * res))), noise.get(code)
-        head = (
-            f"{channel_label(code, md)}: eq. 20 error {float(relative_rms_error_pct(xm, xe)):.1f} %; "
+        head = (  # two lines: one ran into the zoom panel's title (a helper's trial)
+            f"{channel_label(code, md)}: eq. 20 error {float(relative_rms_error_pct(xm, xe)):.1f} %;\n"
             f"RMS residual {rms * factor:.4g} {unit}"
         )
         head += (
@@ -977,7 +977,12 @@ def figures(
     compared: dict = {}
     out.update(history_figures(scene, pick, label, md, skipped, compared))
     if scene.experiment is not None:
+        # the calibration's noise floor, else the scene's own ([experiment] noise or noise_window_s: the experiment's)
         noise = calibration_noise(best_file, pick) if calibrated is not None else {}
+        if not noise:
+            from pounding_sweep.sweep.scoring import load_experiment
+
+            noise = dict(load_experiment(scene.experiment, scene.floors).noise)
         out["measured_vs_model"] = measured_figure(scene, pick, label, md, noise, compared)
     ladder_scene, pick = _run(scene, pick)
     pick = {k: v for k, v in pick.items() if k != "time_offset_s"}  # the ladder runs without the experiment

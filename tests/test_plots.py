@@ -393,3 +393,28 @@ def test_the_accuracy_ladder_measures_the_quantity_a_scene_scores():
 
     assert _ladder_channel(load_scene(SWEEPS / "real_northridge.toml")) == "abs_acc_b1f3"
     assert _ladder_channel(load_scene(SWEEPS / "scored_6hz.toml")) is None
+
+
+def test_measured_figure_quotes_the_scenes_own_noise_without_a_calibration(tmp_path):
+    """A helper's trial: a scored scene without [calibrate] but with [experiment] noise_window_s got every panel
+    titled 'no noise value for this channel: give [experiment] noise or noise_window_s'. The scene's noise (here
+    [experiment] noise, in the table's mm) is the band and the title's yardstick: 0.05 mm."""
+    text = (SWEEPS / "scored_6hz.toml").read_text()
+    out = tmp_path / "noise.parquet"
+    for old, new in (
+        ("duration_s = 5.0", "duration_s = 0.5"),
+        ("ks_ratio = [0.1, 1.0, 5.0, 10.0]", "ks_ratio = [5.0]"),
+        ("r = [0.2, 0.4, 0.6, 0.8, 1.0]", "r = [0.4, 0.6]"),
+        ("refine = true", "refine = false\nnoise = { model1_floor3_mm = 0.05, model2_floor3_mm = 0.05 }"),
+        ('table = "experiments/', f'table = "{SWEEPS}/experiments/'),
+    ):
+        assert old in text
+        text = text.replace(old, new)
+    scene = tmp_path / "noise.toml"
+    scene.write_text(text)
+    from pounding_sweep.sweep.run import run_scene
+
+    run_scene(load_scene(scene), out_path=out, threads=1)
+    fig = plots.figures(out)["measured_vs_model"]
+    titles = [ax.get_title(loc="left") for ax in fig.axes if ax.get_title(loc="left")]
+    assert len(titles) == 2 and all("times the channel's noise 0.05 mm" in t for t in titles), titles

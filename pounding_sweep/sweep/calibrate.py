@@ -502,7 +502,24 @@ def identified_starts(scene: Scene, names: list[str]) -> dict[str, float]:
                 "a start, not a value",
             )
     bounds = scene.calibrate.parameters
-    return {n: float(min(max(v, bounds[n][0]), bounds[n][1])) for n, v in out.items()}
+    clipped = {n: float(min(max(v, bounds[n][0]), bounds[n][1])) for n, v in out.items()}
+    # (an identified damping ratio outside its bounds is usual, and said above where identify doubts it)
+    far = [n for n, v in out.items() if not bounds[n][0] <= v <= bounds[n][1] and "damping_ratio" not in n]
+    if far:
+        from pounding_sweep.warn import warn
+
+        warn(
+            "start_outside",
+            f"[calibrate] start_from {scene.calibrate.start_from}: "
+            + "; ".join(
+                f"{n} = {out[n]:.4g} lies outside [calibrate] parameters.{n} = {list(bounds[n])} and starts "
+                f"at {clipped[n]:.4g}"
+                for n in far
+            )
+            + ": the identified first frequency and the scene's model disagree that much (the modes file's mode 1 "
+            "is not this frame's first mode, or the model's masses or stiffness are far off)",
+        )
+    return clipped
 
 
 def _start(scene: Scene, prob: Problem, best_cell: dict | None) -> tuple[dict | None, dict]:

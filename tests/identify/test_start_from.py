@@ -107,6 +107,21 @@ def test_the_start_puts_the_first_mode_at_the_identified_one(tmp_path):
     uniform = dataclasses.replace(cal, parameters={"stiffness_scale_b1": [0.5, 2.0]})
     s2 = dataclasses.replace(s, building1=dataclasses.replace(s.building1, stiffness_scale=1.05), calibrate=uniform)
     assert identified_starts(s2, ["stiffness_scale_b1"])["stiffness_scale_b1"] == pytest.approx(1.21, rel=1e-12)
+    # a mode 1 far below the model's (a helper's trial: the forcing of a 2 Hz sine taken for an 8 Hz mode, c =
+    # 0.06; here 0.25 f1, c = 0.0625) starts at the bound, and says so; one inside the bounds says nothing
+    far = _modes_file(tmp_path / "far.toml", 0.25 * f1, [0.01, 0.007, 0.01])
+    with collecting() as got:
+        low = identified_starts(dataclasses.replace(s2, calibrate=dataclasses.replace(uniform, start_from=far)),
+                                ["stiffness_scale_b1"])  # fmt: skip
+    assert low["stiffness_scale_b1"] == 0.5
+    (w,) = [w.message for w in got.items if w.kind == "start_outside"]
+    assert (
+        "stiffness_scale_b1 = 0.0625" in w
+        and "lies outside [calibrate] parameters.stiffness_scale_b1 = [0.5, 2.0]" in w
+    )
+    with collecting() as got:
+        identified_starts(s2, ["stiffness_scale_b1"])
+    assert not [w for w in got.items if w.kind == "start_outside"]
 
 
 @pytest.mark.parametrize(

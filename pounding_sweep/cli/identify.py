@@ -81,7 +81,8 @@ def _identify_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--force-update",
         action="store_true",
-        help="write the update even when f1 is at a forcing frequency or a stiffness changes by more than 30 %%",
+        help="write the update (and --modes-out) even when f1 is at a forcing frequency or a stiffness changes by "
+        "more than 30 %%",
     )
     return p
 
@@ -146,7 +147,7 @@ def _print_identification(ident, forcing) -> None:
 def identify_main(argv: list[str]) -> int:
     args = _identify_parser().parse_args(argv)
     from pounding_sweep.errors import InputError
-    from pounding_sweep.identify.safety import forcing_frequencies, method_warnings, update_problems
+    from pounding_sweep.identify.safety import forcing_frequencies, method_warnings, modes_problems, update_problems
     from pounding_sweep.identify.startfile import modes_toml
     from pounding_sweep.identify.table import empty_reason, identify_table, model_updates
     from pounding_sweep.model.experiment import read_table
@@ -190,14 +191,19 @@ def identify_main(argv: list[str]) -> int:
             print()
             for u in updates:
                 print(f"{u.section}: f1 {u.f1_model_Hz:.4f} -> {u.f1_target_Hz:.4f} Hz: stiffness x {u.factor:.4f}")
-        if problems and not args.force_update:
-            raise Bad(
-                src,
-                "model update refused: " + "; ".join(problems),
-                "--force-update writes it anyway",
-            )
+        wrong_modes = modes_problems(ident, forcing) if args.modes_out else []
+        if (problems or wrong_modes) and not args.force_update:
+            refused = ["model update refused: " + "; ".join(problems)] if problems else []
+            if wrong_modes:  # a calibration would start from the forcing
+                refused.append(
+                    "modes file refused: " + "; ".join(wrong_modes) + " (--fmin above it, or --start after the "
+                    "forcing stops, finds the modes)"
+                )
+            raise Bad(src, "; ".join(refused), "--force-update writes it anyway")
         for pr in problems:
             print(f"warning: model update forced although {pr}", file=sys.stderr)
+        for pr in wrong_modes:
+            print(f"warning: modes file forced although {pr}", file=sys.stderr)
         text = "".join(u.toml() + "\n" for u in updates)
         if args.out:
             _write(Path(args.out), f"{WRITTEN_BY} {src}\n" + text)

@@ -145,6 +145,20 @@ def forcing_notes(result, forcing) -> list[str]:
     return out
 
 
+def modes_problems(ident, forcing) -> list[str]:
+    """Why a modes file (--modes-out, a calibration's start) should not be written: a building's mode 1 at a
+    forcing frequency or its harmonic (a calibration would start its stiffness there: a 2 Hz sine's forcing read
+    as the 8 Hz frame's mode 1 starts it at a sixteenth); [] when none."""
+    out = []
+    for b, r in sorted(ident.results.items()):
+        if b == 0 or not r.modes:
+            continue
+        hit = near_forcing(r.modes[0].frequency_Hz, forcing, r.spectrum.resolution_Hz)
+        if hit is not None:
+            out.append(f"building{b}: mode 1 {r.modes[0].frequency_Hz:.4f} Hz is at {_at(*hit)}")
+    return out
+
+
 def update_problems(updates, ident, forcing, damping: bool = False) -> list[str]:
     """Why each model update should not be written: a first frequency at a forcing frequency, a
     stiffness scaled by more than MAX_STIFFNESS_CHANGE, or (`damping`: --update-damping) a damping estimate identify

@@ -170,6 +170,14 @@ def test_the_shipped_6hz_experiment_update_is_refused_unless_forced(capsys, tmp_
     assert code == 0
     assert [w[:44] for w in err.strip().splitlines()] == ["warning: model update forced although buildi"] * 2
     assert "[building2]" in out_toml.read_text()
+    # a modes file (a calibration's start) with the forcing as building2's mode 1 is refused the same way (a
+    # helper's trial: a calibration started at a sixteenth of the stiffness from one)
+    modes = tmp_path / "modes.toml"
+    code, out, err = run([SHIPPED_6HZ, "--scene", SWEEPS / "paper_6hz.toml", "--modes-out", modes], capsys)
+    (line,) = err.strip().splitlines()
+    assert code == 2 and not modes.exists()
+    assert "modes file refused: building2: mode 1 5.99" in line and "Hz is at the forcing frequency 6.0000 Hz" in line
+    assert "building1" not in line
 
 
 def test_the_30_percent_rule(records, capsys, tmp_path):

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pounding_sweep.codes import canonical_unit
 from pounding_sweep.model.records import G_STANDARD, MAX_ACC_M_S2
 from pounding_sweep.scene.channels import building_floor, shown_value
 from pounding_sweep.scene.parameters import CONTACT, STIFFNESS, names
@@ -425,14 +426,21 @@ def _check_record_against_table(prep) -> None:
         if not (table > 0 and peak > 0):
             continue
         ratio = peak / table
-        for factor, meant in ((G_STANDARD, "m/s2"), (1 / G_STANDARD, "g")):
+        for factor, meant, table_in in ((G_STANDARD, "m/s2", "g"), (1 / G_STANDARD, "g", "m/s2")):
             if abs(math.log(ratio / factor)) <= math.log(UNIT_SLIP):
-                warn(
-                    "record_units",
-                    f"[excitation] units = {e.units or 'its default'!r}: {Path(rec.source).name} read so peaks at {peak:.4g} m/s^2, "
-                    f"{ratio:.3g} times the table's own measured peak ({column}: {table:.4g} m/s^2 over the record's "
-                    f"span): is the record in {meant} (units = {meant!r})?",
+                said = f"[excitation] units = {e.units or 'its default'!r}"
+                seen = (
+                    f"{Path(rec.source).name} read so peaks at {peak:.4g} m/s^2, {ratio:.3g} times the table's own "
+                    f"measured peak ({column}: {table:.4g} m/s^2 over the record's span)"
                 )
+                if e.units is not None and canonical_unit(e.units) == meant:  # the record's unit is said already:
+                    warn(  # the table's column is the one off (edited after its import, or another table's)
+                        "record_units",
+                        f"{said}: {seen}: the record is read in {meant} already; is the table's column in "
+                        f"{table_in}, not the m/s^2 its import recorded?",
+                    )
+                else:
+                    warn("record_units", f"{said}: {seen}: is the record in {meant} (units = {meant!r})?")
 
 
 #: the largest |displacement| [m] and |absolute acceleration| [m/s^2] a measured channel may hold: the kernel calls

@@ -125,10 +125,12 @@ def test_a_record_read_in_the_wrong_one_of_g_and_m_s2_is_named_against_the_table
 
     scene_path = SWEEPS / "real_northridge.toml"
 
-    def said(units):
+    def said(units, table=None):
         raw = tomllib.loads(scene_path.read_text())
         if units is not None:
             raw["excitation"]["units"] = units
+        if table is not None:
+            raw["experiment"]["table"] = str(table)
         prep = prepare(scene_from_dict(raw, base_dir=SWEEPS, source=str(scene_path)))
         with collecting() as seen:
             check_calibration(prep)
@@ -138,6 +140,16 @@ def test_a_record_read_in_the_wrong_one_of_g_and_m_s2_is_named_against_the_table
     assert len(wrong) == 1 and "is the record in m/s2 (units = 'm/s2')?" in wrong[0], wrong
     assert "9.8" in wrong[0].split("times the table")[0]
     assert said(None) == [] and said("m/s2") == []
+    # the table's columns in g under the import's m/s^2 metadata, the record right: the table is named, not the
+    # record's unit the scene already says (a helper's trial got "is the record in m/s2 (units = 'm/s2')?")
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    t = pq.read_table(SWEEPS / "experiments" / "imu_northridge" / "table.parquet")
+    cols = {c: t.column(c) if c == "t_s" else pa.compute.divide(t.column(c), 9.80665) for c in t.column_names}
+    pq.write_table(pa.table(cols).replace_schema_metadata(t.schema.metadata), tmp_path / "in_g.parquet")
+    table_off = said("m/s2", tmp_path / "in_g.parquet")
+    assert len(table_off) == 1 and "the record is read in m/s2 already; is the table's column in g" in table_off[0]
 
 
 def test_two_floors_exchanged_in_the_mapping_are_named_before_any_run(tmp_path):

@@ -137,8 +137,19 @@ def identify_table(
     if time_column not in df.columns:
         raise _bad(src, f"no time column '{time_column}'", ", ".join(map(str, df.columns)))
     t = df[time_column].to_numpy(dtype=float)
-    if t.size < 16 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
-        raise _bad(src, f"column '{time_column}' must hold at least 16 increasing finite times", f"{t.size} rows")
+    if t.size < 16:
+        raise _bad(src, f"column '{time_column}' must hold at least 16 times", f"{t.size} rows")
+    if not np.all(np.isfinite(t)):
+        k = int(np.argmin(np.isfinite(t)))
+        raise _bad(src, f"column '{time_column}' must hold finite times", f"{t[k]!r} at row {k + 1}")
+    if np.any(np.diff(t) <= 0):  # the row, as the sweep's reader names it (model/experiment.py)
+        k = int(np.argmax(np.diff(t) <= 0)) + 1
+        kind = "duplicate" if t[k] == t[k - 1] else "unsorted"
+        raise _bad(
+            src,
+            f"column '{time_column}' must be strictly increasing",
+            f"{kind} time {float(t[k])!r} at row {k + 1}, after {float(t[k - 1])!r}",
+        )
     dt = np.diff(t)
     if np.max(np.abs(dt / np.median(dt) - 1)) > 0.01:
         raise _bad(

@@ -265,6 +265,12 @@ def test_bad_input_names_the_column_or_value(records, capsys, tmp_path):
     with pytest.raises(ExperimentError, match="single-frequency"):
         t = df["t_s"].to_numpy()
         identify_table(df.assign(table_mm=2.0 * np.sin(2 * np.pi * 6.0 * t)), "sine")
+    # three rows out of order: named by row, as the sweep's reader names them (a helper's trial was told the
+    # column 'must hold at least 16 increasing finite times (12599 rows)')
+    t = df["t_s"].to_numpy().copy()
+    t[[100, 101]] = t[[101, 100]]
+    with pytest.raises(ExperimentError, match=r"must be strictly increasing \(unsorted time .* at row 102, after"):
+        identify_table(df.assign(t_s=t), "swapped")
 
 
 def test_a_damping_identify_does_not_trust_refuses_the_damping_update():

@@ -210,6 +210,12 @@ def test_a_sweep_axis_the_study_does_not_take_is_named():
         gap_study(s, relative_gaps=(0.0, 1.0), ks_ratio=1.0, r=0.4)
     (w,) = [w.message for w in got.items if w.kind == "gaps_axis_ignored"]
     assert w.startswith("[sweep] scale = [0.5, 1.0]: not studied: a gap study runs each motion once")
+    # the scene's own checks, as a sweep of it gets them (a helper's trial: a vertical component, warned by a
+    # sweep and by `risk`, was studied silently); here a step coarser than the record's samples
+    coarse = dataclasses.replace(s, integration=dataclasses.replace(s.integration, dt_s=0.02))
+    with collecting() as got:
+        gap_study(coarse, relative_gaps=(0.0, 1.0), ks_ratio=1.0, r=0.4)
+    assert [w for w in got.items if w.kind == "record_step"]
 
 
 def test_a_hertz_scene_with_k_h_only_and_a_stiffness_only_swept_are_studied(tmp_path, capsys):

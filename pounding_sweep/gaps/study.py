@@ -214,6 +214,9 @@ def gap_study(
             "value (set in its section), or `python -m pounding_sweep risk` for the probability of pounding over "
             "intensity levels or motions",
         )
+    from pounding_sweep.sweep.checks import check_scene
+
+    check_scene(prepare(scene))  # what a sweep of the scene is told (a vertical component, a story in mm, ...)
     point = contact_point(scene, **contact)
     _say_contact_axes(scene, point, contact)
     req = required_gaps(scene, length_scale, threads, point)

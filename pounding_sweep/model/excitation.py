@@ -24,6 +24,7 @@ from pounding_sweep.codes import EXC_HARMONIC, EXC_RECORD
 from pounding_sweep.model.records import (
     G_STANDARD,
     GroundRecord,
+    RecordError,
     implausible_timing,
     read_record,
     resample,
@@ -50,8 +51,17 @@ def record_paths(scene: Scene) -> list[str]:
 
 def scene_record(scene: Scene, path: str | None = None) -> GroundRecord:
     """The record at `path` (default: [excitation] record) read as the scene reads it and similitude-scaled."""
+    return _similitude(_read(scene, path or scene.excitation.record), scene)
+
+
+def _read(scene: Scene, path: str) -> GroundRecord:
+    """read_record with the scene's format and units; a RecordError names the key that gave the file too."""
     e = scene.excitation
-    return _similitude(read_record(path or e.record, format=e.format, units=e.units), scene)
+    try:
+        return read_record(path, format=e.format, units=e.units)
+    except RecordError as err:
+        key = "[sweep] record" if any(a.name == "record" for a in scene.sweep) else "[excitation] record"
+        raise RecordError(f"{key}: {err}") from None
 
 
 @dataclass(frozen=True)
@@ -92,7 +102,7 @@ class Excitation:
         paths = record_paths(scene)
         recs, arrays = [], []
         for p in paths:
-            rec = read_record(p, format=e.format, units=e.units)
+            rec = _read(scene, p)
             odd = implausible_timing(rec)
             rec = _similitude(rec, scene)
             recs.append(rec)

@@ -416,6 +416,15 @@ def risk_study(
     """Run (or resume) a scene's risk study and compute its tables (write them with write_study). `executor`:
     sweep.executors' (default: the scene's [execution]); `progress_for(name)`: a progress callback per sweep."""
     check_risk_scene(scene)
+    if scene.contact is not None and scene.contact.gap_m > 0.0:
+        from pounding_sweep.warn import warn
+
+        warn(
+            "gap_not_studied",
+            f"[contact] gap_m = {scene.contact.gap_m:g} plays no part in a risk study: it sets the gaps itself "
+            f"([risk] gaps_m for the probability of pounding, contact_gaps_m for the contact runs); for "
+            f"{scene.contact.gap_m * 1e3:g} mm add it to gaps_m",
+        )
     check_folder(study_folder(scene))
     summaries = run_runs(scene, threads, executor, progress_for, overwrite, confirmed)
     mark_folder(study_folder(scene))

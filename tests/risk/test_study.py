@@ -342,9 +342,12 @@ def test_gaps_in_metres_beyond_every_demand_and_no_bootstrap_are_warned(tmp_path
 
     scene = small(tmp_path, seeds=12, levels=(0.2, 0.4, 0.8))
     scene = dataclasses.replace(scene, risk=dataclasses.replace(scene.risk, gaps_m=(20.0, 50.0), bootstrap=0))
+    # and a [contact] gap_m, which a study does not use (a helper's trial: ignored without a word)
+    scene = dataclasses.replace(scene, contact=dataclasses.replace(scene.contact, gap_m=0.03))
     with collecting() as got:
         risk_study(scene, threads=2)
     kinds = {w.kind: w.message for w in got.items}
+    assert kinds["gap_not_studied"].startswith("[contact] gap_m = 0.03 plays no part in a risk study")
     assert "[risk] gaps_m = [20.0, 50.0]: every gap is more than 10 times the largest gap" in kinds["gap_units"]
     assert "(for 20 mm write 0.02)" in kinds["gap_units"]
     assert "[risk] bootstrap = 0" in kinds["no_bootstrap"]

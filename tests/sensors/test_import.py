@@ -144,6 +144,9 @@ def test_a_sign_that_cannot_be_told_is_named_not_guessed(tmp_path, truth):
     mine = [w for w in im.warnings if "b1f3" in w]
     assert any("lags ground by +125." in w for w in mine)
     assert any("its sign against ground cannot be told" in w and "kept as recorded" in w for w in mine)
+    # and the summary says the same, not a sign found (a helper's trial read '+1 (correlation +0.188)' as one)
+    (line,) = [x for x in im.summary() if x.startswith("  b1f3:")]
+    assert "sign +1 as recorded (correlation " in line and ": too weak to tell)" in line
 
 
 def test_a_format_is_added_by_registering_it(tmp_path):

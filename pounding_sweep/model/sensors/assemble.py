@@ -76,6 +76,8 @@ class Imported:
         for n, i in self.sensors.items():
             lag = f", lag found {1e3 * i['lag_found_s']:+.2f} ms" if _checked_lag(i) else ""
             corr = f" (correlation {i['sign_correlation']:+.3f})" if "sign_correlation" in i else ""
+            if "sign_correlation" in i and abs(i["sign_correlation"]) < MIN_CORRELATION:  # kept, not found
+                corr = f" as recorded (correlation {i['sign_correlation']:+.3f}: too weak to tell)"
             out.append(
                 f"  {n}: axis {i['axis']}, sign {'+1' if i['sign'] > 0 else '-1 (reversed)'}{corr}, offset "
                 f"{i['offset_removed_m_s2']:+.4f} m/s^2, noise {i['noise_m_s2']:.4f} m/s^2; {i['alignment']}"

@@ -32,13 +32,17 @@ import numpy as np
 from pounding_sweep.errors import SensorError
 from pounding_sweep.model.records import G_STANDARD
 from pounding_sweep.model.sensors.formats import SensorFile, clock_gaps, read_sensor
-from pounding_sweep.model.sensors.signals import first_resonance, physical_delay_bound, relation, rigid_band
+from pounding_sweep.model.sensors.signals import (
+    MIN_CORRELATION,
+    first_resonance,
+    physical_delay_bound,
+    relation,
+    rigid_band,
+)
 from pounding_sweep.scene.channels import building_floor
 
 #: a sensor whose clock range overlaps the reference's by this share of the shorter one shares its clock
 SHARED_CLOCK_OVERLAP = 0.5
-#: a correlation in the rigid band weaker than this cannot tell a sign (or an alignment)
-MIN_CORRELATION = 0.5
 #: an alignment by cross-correlation whose second-best lobe comes this close to the best is ambiguous
 AMBIGUOUS = 0.9
 #: a quiet window whose standard deviation is above this many times the sensor's quietest stretch: not quiet

@@ -28,8 +28,6 @@ from pounding_sweep.model.sensors.signals import physical_delay_bound, proportio
 OFFSET_SIGMAS = 3.0
 #: |mean| T above this many times the motion's peak velocity: an offset (twice the peak bounds any motion's)
 DRIFT_FACTOR = 4.0
-#: correlations weaker than this in the rigid band decide nothing
-MIN_CORRELATION = 0.5
 #: the fewest samples a sign or lag check uses
 MIN_SAMPLES = 256
 

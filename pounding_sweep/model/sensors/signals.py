@@ -25,6 +25,11 @@ LOW_CYCLES = 10.0
 ZETA_MAX = 0.05
 
 
+#: a correlation in the rigid band weaker than this decides nothing: no sign, no alignment (model/sensors/assemble.py
+#: and checks.py)
+MIN_CORRELATION = 0.5
+
+
 def welch(x: np.ndarray, fs: float, seconds: float = 8.0) -> tuple[np.ndarray, np.ndarray]:
     """Welch PSD (Hann segments of `seconds`, at most a quarter of the record; Welch 1967), linear trend removed."""
     n = int(min(max(16, seconds * fs), max(16, x.size // 4)))

@@ -773,7 +773,8 @@ def measured_figure(scene, pick: dict, label: str, md: dict, noise: dict | None 
     """The run `pick` (the calibrated one where there is a calibration) against every measured channel, each in its
     own quantity (displacement in mm, absolute acceleration in m/s^2; measured_residuals): measured and model
     (left whole, right a 1 s zoom around the largest measured value), and under each its residual with the
-    channel's noise band +/- 2 sigma (`noise`: code -> sigma in SI, the calibration's noise floor); each title the
+    channel's noise band +/- 2 sigma (`noise`: code -> sigma in SI, the calibration's noise floor, else the scene's
+    [experiment] noise or noise_window_s); each title the
     eq. 20 error and the residual's RMS against that noise. `data`: measured_residuals' result when the caller
     has it (figures: history_figures' run)."""
     from pounding_sweep.engine.score import relative_rms_error_pct

@@ -216,6 +216,13 @@ def test_a_sweep_axis_the_study_does_not_take_is_named():
     with collecting() as got:
         gap_study(coarse, relative_gaps=(0.0, 1.0), ks_ratio=1.0, r=0.4)
     assert [w for w in got.items if w.kind == "record_step"]
+    # and only its motions' checks: not the experiment it does not read (a review: a scene whose table had moved
+    # away was refused), nor an r axis it does not run
+    scored = load_scene(SWEEPS / "scored_duzce.toml").experiment
+    away = dataclasses.replace(s, experiment=dataclasses.replace(scored, table=str(SWEEPS / "moved_away.parquet")))
+    with collecting() as got:
+        gap_study(away, relative_gaps=(0.0, 1.0), ks_ratio=1.0, r=0.4)
+    assert not [w for w in got.items if w.kind == "r_ignored"]
 
 
 def test_a_hertz_scene_with_k_h_only_and_a_stiffness_only_swept_are_studied(tmp_path, capsys):

@@ -88,8 +88,8 @@ def finite(st):
     return ok
 
 
-# The time loop's per-step pieces both kernels take alike (engine/scalar.py and engine/nonlinear.py
-# _time_loop): where a step starts, its end without contact, and its end with the contact forces.
+# The time loop's per-step pieces both kernels take alike (engine/scalar.py _time_loop_for and
+# engine/nonlinear.py _time_loop): where a step starts, its end without contact, and its end with the contact forces.
 
 
 @njit_inner

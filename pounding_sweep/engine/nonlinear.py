@@ -403,7 +403,7 @@ class StepWork(NamedTuple):
 
 @njit_inner
 def _time_loop(run, model, opts, runs, records, histories, experiment, out, st, wk):
-    """The run's steps from rest (st: its state, reset), as scalar._time_loop: the end state of each step
+    """The run's steps from rest (st: its state, reset), as scalar._time_loop_for's: the end state of each step
     by the scheme (the contact solve, solve_pairs), its pieces (the event scheme's located impacts and
     separations), the per-step metrics, experiment samples and histories. Without Numba's reference counts
     (it allocates nothing). Returns (status bits, unsettled steps, most Newton iterations or located switches

@@ -214,9 +214,12 @@ def gap_study(
             "value (set in its section), or `python -m pounding_sweep risk` for the probability of pounding over "
             "intensity levels or motions",
         )
-    from pounding_sweep.sweep.checks import check_scene
+    from pounding_sweep.sweep.checks import check_motion
 
-    check_scene(prepare(scene))  # what a sweep of the scene is told (a vertical component, a story in mm, ...)
+    # what a sweep of the scene is told of its motions (a vertical component, a step coarser than the record's
+    # samples); the study reads no experiment, nor any [sweep] axis but the records'
+    motions = tuple(a for a in scene.sweep if a.name == "record")
+    check_motion(prepare(dataclasses.replace(scene, experiment=None, calibrate=None, sweep=motions)))
     point = contact_point(scene, **contact)
     _say_contact_axes(scene, point, contact)
     req = required_gaps(scene, length_scale, threads, point)

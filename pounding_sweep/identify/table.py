@@ -18,7 +18,7 @@ from pounding_sweep.identify.modes import InputLine, ModalResult, identify, inpu
 from pounding_sweep.identify.safety import HARMONIC_INPUT_FRACTION, HARMONIC_OVER_NOISE, input_kind, is_harmonic
 from pounding_sweep.identify.startfile import damping_estimate
 from pounding_sweep.identify.update import StiffnessUpdate, update_scene
-from pounding_sweep.model.experiment import MAX_TABLE_STEP_S
+from pounding_sweep.model.experiment import MAX_TABLE_STEP_S, time_order_problem
 from pounding_sweep.model.modal import height_order_fault
 from pounding_sweep.model.records import TIME_UNITS, time_unit_guess
 from pounding_sweep.scene.channels import building_floor
@@ -142,14 +142,8 @@ def identify_table(
     if not np.all(np.isfinite(t)):
         k = int(np.argmin(np.isfinite(t)))
         raise _bad(src, f"column '{time_column}' must hold finite times", f"{t[k]!r} at row {k + 1}")
-    if np.any(np.diff(t) <= 0):  # the row, as the sweep's reader names it (model/experiment.py)
-        k = int(np.argmax(np.diff(t) <= 0)) + 1
-        kind = "duplicate" if t[k] == t[k - 1] else "unsorted"
-        raise _bad(
-            src,
-            f"column '{time_column}' must be strictly increasing",
-            f"{kind} time {float(t[k])!r} at row {k + 1}, after {float(t[k - 1])!r}",
-        )
+    if (problem := time_order_problem(t, time_column)) is not None:  # the row, as the sweep's reader names it
+        raise _bad(src, problem)
     dt = np.diff(t)
     if np.max(np.abs(dt / np.median(dt) - 1)) > 0.01:
         raise _bad(

@@ -9,8 +9,9 @@ Stochastic (model/stochastic.py): the realisations of a chunk's seeds, generated
 (deterministic from the seed: any chunk recomputes them exactly, on resume or on another worker), then
 resampled like a record.
 Intensity ([excitation] intensity, model/intensity.py): each motion's PGA or Sa(T) as given (after
-similitude), computed on its own samples; with scaling = 'intensity' the motion is multiplied by
-scale g / intensity, so a run's `scale` is its intensity in g.
+similitude), computed on its own samples up to [excitation] duration_s where that cuts it (the motion a run
+sees; the cut is warned where it loses the record's strong part); with scaling = 'intensity' the motion is
+multiplied by scale g / intensity, so a run's `scale` is its intensity in g.
 """
 
 from __future__ import annotations
@@ -266,7 +267,14 @@ def _run_intensity(rec: GroundRecord, path: str, e, period: float | None) -> flo
     if e.duration_s is None or e.duration_s >= rec.duration_s:
         return whole
     kept = rec.time_s <= e.duration_s + 1e-9 * rec.dt_s
-    cut = float(intensity(rec.acc_m_s2[kept], rec.dt_s, e.intensity, period)) if kept.sum() >= 2 else 0.0
+    if kept.sum() < 2:
+        from pounding_sweep.scene import ConfigError
+
+        raise ConfigError(
+            f"[excitation] duration_s = {e.duration_s!r}: keeps {int(kept.sum())} sample of record {path} (one every "
+            f"{rec.dt_s:.4g} s): the motion run has no {e.intensity} to speak of; run at least two of its samples"
+        )
+    cut = float(intensity(rec.acc_m_s2[kept], rec.dt_s, e.intensity, period))
     if cut < CUT_SHARE * whole:
         what = f"Sa({period:.3g} s, 5 %)" if e.intensity == "sa" else "PGA"
         peak = float(rec.time_s[int(np.argmax(np.abs(rec.acc_m_s2)))])

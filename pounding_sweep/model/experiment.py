@@ -27,6 +27,7 @@ from pounding_sweep.model.records import G_STANDARD
 from pounding_sweep.scene import ExperimentConfig
 from pounding_sweep.scene.channels import building_floor, experiment_channel
 from pounding_sweep.scene.files import MAX_TABLE_BYTES, open_regular, text_problem
+from pounding_sweep.scene.schema import ACC_UNITS
 from pounding_sweep.warn import warn
 
 
@@ -137,14 +138,9 @@ def experiment_from_table(
     t = _numeric(df[cfg.time_column], where, cfg.time_column)
     if t.size < 2:
         raise ExperimentError(f"{where}: column '{cfg.time_column}' needs at least 2 samples, has {t.size}")
+    if (problem := time_order_problem(t, cfg.time_column)) is not None:
+        raise ExperimentError(f"{where}: {problem}")
     d = np.diff(t)
-    if np.any(d <= 0):
-        k = int(np.argmax(d <= 0)) + 1
-        kind = "duplicate" if d[k - 1] == 0 else "unsorted"
-        raise ExperimentError(
-            f"{where}: column '{cfg.time_column}' must be strictly increasing: {kind} time {float(t[k])!r} at row {k + 1} "
-            f"(after {float(t[k - 1])!r})"
-        )
     _time_unit(t, where, cfg.time_column)
     dev = np.abs(d / np.median(d) - 1.0)
     if np.any(dev > 0.01):
@@ -184,6 +180,17 @@ def experiment_from_table(
     for kind, msg in experiment_problems(exp):
         warn(kind, msg)
     return exp
+
+
+def time_order_problem(t: np.ndarray, column: str) -> str | None:
+    """What is wrong with the order of a time column (its first row not after the one before: duplicate or
+    unsorted), None where it strictly increases; the row counted from 1, as a spreadsheet shows it."""
+    d = np.diff(t)
+    if not np.any(d <= 0):
+        return None
+    k = int(np.argmax(d <= 0)) + 1
+    kind = "duplicate" if d[k - 1] == 0 else "unsorted"
+    return f"column '{column}' must be strictly increasing: {kind} time {float(t[k])!r} at row {k + 1} (after {float(t[k - 1])!r})"
 
 
 def experiment_problems(exp) -> list[tuple[str, str]]:
@@ -269,10 +276,8 @@ def channel_noise(t, chans, cols, kinds, cfg: ExperimentConfig, where) -> tuple[
 
 #: SI factor of each unit a table's columns may be in (scene/schema.py ExperimentConfig units, acc_units)
 UNIT_FACTORS = {"mm": 1e-3, "m": 1.0, "m/s2": 1.0, "g": G_STANDARD}
-#: a table's recorded column unit (its 'column_units' metadata) as the scene's keys spell it, and whether it is an
-#: acceleration
-RECORDED_UNITS = {"mm": ("mm", False), "m": ("m", False), "m/s^2": ("m/s2", True), "m/s2": ("m/s2", True),
-                  "g": ("g", True)}  # fmt: skip
+#: the recorded units (a table's 'column_units' metadata) of a length, as the scene's `units` spells them
+LENGTH_UNITS = {"mm": "mm", "m": "m"}
 
 
 def _recorded_units(md: dict) -> dict:
@@ -287,10 +292,14 @@ def _recorded_units(md: dict) -> dict:
 
 def _check_recorded_unit(where, col: str, code: str, recorded: str, acc: bool, units: str) -> None:
     """ExperimentError where the scene reads a column otherwise than the table records it: an acceleration
-    mapped to a displacement channel (or the reverse), or another unit than the recorded one."""
-    spelled, is_acc = RECORDED_UNITS.get(recorded.strip(), (None, None))
-    if spelled is None:
-        return  # a unit of its own: the scene's word stands
+    mapped to a displacement channel (or the reverse), another unit than the recorded one, or a recorded unit the
+    scene cannot read (acc_units: m/s2 or g; units: mm or m). A unit neither of length nor of acceleration: the
+    scene's word stands."""
+    length = LENGTH_UNITS.get(recorded.strip().lower())
+    accel = codes.canonical_unit(recorded)  # m/s^2, M/S2, gal, cm/s^2 ...: codes.UNIT_ALIASES
+    if length is None and accel is None:
+        return
+    is_acc = accel is not None
     if is_acc != acc:
         what = "an acceleration" if is_acc else "a displacement"
         fix = f"'abs_acc_{code}'" if is_acc else f"'{code.removeprefix('abs_acc_')}'"
@@ -299,11 +308,16 @@ def _check_recorded_unit(where, col: str, code: str, recorded: str, acc: bool, u
             f"channels.{col} = '{code}' reads it as {'a displacement' if is_acc else 'an acceleration'}: map it "
             f"to {fix}"
         )
+    spelled = accel if is_acc else length
     if spelled != units:
         key = "acc_units" if acc else "units"
+        readable = ACC_UNITS if acc else ("mm", "m")
+        fix = f"write {key} = '{spelled}'" if spelled in readable else (
+            f"the scene reads {' or '.join(readable)}: convert the column"
+        )  # fmt: skip
         raise ExperimentError(
             f"{where}: column '{col}' is in {recorded} (the table's column_units) but [experiment] {key} = "
-            f"'{units}': write {key} = '{spelled}'"
+            f"'{units}': {fix}"
         )
 
 

@@ -161,7 +161,8 @@ def required_gap_figure(study, targets=None):
     ax.set_ylabel("required gap [mm]")
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=7)
-    ax.set_title(f"{study.scene.name}: the gap a target probability needs ({_conf(study)} intervals)", fontsize=9)
+    ax.set_title(f"{study.scene.name}: the gap a target probability needs ({_conf(study)} intervals; a band only "
+                 "where the table gives one)", fontsize=9)  # fmt: skip
     return fig
 
 

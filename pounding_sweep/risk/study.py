@@ -422,8 +422,8 @@ def risk_study(
         warn(
             "gap_not_studied",
             f"[contact] gap_m = {scene.contact.gap_m:g} plays no part in a risk study: it sets the gaps itself "
-            f"([risk] gaps_m for the probability of pounding, contact_gaps_m for the contact runs); for "
-            f"{scene.contact.gap_m * 1e3:g} mm add it to gaps_m",
+            f"([risk] gaps_m for the probability of pounding, contact_gaps_m for the contact runs, in metres); "
+            f"for {scene.contact.gap_m * 1e3:g} mm add {scene.contact.gap_m:g} to gaps_m",
         )
     check_folder(study_folder(scene))
     summaries = run_runs(scene, threads, executor, progress_for, overwrite, confirmed)
@@ -479,6 +479,7 @@ def write_study(study: RiskStudy, figures: bool = True) -> list[Path]:
                 ("required_gap.png", required_gap_figure(study)),
             ):
                 if fig is None:
+                    (folder / fname).unlink(missing_ok=True)  # an earlier run's, in the study's own folder
                     warn(
                         "empty_figure",
                         f"{fname} not drawn: no intensity of the study has a required gap to show (every run "

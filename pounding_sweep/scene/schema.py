@@ -302,7 +302,11 @@ class ExperimentConfig:
     )
     time_column: str = _f("name of the time column [s]", "t_s")
     units: str = _f("units of the displacement columns: 'mm' or 'm'", "mm")
-    acc_units: str = _f("units of the acceleration columns: 'm/s2' or 'g' (9.80665 m/s^2)", "m/s2")
+    acc_units: str = _f(
+        "units of the acceleration columns: 'm/s2' (or 'm/s^2') or 'g' (9.80665 m/s^2); an import's table records "
+        "its columns' units, and a scene reading them otherwise is refused",
+        "m/s2",
+    )
     lowpass_Hz: float | None = _f(
         "cut-off [Hz] of a Butterworth low-pass filter applied alike to the acceleration channels' samples of "
         "the experiment (scipy.signal.sosfilt) and of every run (the same sections, in the kernel): causal, from "

@@ -426,7 +426,7 @@ def _check_record_against_table(prep) -> None:
         if not (table > 0 and peak > 0):
             continue
         ratio = peak / table
-        for factor, meant, table_in in ((G_STANDARD, "m/s2", "g"), (1 / G_STANDARD, "g", "m/s2")):
+        for factor, meant, table_in in ((G_STANDARD, "m/s2", "g"), (1 / G_STANDARD, "g", None)):
             if abs(math.log(ratio / factor)) <= math.log(UNIT_SLIP):
                 said = f"[excitation] units = {e.units or 'its default'!r}"
                 seen = (
@@ -436,8 +436,13 @@ def _check_record_against_table(prep) -> None:
                 if e.units is not None and canonical_unit(e.units) == meant:  # the record's unit is said already:
                     warn(  # the table's column is the one off (edited after its import, or another table's)
                         "record_units",
-                        f"{said}: {seen}: the record is read in {meant} already; is the table's column in "
-                        f"{table_in}, not the m/s^2 its import recorded?",
+                        f"{said}: {seen}: the record is read in {meant} already; "
+                        + (
+                            "is the table's column in g, not the m/s^2 its import recorded?"
+                            if table_in == "g"
+                            else "the table's column is g times what its record says: check which of the two "
+                            "files holds the other unit"
+                        ),
                     )
                 else:
                     warn("record_units", f"{said}: {seen}: is the record in {meant} (units = {meant!r})?")
@@ -487,7 +492,7 @@ def check_scene(prep) -> None:
             f" (for the other laws, {', '.join(others)}, r matters)" if others else ""
         )
         warn("r_ignored", f"[sweep] r: {who}" + ("" if others else "; drop the r axis, or use hertzdamp or jankowski"))
-    _check_records(prep)
+    check_motion(prep)
     x, exp = scene.experiment, prep.experiment
     if exp is None:
         return
@@ -519,7 +524,7 @@ def check_scene(prep) -> None:
             )
 
 
-def _check_records(prep) -> None:
+def check_motion(prep) -> None:
     """Warnings for records that run but cannot mean what the scene says: a vertical component (its header names
     it) shaking the horizontal model, and a record sampled more finely than the runs step (the kernel reads it at
     the steps, with no anti-alias filter: its content above half the step rate folds onto lower frequencies)."""

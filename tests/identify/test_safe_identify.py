@@ -269,7 +269,7 @@ def test_bad_input_names_the_column_or_value(records, capsys, tmp_path):
     # column 'must hold at least 16 increasing finite times (12599 rows)')
     t = df["t_s"].to_numpy().copy()
     t[[100, 101]] = t[[101, 100]]
-    with pytest.raises(ExperimentError, match=r"must be strictly increasing \(unsorted time .* at row 102, after"):
+    with pytest.raises(ExperimentError, match=r"must be strictly increasing: unsorted time .* at row 102 \(after"):
         identify_table(df.assign(t_s=t), "swapped")
 
 

@@ -388,7 +388,7 @@ def test_a_vertical_component_and_a_record_finer_than_the_step_are_named():
     from types import SimpleNamespace
 
     from pounding_sweep.model.records import GroundRecord, similitude_scale, vertical_component
-    from pounding_sweep.sweep.checks import _check_records
+    from pounding_sweep.sweep.checks import check_motion
     from pounding_sweep.warn import collecting
 
     def rec(desc, dt=0.005):
@@ -402,7 +402,7 @@ def test_a_vertical_component_and_a_record_finer_than_the_step_are_named():
     assert vertical_component(east) is None and vertical_component(rec("no component here")) is None
     with collecting() as got:
         scene = SimpleNamespace(integration=SimpleNamespace(auto=False))
-        _check_records(
+        check_motion(
             SimpleNamespace(scene=scene, excitation=SimpleNamespace(kind="record", dt=0.05, records=(up, east)))
         )
     kinds = {w.kind: w.message for w in got.items}
@@ -410,7 +410,5 @@ def test_a_vertical_component_and_a_record_finer_than_the_step_are_named():
     assert "dt_s = 0.05 s steps over the samples of UP.AT2 (every 0.005 s), E.AT2" in kinds["record_step"]
     assert "use dt_s <= 0.005 s" in kinds["record_step"]
     with collecting() as got:
-        _check_records(
-            SimpleNamespace(scene=scene, excitation=SimpleNamespace(kind="record", dt=0.005, records=(east,)))
-        )
+        check_motion(SimpleNamespace(scene=scene, excitation=SimpleNamespace(kind="record", dt=0.005, records=(east,))))
     assert not got.items

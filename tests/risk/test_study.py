@@ -169,6 +169,10 @@ def test_a_record_cut_by_duration_is_scaled_by_the_motion_run():
     cut = [w.message for w in got.items if w.kind == "record_cut"]
     assert cut and all("[excitation] duration_s = 8.0 cuts record" in m for m in cut)
     assert any("BOL000" in m for m in cut)  # Bolu's peak acceleration comes at 10.8 s
+    # a cut inside the first sample leaves no motion to measure: said so, not 'has zero sa' (a review)
+    tiny = dataclasses.replace(s, excitation=dataclasses.replace(s.excitation, duration_s=0.004))
+    with pytest.raises(ConfigError, match=r"\[excitation\] duration_s = 0.004: keeps 1 sample of record"):
+        Excitation.from_scene(tiny, 0.001)
 
 
 class Interrupt(Exception):

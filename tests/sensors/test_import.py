@@ -5,6 +5,7 @@ in ../shared (skipped where absent) against facts of those tests."""
 from __future__ import annotations
 
 import json
+import re
 import sys
 from pathlib import Path
 
@@ -262,6 +263,28 @@ channels = {{{{ {channels} }}}}
         ok = text.format("m/s^2").replace(channels, 'b1f3_acc_m_s2 = "abs_acc_b1f3"')
         assert main([str(_write(scene, ok)), "--quiet"]) == 0
         assert (tmp_path / "r.parquet").is_dir()
+
+
+@pytest.mark.parametrize(
+    "recorded, acc, units, message",
+    [
+        ("M/S^2", True, "m/s2", None),  # a spelling of the scene's unit (codes.UNIT_ALIASES)
+        ("gal", True, "m/s2", "is in gal (the table's column_units) but [experiment] acc_units = 'm/s2': the scene "
+         "reads m/s2 or g: convert the column"),  # 100 times off, and read silently before a review
+        ("mm", False, "m", "write units = 'mm'"),
+        ("counts", True, "m/s2", None),  # a unit of neither kind: the scene's word stands
+    ],
+)  # fmt: skip
+def test_recorded_units_are_read_by_their_spelling(recorded, acc, units, message):
+    from pounding_sweep.errors import ExperimentError
+    from pounding_sweep.model.experiment import _check_recorded_unit
+
+    code = "abs_acc_b1f3" if acc else "b1f3"
+    if message is None:
+        _check_recorded_unit("t.parquet", "c", code, recorded, acc, units)
+    else:
+        with pytest.raises(ExperimentError, match=re.escape(message)):
+            _check_recorded_unit("t.parquet", "c", code, recorded, acc, units)
 
 
 def _write(path: Path, text: str) -> Path:

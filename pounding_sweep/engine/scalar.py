@@ -336,9 +336,9 @@ class StepWork(NamedTuple):
 
 def _time_loop_for(scheme: int):
     """The time loop compiled for one scheme (codes.SCHEME_*): `scheme` is a closure constant, so Numba prunes
-    the other schemes' branches, and a scene compiles only its own scheme's code (the paper's scheme never
-    the event step; benchmarks/profile_compile.py). A closure over an int is cached as a plain function is
-    (Numba keys it by the int)."""
+    the other schemes' branches, and a scene compiles only its own scheme's code (the paper's scheme compiles no
+    event step: a third less compile, docs/explanation/performance.md). A closure over an int is cached as a plain
+    function is (Numba keys it by the int)."""
 
     @njit_inner
     def _time_loop(run, model, opts, runs, records, histories, experiment, out, st, wk):

@@ -582,12 +582,18 @@ def force_caption(m: dict, top: int, law: str) -> str:
 
 
 def history_figures(
-    scene, pick: dict, label: str, md: dict | None = None, skipped: dict | None = None, compared: dict | None = None
+    scene,
+    pick: dict,
+    label: str,
+    md: dict | None = None,
+    skipped: dict | None = None,
+    compared: dict | None = None,
+    exp=None,
 ) -> dict:
     """Re-simulate one run and draw {'displacement_history', 'pounding_force'[, 'ssp']} figures. A run
     without contact gets no force figure: `skipped` (a dict, when given) is told why; `compared` (a dict, when
     given) is filled with the samples the SSP drew (measured_residuals), for measured_figure, so the run is
-    simulated once."""
+    simulated once. `exp`: the scene's experiment when the caller has read it (load_experiment)."""
     from pounding_sweep.sweep.scoring import load_experiment
     from pounding_sweep.sweep.simulate import simulate
 
@@ -595,7 +601,8 @@ def history_figures(
     names = [b.name or f"building {i}" for i, b in enumerate((scene.building1, scene.building2), 1) if b is not None]
     md = md or {"buildings": [{"name": n} for n in names]}
     top = min(floors)  # 0: one building, no pairs
-    exp = load_experiment(scene.experiment, floors) if scene.experiment is not None else None
+    if exp is None and scene.experiment is not None:
+        exp = load_experiment(scene.experiment, floors)
     codes = list(exp.channels) if exp is not None else []  # displacements here, every channel in the SSP
     disp_codes = list(exp.displacements) if exp is not None else []
     tops = [f"b{b}f{n}" for b, n in zip((1, 2), floors) if n]
@@ -976,14 +983,15 @@ def figures(
         pick = {**{k: v for k, v in pick.items() if k in ("record",)}, **calibrated[0]}
         label = calibrated[1]
     compared: dict = {}
-    out.update(history_figures(scene, pick, label, md, skipped, compared))
-    if scene.experiment is not None:
-        # the calibration's noise floor, else the scene's own ([experiment] noise or noise_window_s: the experiment's)
-        noise = calibration_noise(best_file, pick) if calibrated is not None else {}
-        if not noise:
-            from pounding_sweep.sweep.scoring import load_experiment
+    exp = None
+    if scene.experiment is not None:  # read once: the figures' runs and the noise below
+        from pounding_sweep.sweep.scoring import load_experiment
 
-            noise = dict(load_experiment(scene.experiment, scene.floors).noise)
+        exp = load_experiment(scene.experiment, scene.floors)
+    out.update(history_figures(scene, pick, label, md, skipped, compared, exp))
+    if exp is not None:
+        # the calibration's noise floor, else the scene's own ([experiment] noise or noise_window_s: the experiment's)
+        noise = (calibration_noise(best_file, pick) if calibrated is not None else {}) or dict(exp.noise)
         out["measured_vs_model"] = measured_figure(scene, pick, label, md, noise, compared)
     ladder_scene, pick = _run(scene, pick)
     pick = {k: v for k, v in pick.items() if k != "time_offset_s"}  # the ladder runs without the experiment

@@ -276,8 +276,8 @@ def channel_noise(t, chans, cols, kinds, cfg: ExperimentConfig, where) -> tuple[
 
 #: SI factor of each unit a table's columns may be in (scene/schema.py ExperimentConfig units, acc_units)
 UNIT_FACTORS = {"mm": 1e-3, "m": 1.0, "m/s2": 1.0, "g": G_STANDARD}
-#: the recorded units (a table's 'column_units' metadata) of a length, as the scene's `units` spells them
-LENGTH_UNITS = {"mm": "mm", "m": "m"}
+#: the units of a length a table may record for a column ('column_units' metadata), as the scene's `units` reads them
+LENGTH_UNITS = ("mm", "m")
 
 
 def _recorded_units(md: dict) -> dict:
@@ -295,7 +295,7 @@ def _check_recorded_unit(where, col: str, code: str, recorded: str, acc: bool, u
     mapped to a displacement channel (or the reverse), another unit than the recorded one, or a recorded unit the
     scene cannot read (acc_units: m/s2 or g; units: mm or m). A unit neither of length nor of acceleration: the
     scene's word stands."""
-    length = LENGTH_UNITS.get(recorded.strip().lower())
+    length = recorded.strip().lower() if recorded.strip().lower() in LENGTH_UNITS else None
     accel = codes.canonical_unit(recorded)  # m/s^2, M/S2, gal, cm/s^2 ...: codes.UNIT_ALIASES
     if length is None and accel is None:
         return
@@ -311,7 +311,7 @@ def _check_recorded_unit(where, col: str, code: str, recorded: str, acc: bool, u
     spelled = accel if is_acc else length
     if spelled != units:
         key = "acc_units" if acc else "units"
-        readable = ACC_UNITS if acc else ("mm", "m")
+        readable = ACC_UNITS if acc else LENGTH_UNITS
         fix = f"write {key} = '{spelled}'" if spelled in readable else (
             f"the scene reads {' or '.join(readable)}: convert the column"
         )  # fmt: skip

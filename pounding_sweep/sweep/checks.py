@@ -426,7 +426,7 @@ def _check_record_against_table(prep) -> None:
         if not (table > 0 and peak > 0):
             continue
         ratio = peak / table
-        for factor, meant, table_in in ((G_STANDARD, "m/s2", "g"), (1 / G_STANDARD, "g", None)):
+        for factor, meant in ((G_STANDARD, "m/s2"), (1 / G_STANDARD, "g")):
             if abs(math.log(ratio / factor)) <= math.log(UNIT_SLIP):
                 said = f"[excitation] units = {e.units or 'its default'!r}"
                 seen = (
@@ -439,7 +439,7 @@ def _check_record_against_table(prep) -> None:
                         f"{said}: {seen}: the record is read in {meant} already; "
                         + (
                             "is the table's column in g, not the m/s^2 its import recorded?"
-                            if table_in == "g"
+                            if meant == "m/s2"  # the record g times the table: the table's column in g
                             else "the table's column is g times what its record says: check which of the two "
                             "files holds the other unit"
                         ),

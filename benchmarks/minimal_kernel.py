@@ -1,7 +1,7 @@
 """A minimal lane-batched Newmark kernel of the engine's model and implicit scheme, and the engine against it.
 
     python benchmarks/minimal_kernel.py [--quick] [--duration S] [--threads 2] [--rounds 3] [--groups ...]
-        [--group-costs] [--columns]
+        [--group-costs] [--columns] [--interleave K]
 
 The minimal kernel keeps only what a sweep for the peak pounding force needs: per run the peak contact force
 and the peak displacement of each building's top floor. Everything else the engine does per step (every
@@ -33,6 +33,9 @@ no metric group (every floor's peak displacement with its time; each pair's cont
 force with its time, least force), checked against the engine's columns and
 timed in the rounds: whether the engine's distance to the minimal kernel is the work of its columns or its own
 overhead (events leave the vector code, per-step exits, the scalar steps).
+`--interleave K`: instead of timing each kernel on the whole grid in turn (a load that comes and goes over
+seconds then falls on one kernel and not another: single rounds spread by 0.1-0.2 in ratio on a shared machine),
+each of K slices of the grid is timed by every kernel in turn, and a round's ratio is that of the summed times.
 Works for any version of the package on the path (PYTHONPATH=OTHER_CHECKOUT; without metric groups there).
 Before 6cae336 the engine computed every floor's peak absolute acceleration with no metric group (it is the accel
 group since), so `--groups none` times more engine work on a checkout from before it: compare such ratios across
@@ -431,12 +434,72 @@ def group_costs(preps, steps, threads, rounds):
             )
 
 
+def interleaved(preps, steps, args) -> int:
+    """--interleave K: per round, the grid in K slices (whole groups of LANES runs), each slice timed by the minimal
+    kernel, the event and the implicit scheme one after another (the order turned at every slice); printed per
+    round: each kernel's summed wall and CPU time and the ratios of the sums. On a shared machine whose load
+    changes over seconds this is the steadier claim: every kernel meets the same load within a slice's second."""
+    prep = preps["implicit"][0]
+    n = prep.grid.size
+    size = -(-n // args.interleave // LANES) * LANES
+    slices = []
+    for a in range(0, n, size):
+        chunk = prep.grid.chunk(a, min(a + size, n))
+        slices.append({k: (p, *p.kernel_inputs(chunk)[:2]) for k, (p, _r, _c) in preps.items()})
+    kernels = ["minimal", "event", "implicit"]
+    print(
+        f"\n{len(slices)} slices of up to {size} runs, every kernel in turn on each\n"
+        "round  kernel             wall [s]  M steps/s  CPU [s]  M steps/CPU s  x minimal (wall)  x minimal (CPU)   load"
+    )
+    ratios = {"event": [], "implicit": [], "event_cpu": [], "implicit_cpu": []}
+    for k in range(args.rounds):
+        wall = dict.fromkeys(kernels, 0.0)
+        cpu = dict.fromkeys(kernels, 0.0)
+        for i, sl in enumerate(slices):
+            turn = (i + k) % len(kernels)
+            for name in kernels[turn:] + kernels[:turn]:
+                if name == "minimal":
+                    p, r_, c_ = sl["implicit"]
+                    w, c, _ = timed(lambda p=p, r_=r_, c_=c_: run_minimal(p, r_, c_, args.threads))
+                else:
+                    p, r_, c_ = sl[name]
+                    w, c, _ = timed(
+                        lambda p=p, r_=r_, c_=c_: driver.run_chunk_lanes(p.sysarr, r_, c_, p.opts, args.threads)
+                    )
+                wall[name] += w
+                cpu[name] += c
+        for name in kernels:
+            x, xc = wall["minimal"] / wall[name], cpu["minimal"] / cpu[name]
+            if name != "minimal":
+                ratios[name].append(x)
+                ratios[name + "_cpu"].append(xc)
+            print(
+                f"{k + 1:5d}  {name:16s} {wall[name]:9.2f} {steps / wall[name] / 1e6:10.0f} {cpu[name]:8.2f}"
+                f" {steps / cpu[name] / 1e6:14.0f} {x:17.2f} {xc:16.2f}   {load()}"
+            )
+    for name in ("event", "implicit"):
+        rs, rc = ratios[name], ratios[name + "_cpu"]
+        print(
+            f"{name}: x minimal {min(rs):.2f} .. {max(rs):.2f}, median {float(np.median(rs)):.2f} (wall); "
+            f"{min(rc):.2f} .. {max(rc):.2f} (CPU time) over {len(rs)} interleaved rounds"
+        )
+    return 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="8 x 16 runs of 5 s")
     ap.add_argument("--duration", type=float, default=None, help="the runs' length [s] (default 50, --quick 5)")
     ap.add_argument("--threads", type=int, default=len(os.sched_getaffinity(0)))
     ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument(
+        "--interleave",
+        type=int,
+        default=0,
+        metavar="K",
+        help="time the kernels slice by slice: the grid in K slices, each timed by every kernel in turn (a load "
+        "that comes and goes falls on all alike); a round's ratio is that of the kernels' summed times",
+    )
     ap.add_argument(
         "--groups", default=None, help="the engine's metric groups (comma-separated; none: only peaks and contact)"
     )
@@ -532,6 +595,8 @@ def main(argv=None) -> int:
     if args.group_costs:
         group_costs(preps, steps, args.threads, args.rounds)
         return 0
+    if args.interleave > 0:
+        return interleaved(preps, steps, args)
     print(
         "\nround  kernel             wall [s]  M steps/s  CPU [s]  M steps/CPU s  x minimal (wall)"
         "  x minimal (CPU)   load"

@@ -26,7 +26,16 @@ from pounding_sweep.engine.lanes.eligibility import LAWS, lane_modes
 from pounding_sweep.engine.lanes.excitation import excitation_profiles
 from pounding_sweep.engine.lanes.groups import group_work, integrate_lanes, step_pieces
 from pounding_sweep.engine.lanes.model import lane_model
-from pounding_sweep.engine.lanes.rows import LANES, ST_CALLS, ST_FIX_NS, ST_FIXUPS, ST_N, ST_VSTEPS, coefficient_table
+from pounding_sweep.engine.lanes.rows import (
+    LANES,
+    ST_CALLS,
+    ST_FIX_NS,
+    ST_FIXUPS,
+    ST_N,
+    ST_TIMED,
+    ST_VSTEPS,
+    coefficient_table,
+)
 
 __all__ = [
     "LANES",
@@ -35,6 +44,7 @@ __all__ = [
     "ST_FIX_NS",
     "ST_FIXUPS",
     "ST_N",
+    "ST_TIMED",
     "ST_VSTEPS",
     "coefficient_table",
     "excitation_profiles",

@@ -38,10 +38,12 @@ from pounding_sweep.engine.lanes.rows import (
     ST_CALLS,
     ST_FIX_NS,
     ST_FIXUPS,
+    ST_TIMED,
     ST_VSTEPS,
     Z_DMP,
     Z_GAM,
     Z_OM2,
+    Z_PHI,
     ZR,
     row_offsets,
 )
@@ -267,7 +269,8 @@ def _scalar_steps(gw, bufs, model, opts, runs, stats):
                 continue
             run = gw.run[l]
             d_act += _count_act(gw.W, l, gw.act_pair, gw.sizes, -1)
-            t0_ = _monotonic_ns()
+            timed = stats[ST_TIMED] > 0
+            t0_ = _monotonic_ns() if timed else 0
             ctx = (
                 model.dt,
                 opts.scheme,
@@ -281,7 +284,8 @@ def _scalar_steps(gw, bufs, model, opts, runs, stats):
                 P,
             )
             ok = lane_step(W, l, bufs, run, ctx, (model.phi, model.psi, model.W), runs.cdash, gw.lane)
-            stats[ST_FIX_NS] += _monotonic_ns() - t0_
+            if timed:
+                stats[ST_FIX_NS] += _monotonic_ns() - t0_
             stats[ST_FIXUPS] += 1
             d_act += _count_act(gw.W, l, gw.act_pair, gw.sizes, 1)
             if not ok:
@@ -354,6 +358,9 @@ def _integrate_groups(order, groups, model, opts, runs, excitation, out, gw, loo
         Z[Z_OM2, k] = model.om2[k]
         Z[Z_DMP, k] = model.dmp[k]
         Z[Z_GAM, k] = model.gam[k]
+        Z[Z_PHI, k] = 0.0
+        for i in range(N):
+            Z[Z_PHI, k] = max(Z[Z_PHI, k], abs(model.phi[i, k]))
     for g in range(groups[0], groups[1]):
         base = g * LANES
         nl = min(LANES, order.size - base)

@@ -84,6 +84,7 @@ from pounding_sweep.engine.lanes.rows import (
     Z_FS,
     Z_GAM,
     Z_OM2,
+    Z_PHI,
     Z_PP,
     Z_Q,
     Z_QD,
@@ -264,9 +265,18 @@ def _modal_acc(Z, rq, rqd, rf, psi, N, P):
 @inline
 def _finite_rows(Z, rf, phi, psi, sizes):
     """The scalar kernels' divergence guard on the end state Z_QE, Z_QDE (forces in row rf): floors within
-    DIVERGED_M, accelerations below 1e300."""
+    DIVERGED_M, accelerations below 1e300. A floor's value is at most sum_k max_i |phi_ik| |x_k| of the modal
+    values x: where that bound is well inside both limits (half the first, a tenth of the second: room for
+    its rounding), every floor is, and the floors are not computed (a NaN or inf fails the bound's test)."""
     N, _n1, P = sizes
     _modal_acc(Z, Z_QE, Z_QDE, rf, psi, N, P)
+    bu = 0.0
+    ba = 0.0
+    for k in range(N):
+        bu += Z[Z_PHI, k] * abs(Z[Z_QE, k])
+        ba += Z[Z_PHI, k] * abs(Z[Z_B, k])
+    if bu < 0.5 * ML.DIVERGED_M and ba < 1e299:
+        return True
     for i in range(N):
         u = 0.0
         a = 0.0

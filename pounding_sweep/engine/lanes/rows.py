@@ -23,9 +23,10 @@ LANES = VW
 E_IN, E_ABS, E_DST, E_WSP, E_WDA, E_WREL = range(6)
 
 # counters integrate_lanes adds to (the benchmark's profile): scalar steps taken and their time,
-# calls of the vector loops and the steps they advanced
-ST_FIXUPS, ST_FIX_NS, ST_CALLS, ST_VSTEPS = range(4)
-ST_N = 4
+# calls of the vector loops and the steps they advanced; ST_TIMED > 0 (the driver sets it only when its caller
+# asks for the counters) times the scalar steps: two clock reads per scalar step cost 1 % of a pounding grid
+ST_FIXUPS, ST_FIX_NS, ST_CALLS, ST_VSTEPS, ST_TIMED = range(5)
+ST_N = 5
 
 # per-lane scalar rows, after r_s
 (S_KS, S_GAP, S_COEF, S_AGS, S_AGE, S_EIN, S_EABS, S_DST, S_WSP, S_WDA, S_WREL, S_UNS, S_MIT, S_EVT, S_BAD) = range(15)
@@ -80,8 +81,9 @@ def row_offsets(N, P):
     Z_OM2,
     Z_DMP,
     Z_GAM,
-) = range(24)
-ZR = 24
+    Z_PHI,
+) = range(25)
+ZR = 25  # Z_OM2, Z_DMP, Z_GAM, Z_PHI (max_i |phi_ik| per mode k) are the model's, set once per call of the kernel
 (B_ACT, B_WAS, B_JUST, B_TRIAL, B_INC) = range(5)
 BR = 5
 I_IDX, I_SEEN = 0, 1

@@ -30,6 +30,11 @@ from pounding_sweep.engine.jit import inline_generic, njit_generic, njit_generic
 
 MAX_EVENTS = 16  # contact switches located inside one step before the step is taken as it is (flagged)
 EVENT_MIN_FRACTION = 1e-9  # a sub-step shorter than this fraction of dt is not integrated (rounding)
+#: the switch search ends once the indicator at a sub-step's end is within this fraction of the switch tolerance
+#: (switch_tolerance: 1e-15 m + 1e-12 (|u1| + |u2|), below which every kernel reads a penetration as no switch):
+#: that close, the located instant is the crossing to every later test. Searching on to 1e-13 of the penetration's
+#: scale (below its rounding) took 1.3 more sub-steps per switch (benchmarks/count_substeps.py: 3.50 against 2.22)
+ROUNDING_FRACTION = 0.1
 
 
 class Pairs(NamedTuple):
@@ -181,13 +186,31 @@ def bisect_crossing(herm, h, law, sign, f_lo, f_hi):
     return hi
 
 
+@njit_kernel
+def monotone_cubic(herm, sign):
+    """Whether sign * the cubic Hermite interpolant herm = (p0, p1, m0, m1) never decreases on [0, 1]: its
+    derivative, the quadratic a tau^2 + b tau + m0, is >= 0 at both ends and at its vertex where that lies
+    inside. Then the interpolant crosses zero at most once there."""
+    p0, p1, m0, m1 = herm
+    a = sign * (6.0 * (p0 - p1) + 3.0 * (m0 + m1))
+    b = sign * (6.0 * (p1 - p0) - 4.0 * m0 - 2.0 * m1)
+    c = sign * m0
+    if c < 0.0 or a + b + c < 0.0:  # the slopes at tau = 0 and 1
+        return False
+    if a > 0.0 and 0.0 < -b < 2.0 * a:  # a minimum inside (0, 1)
+        return c - b * b / (4.0 * a) >= 0.0
+    return True
+
+
 @njit_inner
 def bracket_crossing(herm, h, law, sign, f_lo, f_hi):
-    """bisect_crossing's crossing with fewer evaluations (the lane kernel): 20 halvings narrow the bracket
-    to 1e-6 exactly as bisection does (so where the interpolant crosses more than once, the same crossing
-    is taken), then Illinois false position finishes inside it to 1e-15. Returns the upper bracket end."""
+    """bisect_crossing's crossing with fewer evaluations (the lane kernel). Where the interpolant can cross
+    more than once on the step (no-tension law, or a cubic that is not monotone there: monotone_cubic), 20
+    halvings first narrow the bracket to 1e-6 exactly as bisection does, so the same crossing is taken;
+    where it crosses once, any bracket finds it and the halvings are skipped (they were 40 % of this
+    function's evaluations). Illinois false position then finishes to 1e-15. Returns the upper bracket end."""
     lo, hi = 0.0, 1.0
-    for _ in range(20):
+    for _ in range(0 if not law[0] and monotone_cubic(herm, sign) else 20):
         mid = 0.5 * (lo + hi)
         f = sign * hermite_indicator(herm, mid, h, law)
         if f >= 0.0:
@@ -291,15 +314,19 @@ def event_functions(ops: EventOps, inline: bool = False):  # noqa: C901 (39: the
         and the contact springs store or return no energy there. The second sub-step is a Newton step with
         the interpolant's slope at theta, the next ones secants through the last two; one that falls
         outside the bracket (and from the tenth on) is Illinois false position on it, so every sub-step
-        stays inside the bracket. The estimate is off by the sub-step map's own error, so Newton and one
-        secant usually meet the 1e-13 tolerance: 3.4-4.6 sub-steps per switch where the plain Illinois
-        search took 4.0-5.2 (benchmarks/count_substeps.py). A pair that crosses earlier inside the accepted
-        sub-step takes over. Leaves the sub-step's end state in st and the pairs to switch in st.pairs.switch;
-        0 (switch at the start) when the crossing is closer than hmin. ag_s, ag_e: the ground acceleration at t_s and at t_s + h."""
+        stays inside the bracket. It ends where the indicator is within ROUNDING_FRACTION of the switch
+        tolerance (or within 1e-13 of the penetration's scale, or the bracket within 1e-13 h). The estimate is
+        off by the sub-step map's own error, so the Newton step often ends it: 2.0-3.0 sub-steps per switch
+        (benchmarks/count_substeps.py), against 3.4-4.6 while the search went on to 1e-13 of the penetration's
+        scale and 4.0-5.2 with plain Illinois. A pair that crosses earlier inside the accepted sub-step takes
+        over (searched only where another pair contradicts its state at the sub-step's end). Leaves the sub-step's end state in st and the pairs to switch in st.pairs.switch;
+        0 (switch at the start) when the crossing is closer than hmin. ag_s, ag_e: the ground acceleration at t_s and at t_s + h.
+        Returns (hs, the ground acceleration at t_s + hs): the sub-step's own, so the caller does not evaluate
+        a harmonic motion's sine again (with 0, ag_s)."""
         pr = st.pairs
         npair = pr.active.size
         if theta * h < hmin:
-            return 0.0
+            return 0.0, ag_s
         target = 0
         for j in range(npair):
             if pr.theta[j] < pr.theta[target]:
@@ -311,9 +338,10 @@ def event_functions(ops: EventOps, inline: bool = False):  # noqa: C901 (39: the
             lo = 0.0
             f_lo = min(indicator(st, False, target), -1e-300)  # agrees at the start
             if theta * hi < hmin:
-                return 0.0  # a sub-step this short only amplifies rounding (the solve scales as 1/h^2)
+                return 0.0, ag_s  # a sub-step this short only amplifies rounding (the solve scales as 1/h^2)
             hs = min(max(theta * hi, hmin), hi)
             h_eval = hs
+            ag_eval = ag_s
             side = 0
             scale = 0.0
             p_start, r_start = pair(st, False, target)
@@ -323,14 +351,16 @@ def event_functions(ops: EventOps, inline: bool = False):  # noqa: C901 (39: the
             slope = sign * hermite_slope(herm, theta, hi, (pr.no_tension, pr.k_s, pr.c[target])) / hi
             hs_prev = hs
             phi_prev = 0.0
+            floor = ROUNDING_FRACTION * tolerance(st, target)  # at the end state over hi: the floors' scale
             for _it in range(100):
-                advance(st, hs, ag_s, ag_inside(ground, t_s, hs, h, ag_s, ag_e), True)
+                ag_eval = ag_inside(ground, t_s, hs, h, ag_s, ag_e)
+                advance(st, hs, ag_s, ag_eval, True)
                 h_eval = hs
                 phi = indicator(st, True, target)
                 p_end, _r = pair(st, True, target)
                 scale = max(scale, abs(p_end) + abs(p_start))
                 lo, hi, f_lo, f_hi, side = illinois(lo, hi, f_lo, f_hi, side, hs, phi)
-                if abs(phi) <= 1e-13 * scale or hi - lo <= 1e-13 * h or (hs <= hmin and phi >= 0.0):
+                if abs(phi) <= max(1e-13 * scale, floor) or hi - lo <= 1e-13 * h or (hs <= hmin and phi >= 0.0):
                     break
                 nxt = -1.0  # Newton from the interpolant's slope, then secants of the last two sub-steps
                 if _it == 0:
@@ -344,8 +374,16 @@ def event_functions(ops: EventOps, inline: bool = False):  # noqa: C901 (39: the
                     nxt = secant_point(lo, hi, f_lo, f_hi)
                 hs = max(nxt, hmin)
             hs = h_eval  # the sub-step whose end state is in st
-            # does another pair switch inside this sub-step, before it ends?
-            first_event(st, hs)
+            # does another pair switch inside this sub-step, before it ends? Only one that contradicts its state
+            # at the sub-step's end can (first_event's own first test): without one, no crossing is searched
+            others = False
+            for j in range(npair):
+                pr.theta[j] = 2.0
+                if j != target:
+                    f1 = indicator(st, True, j)
+                    others = others or (f1 > 0.0 and f1 > tolerance(st, j))
+            if others:
+                first_event(st, hs)
             earlier = -1
             for j in range(npair):
                 if j != target and pr.theta[j] < 1.0 - 1e-9 and (earlier < 0 or pr.theta[j] < pr.theta[earlier]):
@@ -358,7 +396,7 @@ def event_functions(ops: EventOps, inline: bool = False):  # noqa: C901 (39: the
             hi = hs
         for j in range(npair):
             pr.switch[j] = j == target or pr.theta[j] <= 1.0  # the target, and pairs crossing with it
-        return hs
+        return hs, ag_eval
 
     @large
     def event_step(st, ground, t_s, h, ag_s, ag_e, hmin):
@@ -386,12 +424,10 @@ def event_functions(ops: EventOps, inline: bool = False):  # noqa: C901 (39: the
                 elif theta <= 1.0:
                     n_ev += 1
                     last = False
-                    hs = locate_event(st, theta, h, hmin, ground, t_s, ag_s, ag_e)
-                    if hs <= hmin:
-                        hs = 0.0  # switch at the start of what is left
-                    elif h - hs <= hmin:
-                        hs = h
-                    ag_p = ag_inside(ground, t_s, hs, h, ag_s, ag_e)
+                    hs, ag_p = locate_event(st, theta, h, hmin, ground, t_s, ag_s, ag_e)
+                    if hs <= hmin or h - hs <= hmin:
+                        hs = 0.0 if hs <= hmin else h  # switch at the start of what is left, or at its end
+                        ag_p = ag_inside(ground, t_s, hs, h, ag_s, ag_e)
                     finite = is_finite(st)
                     if not finite:
                         break

@@ -375,13 +375,14 @@ def event_functions(ops: EventOps, inline: bool = False):  # noqa: C901 (39: the
                 hs = max(nxt, hmin)
             hs = h_eval  # the sub-step whose end state is in st
             # does another pair switch inside this sub-step, before it ends? Only one that contradicts its state
-            # at the sub-step's end can (first_event's own first test): without one, no crossing is searched
+            # at the sub-step's end can (first_event's own first test, f1 > tolerance): without one, no crossing
+            # is searched. Half the tolerance here: first_event's end value can differ from indicator's by an ulp
+            # (no tension: (c / k_s) (r h) / h), so every pair it would search passes, and it decides as before
             others = False
             for j in range(npair):
                 pr.theta[j] = 2.0
                 if j != target:
-                    f1 = indicator(st, True, j)
-                    others = others or (f1 > 0.0 and f1 > tolerance(st, j))
+                    others = others or indicator(st, True, j) > 0.5 * tolerance(st, j)
             if others:
                 first_event(st, hs)
             earlier = -1

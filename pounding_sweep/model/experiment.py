@@ -295,7 +295,8 @@ def _check_recorded_unit(where, col: str, code: str, recorded: str, acc: bool, u
     mapped to a displacement channel (or the reverse), another unit than the recorded one, or a recorded unit the
     scene cannot read (acc_units: m/s2 or g; units: mm or m). A unit neither of length nor of acceleration: the
     scene's word stands."""
-    length = recorded.strip().lower() if recorded.strip().lower() in LENGTH_UNITS else None
+    word = recorded.strip().lower()
+    length = word if word in LENGTH_UNITS else None
     accel = codes.canonical_unit(recorded)  # m/s^2, M/S2, gal, cm/s^2 ...: codes.UNIT_ALIASES
     if length is None and accel is None:
         return

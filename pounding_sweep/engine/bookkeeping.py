@@ -36,7 +36,7 @@ def start_at_rest(run, runs, records, dt, u, v, a):
     if kind == codes.EXC_RECORD:
         roff = records.off[runs.rec_id[run]]
         rlen = records.len[runs.rec_id[run]]
-    ag = ground_acceleration(kind, runs.exc_amp[run], runs.exc_omega[run], records.flat, roff, rlen, 0, dt)
+    ag = ground_acceleration(kind, runs.exc_amp[run], runs.exc_omega[run], records.flat, roff, rlen, np.int64(0), dt)
     for i in range(u.size):
         u[i] = 0.0
         v[i] = 0.0
@@ -235,7 +235,7 @@ def median_inplace(x, k):
         y = x[0]
         x[0] = x[end]
         x[end] = y
-        _sift_down(x, 0, end)
+        _sift_down(x, np.int64(0), end)
     if k % 2 == 1:
         return x[k // 2]
     return (x[k // 2 - 1] + x[k // 2]) / 2.0

@@ -35,6 +35,13 @@ EVENT_MIN_FRACTION = 1e-9  # a sub-step shorter than this fraction of dt is not 
 #: that close, the located instant is the crossing to every later test. Searching on to 1e-13 of the penetration's
 #: scale (below its rounding) took 1.3 more sub-steps per switch (benchmarks/count_substeps.py: 3.50 against 2.22)
 ROUNDING_FRACTION = 0.1
+#: constant arguments of compiled calls, typed as values: Numba compiles a callee once per literal it is passed (a
+#: call with True and one with False are two compiles of it and of all it calls, an int literal 0 a third), so
+#: the engine passes its constants typed (these, np.int64(...)) and each callee compiles once per kernel
+#: (tests/engine/test_literals.py). The state pair() reads: its start or its end
+AT_START, AT_END = np.bool_(False), np.bool_(True)
+#: advance's `cold`: start an iterated contact solve from zero force, or from the last piece's forces
+COLD, WARM = np.bool_(True), np.bool_(False)
 
 
 class Pairs(NamedTuple):
@@ -217,7 +224,7 @@ def bracket_crossing(herm, h, law, sign, f_lo, f_hi):
             hi, f_hi = mid, f
         else:
             lo, f_lo = mid, f
-    side = 0
+    side = np.int64(0)
     for _it in range(60):
         if hi - lo <= 1e-15 or f_hi == 0.0:
             break
@@ -269,7 +276,7 @@ def event_functions(ops: EventOps, inline: bool = False):  # noqa: C901 (39: the
         inside the piece (an impact, a separation, or under no tension the force reaching zero)."""
         pr = st.pairs
         for j in range(pr.active.size):
-            pe, rate = pair(st, True, j)
+            pe, rate = pair(st, AT_END, j)
             if pr.no_tension and pe > 0.0:
                 pe = min(pe, pe + (pr.c[j] / pr.k_s) * rate)
             # the tolerance is positive: it is needed only where the sign already contradicts
@@ -286,8 +293,8 @@ def event_functions(ops: EventOps, inline: bool = False):  # noqa: C901 (39: the
         first = 2.0
         for j in range(pr.active.size):
             pr.theta[j] = 2.0
-            p0, r0 = pair(st, False, j)
-            p1, r1 = pair(st, True, j)
+            p0, r0 = pair(st, AT_START, j)
+            p1, r1 = pair(st, AT_END, j)
             herm = (p0, p1, r0 * h, r1 * h)
             law = (pr.no_tension, pr.k_s, pr.c[j])
             sign = -1.0 if pr.active[j] else 1.0  # > 0: the state contradicts the set
@@ -327,25 +334,25 @@ def event_functions(ops: EventOps, inline: bool = False):  # noqa: C901 (39: the
         npair = pr.active.size
         if theta * h < hmin:
             return 0.0, ag_s
-        target = 0
+        target = np.int64(0)
         for j in range(npair):
             if pr.theta[j] < pr.theta[target]:
                 target = j
         hi = h
         hs = h
-        f_hi = indicator(st, True, target)  # the trial over h contradicts
+        f_hi = indicator(st, AT_END, target)  # the trial over h contradicts
         for _ in range(npair + 1):
             lo = 0.0
-            f_lo = min(indicator(st, False, target), -1e-300)  # agrees at the start
+            f_lo = min(indicator(st, AT_START, target), -1e-300)  # agrees at the start
             if theta * hi < hmin:
                 return 0.0, ag_s  # a sub-step this short only amplifies rounding (the solve scales as 1/h^2)
             hs = min(max(theta * hi, hmin), hi)
             h_eval = hs
             ag_eval = ag_s
-            side = 0
+            side = np.int64(0)
             scale = 0.0
-            p_start, r_start = pair(st, False, target)
-            p_hi, r_hi = pair(st, True, target)
+            p_start, r_start = pair(st, AT_START, target)
+            p_hi, r_hi = pair(st, AT_END, target)
             herm = (p_start, p_hi, r_start * hi, r_hi * hi)
             sign = -1.0 if pr.active[target] else 1.0
             slope = sign * hermite_slope(herm, theta, hi, (pr.no_tension, pr.k_s, pr.c[target])) / hi
@@ -354,10 +361,10 @@ def event_functions(ops: EventOps, inline: bool = False):  # noqa: C901 (39: the
             floor = ROUNDING_FRACTION * tolerance(st, target)  # at the end state over hi: the floors' scale
             for _it in range(100):
                 ag_eval = ag_inside(ground, t_s, hs, h, ag_s, ag_e)
-                advance(st, hs, ag_s, ag_eval, True)
+                advance(st, hs, ag_s, ag_eval, COLD)
                 h_eval = hs
-                phi = indicator(st, True, target)
-                p_end, _r = pair(st, True, target)
+                phi = indicator(st, AT_END, target)
+                p_end, _r = pair(st, AT_END, target)
                 scale = max(scale, abs(p_end) + abs(p_start))
                 lo, hi, f_lo, f_hi, side = illinois(lo, hi, f_lo, f_hi, side, hs, phi)
                 if abs(phi) <= max(1e-13 * scale, floor) or hi - lo <= 1e-13 * h or (hs <= hmin and phi >= 0.0):
@@ -382,10 +389,10 @@ def event_functions(ops: EventOps, inline: bool = False):  # noqa: C901 (39: the
             for j in range(npair):
                 pr.theta[j] = 2.0
                 if j != target:
-                    others = others or indicator(st, True, j) > 0.5 * tolerance(st, j)
+                    others = others or indicator(st, AT_END, j) > 0.5 * tolerance(st, j)
             if others:
                 first_event(st, hs)
-            earlier = -1
+            earlier = np.int64(-1)
             for j in range(npair):
                 if j != target and pr.theta[j] < 1.0 - 1e-9 and (earlier < 0 or pr.theta[j] < pr.theta[earlier]):
                     earlier = j
@@ -393,7 +400,7 @@ def event_functions(ops: EventOps, inline: bool = False):  # noqa: C901 (39: the
                 break
             target = earlier
             theta = pr.theta[earlier]
-            f_hi = indicator(st, True, target)
+            f_hi = indicator(st, AT_END, target)
             hi = hs
         for j in range(npair):
             pr.switch[j] = j == target or pr.theta[j] <= 1.0  # the target, and pairs crossing with it
@@ -442,7 +449,7 @@ def event_functions(ops: EventOps, inline: bool = False):  # noqa: C901 (39: the
             switch(st, t_s, ag_s)
             if h <= 0.0:
                 break
-            if advance(st, h, ag_s, ag_e, False) < 0:
+            if advance(st, h, ag_s, ag_e, WARM) < 0:
                 uns += 1
         return finite, n_ev, uns
 

@@ -13,9 +13,14 @@ F_j > 0 in compression, G's column j = e(building 1, floor j) - e(building 2, fl
 
 from __future__ import annotations
 
+import numpy as np
+
 from pounding_sweep.engine import layout as L
 from pounding_sweep.engine.events import switch_tolerance
 from pounding_sweep.engine.jit import njit_inner, njit_kernel
+
+#: gauss_solve's `pivot`, typed rather than literal, so it compiles once for every kernel (events.AT_END says why)
+NO_PIVOT, PIVOT = np.bool_(False), np.bool_(True)
 
 
 @njit_kernel

@@ -155,7 +155,7 @@ def solve_pairs(S, z0, wrel, q, d, lw, use, F, z, W):
                 J[j, l] = D[j] * S[j, l]
             J[j, j] += 1.0
             dF[j] = -R[j]
-        floors.gauss_solve(J, dF, P, True)
+        floors.gauss_solve(J, dF, P, floors.PIVOT)
         lam = 1.0
         for _ in range(40):
             for j in range(P):
@@ -183,7 +183,7 @@ def _crossing_rate(p0, p1, m0, m1, h):
     lo, hi = 0.0, 1.0
     for _ in range(60):
         mid = 0.5 * (lo + hi)
-        if hermite_indicator(herm, mid, h, (False, 1.0, 0.0)) > 0.0:
+        if hermite_indicator(herm, mid, h, (np.bool_(False), 1.0, 0.0)) > 0.0:
             hi = mid
         else:
             lo = mid
@@ -426,7 +426,7 @@ def _time_loop(run, model, opts, runs, records, histories, experiment, out, st, 
     rec_flat = records.flat
     roff, rlen, ag = bk.start_at_rest(run, runs, records, dt, u, v, a)
     if keep_hist:
-        bk.keep_history(hist, run, 0, histories.kinds, histories.index, u, v, a, F, ag)
+        bk.keep_history(hist, run, np.int64(0), histories.kinds, histories.index, u, v, a, F, ag)
     ke_next = bk.samples_at_rest(experiment.t, xs)
     status = 0
     unsettled = 0
@@ -517,7 +517,8 @@ def _nonlinear_kernel(scored: bool):
             row = out.metrics[run]
             d = runs.gap[run]
             k = runs.ks[run]
-            pr = Pairs(touching, marks[0], marks[1], marks[2], runs.cdash[run], 1.0, False)
+            # no_tension typed, not a literal False: the event pieces the scalar kernel compiles serve this one too
+            pr = Pairs(touching, marks[0], marks[1], marks[2], runs.cdash[run], 1.0, np.bool_(False))
             st = HertzState(
                 m, C, K, i1, i2, d, u, v, a, un, vn, an, F, pr, runs.law[run], k, alpha, graze, opts.min_impact_speed,
                 flags, opts.scheme, model.dt, was, Sprev, Dprev, pen_prev, en, row, phases, Cdu, work,

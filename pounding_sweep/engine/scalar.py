@@ -95,7 +95,7 @@ class LinearState(NamedTuple):
 def _contact_forces(S, z0, bb, ke, active, idx, Asmall, rhs, F):
     """Forces of the pairs in `active` (others 0) for the implicit step: (S_AA + diag(1/ke_A)) F_A =
     z0_A - b_A / ke_A by floors.gauss_solve, symmetric positive definite."""
-    na = 0
+    na = np.int64(0)  # typed, not a literal 0: gauss_solve compiles once (events.AT_END says why)
     for j in range(active.size):
         F[j] = 0.0
         if active[j]:
@@ -109,7 +109,7 @@ def _contact_forces(S, z0, bb, ke, active, idx, Asmall, rhs, F):
             Asmall[p, q] = S[jp, idx[q]]
         Asmall[p, p] += 1.0 / ke[jp]
         rhs[p] = z0[jp] - bb[jp] / ke[jp]
-    floors.gauss_solve(Asmall, rhs, na, False)
+    floors.gauss_solve(Asmall, rhs, na, floors.NO_PIVOT)
     for p in range(na):
         F[idx[p]] = rhs[p]
 
@@ -147,7 +147,7 @@ def _advance(st, h, ag_s, ag_e, cold):
             A[q, p] -= kej
             r[p] += bj
             r[q] -= bj
-    floors.gauss_solve(A, r, n, False)
+    floors.gauss_solve(A, r, n, floors.NO_PIVOT)
     for i in range(n):
         un[i] = r[i]
         vn[i] = q3 * (un[i] - u[i]) - v[i]
@@ -365,7 +365,7 @@ def _time_loop_for(scheme: int):
         rec_flat = records.flat
         roff, rlen, ag = bk.start_at_rest(run, runs, records, dt, u, v, a)
         if keep_hist:
-            bk.keep_history(hist, run, 0, histories.kinds, histories.index, u, v, a, F, ag)
+            bk.keep_history(hist, run, np.int64(0), histories.kinds, histories.index, u, v, a, F, ag)
         for j in range(npair):
             ke[j] = k_s + b1 * c[j]
         ke_next = bk.samples_at_rest(experiment.t, xs)  # next experiment sample to fill

@@ -65,6 +65,19 @@ if sys.argv[1] == "lanes":  # a new pair of floor counts (4 + 2), the step cache
     from pounding_sweep.engine import compile_times, jit
 
     print("recorded", *sorted(json.loads((jit._root() / compile_times.COMPILE_TIMES).read_text())))
+# every engine function typed in this process (with an empty cache: all the kernels' pieces but those aside) compiled
+# once per argument type: none again for a constant (a literal True, False or 0 passed by a call site: engine/events.py
+# AT_END), as two argument types that differ only in literal types would show
+import collections
+from numba.core import types
+from numba.core.registry import CPUDispatcher
+
+copies = []
+for obj in __import__("gc").get_objects():
+    if type(obj) is CPUDispatcher and obj.py_func.__module__.startswith("pounding_sweep.engine"):
+        by_type = collections.Counter(tuple(types.unliteral(a) for a in sig) for sig in obj.overloads)
+        copies += [obj.py_func.__qualname__] * sum(n > 1 for n in by_type.values())
+print("compiled again for a constant:", *sorted(copies))
 """
 
 
@@ -93,6 +106,10 @@ def save(self, key, data):
 
 caching.IndexDataCacheFile.save = save
 """
+
+
+#: the last line of RUN: no engine function compiled twice for one argument type (its literal constants aside)
+NO_COPIES = ["compiled", "again", "for", "a", "constant:"]
 
 
 def _compile_with_an_empty_cache(tmp_path, what: str) -> list[list[str]]:
@@ -135,7 +152,7 @@ def test_both_scalar_kernels_load_the_scoring_code_the_second_process_compiled(t
     Hertz-type kernel then calls it with the same types (still one signature). A signature that drifted from
     the kernels' call would show as a miss."""
     got = _compile_with_an_empty_cache(tmp_path, "scored")
-    assert got == [["classic", "1", "1", "0"], ["hertzdamp", "1", "1", "0"]]
+    assert got == [["classic", "1", "1", "0"], ["hertzdamp", "1", "1", "0"], NO_COPIES]
 
 
 def test_the_lane_kernel_loads_the_step_the_second_process_compiled(tmp_path):
@@ -150,6 +167,7 @@ def test_the_lane_kernel_loads_the_step_the_second_process_compiled(tmp_path):
         ["driver", "1"],
         ["optimised_once", "True"],
         ["recorded", "lanes", "lanes_again"],
+        NO_COPIES,
     ]
 
 

@@ -268,7 +268,7 @@ def _scalar_steps(gw, bufs, model, opts, runs, stats):
             if not gw.live[l]:
                 continue
             run = gw.run[l]
-            d_act += _count_act(gw.W, l, gw.act_pair, gw.sizes, -1)
+            d_act += _count_act(gw.W, l, gw.act_pair, gw.sizes, np.int64(-1))
             timed = stats[ST_TIMED] > 0
             t0_ = _monotonic_ns() if timed else 0
             ctx = (
@@ -287,7 +287,7 @@ def _scalar_steps(gw, bufs, model, opts, runs, stats):
             if timed:
                 stats[ST_FIX_NS] += _monotonic_ns() - t0_
             stats[ST_FIXUPS] += 1
-            d_act += _count_act(gw.W, l, gw.act_pair, gw.sizes, 1)
+            d_act += _count_act(gw.W, l, gw.act_pair, gw.sizes, np.int64(1))
             if not ok:
                 nbad += 1
             for j in range(P):  # a phase still open on a pair that switched off at the step end
@@ -322,7 +322,7 @@ def _drop_diverged(gw, redo):
         if gw.W[(r_s + S_BAD) * LANES + l] > 0.5:
             if gw.live[l]:
                 redo[gw.run[l]] = 1
-                d_act += _count_act(gw.W, l, gw.act_pair, gw.sizes, -1)
+                d_act += _count_act(gw.W, l, gw.act_pair, gw.sizes, np.int64(-1))
                 gw.live[l] = False
             _park(gw.W, l, nrows, r_s)
     return d_act
@@ -339,7 +339,7 @@ def _finish_lanes(gw, step, metrics, model, max_nst):
     for l in range(LANES):
         if gw.live[l] and gw.nst[l] == step:
             _finalize_lane(gw, l, metrics, step, model.dt, (model.om2, model.psi))
-            d_act += _count_act(gw.W, l, gw.act_pair, gw.sizes, -1)
+            d_act += _count_act(gw.W, l, gw.act_pair, gw.sizes, np.int64(-1))
             _park(gw.W, l, nrows, r_s)
             gw.live[l] = False
         elif gw.live[l] and gw.nst[l] < next_end:
@@ -377,7 +377,7 @@ def _integrate_groups(order, groups, model, opts, runs, excitation, out, gw, loo
         )
         for l in range(nl):
             if gw.nst[l] == 0:
-                _finalize_lane(gw, l, out.metrics, 0, model.dt, (model.om2, model.psi))
+                _finalize_lane(gw, l, out.metrics, np.int64(0), model.dt, (model.om2, model.psi))
                 _park(W, l, nrows, r_s)
                 gw.live[l] = False
         next_end = max_nst + 1

@@ -12,7 +12,7 @@ import numpy as np
 from pounding_sweep import codes
 from pounding_sweep.engine import layout as L
 from pounding_sweep.engine.events import ground_acceleration
-from pounding_sweep.engine.jit import inline_kernel, njit_inner, njit_kernel
+from pounding_sweep.engine.jit import inline_kernel, njit_inner, njit_kernel, njit_piece_once
 from pounding_sweep.engine.score import N_SCORES, score_channel, sos_filter
 
 
@@ -276,7 +276,7 @@ def close_row(out, pbase, npair, phases, status):
     return status
 
 
-@njit_kernel
+@njit_piece_once
 def score_run(scores, run, xs, experiment, k_filled, status):
     """Score the run's samples against every experiment channel (engine/score.py), the acceleration
     channels after the experiment's low-pass filter (experiment.sos, as the experiment's samples were

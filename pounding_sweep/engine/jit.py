@@ -148,6 +148,14 @@ def njit_step_once(fn):
     return njit_step(linking.optimised_once(fn))
 
 
+def njit_piece_once(fn):
+    """Decorate a large piece of the scalar kernels called once per run from compiled code (the scoring,
+    bookkeeping.score_run): the scalar kernels' flags and Numba's runtime (it allocates), no Python or C entry,
+    its module optimised on its own and linked into its callers after their optimisation (as njit_step_once's
+    step: linking.optimised_once), so a kernel's LLVM pass does not optimise it again."""
+    return _cached(numba.njit(no_cpython_wrapper=True, no_cfunc_wrapper=True, **KERNEL_JIT))(linking.optimised_once(fn))
+
+
 def njit_inner(fn):
     """Decorate a helper of the scalar kernels' time loop that allocates nothing: no reference counts on
     its array arguments and no Python entry wrapper (as njit_step), with the scalar kernels' flags; its code

@@ -38,7 +38,7 @@ ROUNDING_FRACTION = 0.1
 #: constant arguments of compiled calls, typed as values: Numba compiles a callee once per literal it is passed (a
 #: call with True and one with False are two compiles of it and of all it calls, an int literal 0 a third), so
 #: the engine passes its constants typed (these, np.int64(...)) and each callee compiles once per kernel
-#: (tests/engine/test_literals.py). The state pair() reads: its start or its end
+#: (tests/engine/test_aside.py lists any copy). The state pair() reads: its start or its end
 AT_START, AT_END = np.bool_(False), np.bool_(True)
 #: advance's `cold`: start an iterated contact solve from zero force, or from the last piece's forces
 COLD, WARM = np.bool_(True), np.bool_(False)

@@ -434,6 +434,27 @@ def group_costs(preps, steps, threads, rounds):
             )
 
 
+def time_kernel(name: str, inputs: dict, threads: int) -> tuple[float, float]:
+    """(wall, CPU) seconds of one kernel on one chunk: 'minimal', 'columns' (the minimal kernel keeping the engine's
+    columns; both on the implicit scheme's inputs) or an engine scheme ('event', 'implicit': the lane kernel).
+    inputs: scheme -> (prepared sweep, run arrays, records) of the chunk."""
+    if name in ("minimal", "columns"):
+        p, runs, rec = inputs["implicit"]
+        return timed(lambda: run_minimal(p, runs, rec, threads, columns=name == "columns"))[:2]
+    p, runs, rec = inputs[name]
+    return timed(lambda: driver.run_chunk_lanes(p.sysarr, runs, rec, p.opts, threads))[:2]
+
+
+def round_row(k: int, name: str, steps: int, w: float, c: float, minimal: tuple[float, float]) -> str:
+    """One kernel's line of a round's table: its wall and CPU time, its throughputs and its ratios to the minimal
+    kernel's (wall, CPU) times."""
+    x, xc = minimal[0] / w, minimal[1] / c
+    return (
+        f"{k + 1:5d}  {name:16s} {w:9.2f} {steps / w / 1e6:10.0f} {c:8.2f} {steps / c / 1e6:14.0f}"
+        f" {x:17.2f} {xc:16.2f}   {load()}"
+    )
+
+
 def interleaved(preps, steps, args) -> int:
     """--interleave K: per round, the grid in K slices (whole groups of LANES runs), each slice timed by the minimal
     kernel, the event and the implicit scheme one after another (the order turned at every slice); printed per
@@ -458,14 +479,7 @@ def interleaved(preps, steps, args) -> int:
         for i, sl in enumerate(slices):
             turn = (i + k) % len(kernels)
             for name in kernels[turn:] + kernels[:turn]:
-                if name == "minimal":
-                    p, r_, c_ = sl["implicit"]
-                    w, c, _ = timed(lambda p=p, r_=r_, c_=c_: run_minimal(p, r_, c_, args.threads))
-                else:
-                    p, r_, c_ = sl[name]
-                    w, c, _ = timed(
-                        lambda p=p, r_=r_, c_=c_: driver.run_chunk_lanes(p.sysarr, r_, c_, p.opts, args.threads)
-                    )
+                w, c = time_kernel(name, sl, args.threads)
                 wall[name] += w
                 cpu[name] += c
         for name in kernels:
@@ -473,10 +487,7 @@ def interleaved(preps, steps, args) -> int:
             if name != "minimal":
                 ratios[name].append(x)
                 ratios[name + "_cpu"].append(xc)
-            print(
-                f"{k + 1:5d}  {name:16s} {wall[name]:9.2f} {steps / wall[name] / 1e6:10.0f} {cpu[name]:8.2f}"
-                f" {steps / cpu[name] / 1e6:14.0f} {x:17.2f} {xc:16.2f}   {load()}"
-            )
+            print(round_row(k, name, steps, wall[name], cpu[name], (wall["minimal"], cpu["minimal"])))
     for name in ("event", "implicit"):
         rs, rc = ratios[name], ratios[name + "_cpu"]
         print(
@@ -609,15 +620,7 @@ def main(argv=None) -> int:
         order = kernels if k % 2 == 0 else kernels[::-1]
         got = {}
         for name in order:
-            if name == "minimal":
-                got[name] = timed(lambda: run_minimal(prep, runs, rec, args.threads))[:2]
-            elif name == "columns":
-                got[name] = timed(lambda: run_minimal(prep, runs, rec, args.threads, columns=True))[:2]
-            else:
-                p, r_, c_ = preps[name]
-                got[name] = timed(
-                    lambda p=p, r_=r_, c_=c_: driver.run_chunk_lanes(p.sysarr, r_, c_, p.opts, args.threads)
-                )[:2]
+            got[name] = time_kernel(name, preps, args.threads)
         for name in kernels:
             w, c = got[name]
             x = got["minimal"][0] / w
@@ -627,10 +630,7 @@ def main(argv=None) -> int:
                 ratios_cpu[name].append(xc)
                 if args.columns:
                     against[name].append(got["columns"][0] / w)
-            print(
-                f"{k + 1:5d}  {name:16s} {w:9.2f} {steps / w / 1e6:10.0f} {c:8.2f} {steps / c / 1e6:14.0f}"
-                f" {x:17.2f} {xc:16.2f}   {load()}"
-            )
+            print(round_row(k, name, steps, w, c, got["minimal"]))
     for name, rs in ratios.items():
         rc = ratios_cpu[name]
         print(

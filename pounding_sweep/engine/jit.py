@@ -23,11 +23,12 @@ from pathlib import Path
 
 import numba
 
-from pounding_sweep.engine import cache_lock, inlining, linking
+from pounding_sweep.engine import cache_lock, flag_compare, inlining, linking
 
 inlining.install()  # Numba's IR inliner without its quadratic copy (the same code, a shorter compile)
 linking.install()  # pieces without an entry are optimised once, in their kernel (the same code, a shorter compile)
 cache_lock.install()  # processes sharing the cache cannot mix up its entries
+flag_compare.install()  # compile flags hashed once per class (the same answers, a shorter compile)
 
 HERE = Path(__file__).resolve().parent
 #: engine modules that compile nothing (plain Python driving or choosing the kernels), by their path in the
@@ -39,6 +40,7 @@ NOT_COMPILED = (
     "driver.py",
     "registry.py",
     "inlining.py",
+    "flag_compare.py",
     "aside.py",
     "cache_lock.py",
     "numba_source.py",

@@ -55,10 +55,13 @@ SOURCES = sorted(p for p in HERE.rglob("*.py") if p.relative_to(HERE).as_posix()
 KEEP_CACHES = 3
 _CACHE_NAME = re.compile(r"engine-[0-9a-f]{16}")
 
-#: serial kernels: released GIL so a thread pool can run them side by side; cached on disk
-KERNEL_JIT = dict(nogil=True, cache=True, fastmath=False, error_model="numpy")
+#: serial kernels: released GIL so a thread pool can run them side by side; cached on disk; no C entry (Numba's
+#: cfunc wrapper, for calls through a C function pointer: the engine calls its functions from Python or from
+#: compiled code, never so; each wrapper was compiled to machine code of its own, 0.2-0.9 s of the README scene's
+#: first compile, docs/explanation/performance.md)
+KERNEL_JIT = dict(nogil=True, cache=True, fastmath=False, error_model="numpy", no_cfunc_wrapper=True)
 #: the lane kernel: the same, without bounds checks
-LANES_JIT = dict(nogil=True, cache=True, fastmath=False, error_model="numpy", boundscheck=False)
+LANES_JIT = dict(nogil=True, cache=True, fastmath=False, error_model="numpy", boundscheck=False, no_cfunc_wrapper=True)
 
 
 def engine_hash(sources=None) -> str:
@@ -140,7 +143,7 @@ def njit_step(fn):
     argument boxing was a good part of the compile time). Its own module is optimised before its caller's
     (not registered with engine/linking.py): LLVM makes faster code of the lane kernel's step and vector
     loops in two passes (its event case took 1.18x as long with one)."""
-    return _cached(numba.njit(_nrt=False, no_cpython_wrapper=True, no_cfunc_wrapper=True, **LANES_JIT))(fn)
+    return _cached(numba.njit(_nrt=False, no_cpython_wrapper=True, **LANES_JIT))(fn)
 
 
 def njit_step_once(fn):
@@ -155,7 +158,7 @@ def njit_piece_once(fn):
     bookkeeping.score_run): the scalar kernels' flags and Numba's runtime (it allocates), no Python or C entry,
     its module optimised on its own and linked into its callers after their optimisation (as njit_step_once's
     step: linking.optimised_once), so a kernel's LLVM pass does not optimise it again."""
-    return _cached(numba.njit(no_cpython_wrapper=True, no_cfunc_wrapper=True, **KERNEL_JIT))(linking.optimised_once(fn))
+    return _cached(numba.njit(no_cpython_wrapper=True, **KERNEL_JIT))(linking.optimised_once(fn))
 
 
 def njit_inner(fn):
@@ -163,7 +166,7 @@ def njit_inner(fn):
     its array arguments and no Python entry wrapper (as njit_step), with the scalar kernels' flags; its code
     optimised only in its callers' modules (engine/linking.py: once per kernel, not once per level of calls)."""
     fn = linking.optimised_by_callers(fn)
-    return _cached(numba.njit(_nrt=False, no_cpython_wrapper=True, no_cfunc_wrapper=True, **KERNEL_JIT))(fn)
+    return _cached(numba.njit(_nrt=False, no_cpython_wrapper=True, **KERNEL_JIT))(fn)
 
 
 def njit_generic(fn):
@@ -179,7 +182,7 @@ def njit_generic(fn):
 def njit_generic_lanes(fn):
     """The flags of njit_generic, without its registration: the lane kernel's event step (events.event_functions
     with inline), whose code is optimised in its own module before its callers', as the lane kernel's step is."""
-    return numba.njit(_nrt=False, no_cpython_wrapper=True, no_cfunc_wrapper=True, **dict(KERNEL_JIT, cache=False))(fn)
+    return numba.njit(_nrt=False, no_cpython_wrapper=True, **dict(KERNEL_JIT, cache=False))(fn)
 
 
 #: inlined into its callers at Numba's IR level (the lane kernel's vector helpers, and its event step's

@@ -2,14 +2,16 @@
 
 A kernel's first compile is one thread's work: Numba holds one lock. Some of the pieces it calls stand alone:
 functions cached on their own, called with one signature, such as the scoring code (bookkeeping.score_run,
-about 5 s of the README scene's 19 s compile) and the lane kernel's scalar step (lanes.lane_step, 17 s of its
-30 s). A second process compiles them into the disk cache while this one compiles the rest. When the
-kernel's typing reaches their call, Numba finds them there (numba/core/dispatcher.py `Dispatcher.compile`
-looks in the cache before compiling).
+about 5 s of the README scene's compile), the scalar kernel's event-step pieces (about 1 s) and the lane
+kernel's scalar step (lanes.lane_step, 17 s of its 30 s). A second process compiles them into the disk cache
+while this one compiles the rest. When the kernel's typing reaches their call, Numba finds them there
+(numba/core/dispatcher.py `Dispatcher.compile` looks in the cache before compiling).
 
-It starts only where it can help: a second CPU (its time, too: a cgroup quota of one CPU counts as one), a disk
-cache, and the piece not cached yet. When this
-process needs a piece the second one is still compiling, it waits for it, then loads the piece from the cache.
+A kernel lists its pieces in groups (`pieces()`): the second process takes the first group that holds a piece
+not compiled or cached yet, and compiles that group's missing pieces one after the other, in the order the
+kernel's typing reaches them. It starts only where it can help: a second CPU (its time, too: a cgroup quota of
+one CPU counts as one), a disk cache, and a piece not cached yet. When this process needs a piece the second
+one has not saved yet, it waits for that piece's entry in the cache index (not for the others), then loads it.
 If the second process failed, this one compiles the piece itself; the code is the same either way. The
 second process is a plain child, killed when this one is done. `python -m pounding_sweep.engine.aside` is
 the child: it reads the pieces (module, name, argument types, cache folder) from its standard input, pickled
@@ -24,6 +26,7 @@ import os
 import pickle
 import subprocess
 import sys
+import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -93,6 +96,8 @@ def _args(sig) -> tuple:
 #: the longest this process waits for the second one before it kills it and compiles the piece itself: many times
 #: what a piece takes (lane_step: 17 s on a quiet 2-core machine, about 50 s on a busy one)
 WAIT_S = 300.0
+#: how often a waiting process looks for the piece in the cache index (a small file, read whole)
+POLL_S = 0.02
 
 
 def _in_cache(dispatcher, args: tuple) -> bool:
@@ -110,38 +115,39 @@ def _compiled_or_cached(dispatcher, args: tuple) -> bool:
 
 
 def first_cached(pieces: Callable[[], tuple]) -> bool:
-    """Whether the first of a kernel's pieces (its largest: the lane kernel's step) is compiled or cached already:
-    then the kernel's compile is only what depends on more than that piece's types (the lane kernel: a new pair of
-    floor counts), and its time is recorded apart (engine/compile_times.py AGAIN). False where the pieces cannot be
-    listed, as start() does."""
+    """Whether every piece of a kernel's first group (the lane kernel: its step, its largest piece) is compiled or
+    cached already: then the kernel's compile is only what depends on more than those pieces' types (the lane
+    kernel: a new pair of floor counts), and its time is recorded apart (engine/compile_times.py AGAIN). False
+    where the pieces cannot be listed, as start() does."""
     try:
-        listed = pieces()
-        if not listed:
+        groups = pieces()
+        if not groups or not groups[0]:
             return False
-        dispatcher, sig = listed[0]
-        return _compiled_or_cached(dispatcher, _args(sig))
+        return all(_compiled_or_cached(dispatcher, _args(sig)) for dispatcher, sig in groups[0])
     except Exception:  # noqa: BLE001 (called inside Numba's compile, as start() is)
         return False
 
 
-def _wanted(pieces, limit: int | None = None) -> list:
-    """The pieces a second process should compile: cached, importable by name, not compiled or cached yet; the
-    first `limit` of them (each cache index is read only until that many are found)."""
-    out: list = []
-    for dispatcher, sig in pieces:
-        if limit is not None and len(out) >= limit:
-            break
-        args = _args(sig)
-        if isinstance(dispatcher._cache, NullCache) or "." in dispatcher.py_func.__qualname__:
-            continue  # no disk cache, or not importable by name
-        if not _compiled_or_cached(dispatcher, args):
-            out.append((dispatcher, args))
-    return out
+def _wanted(groups) -> list:
+    """The pieces a second process should compile: those of the first group that holds any, each cached,
+    importable by name, and not compiled or cached yet (the groups after it are not looked at: their cache
+    indexes are not read)."""
+    for group in groups:
+        out: list = []
+        for dispatcher, sig in group:
+            args = _args(sig)
+            if isinstance(dispatcher._cache, NullCache) or "." in dispatcher.py_func.__qualname__:
+                continue  # no disk cache, or not importable by name
+            if not _compiled_or_cached(dispatcher, args):
+                out.append((dispatcher, args))
+        if out:
+            return out
+    return []
 
 
 class Aside:
-    """The second process, and its pieces' caches told to wait for it: a piece this process needs while the
-    second one is still compiling it is loaded from the cache once that one is done, not compiled twice."""
+    """The second process, and its pieces' caches told to wait for it: a piece this process needs before the
+    second one has saved it is loaded from the cache once it is there, not compiled twice."""
 
     def __init__(self, proc: subprocess.Popen, wanted: list):
         self.proc = proc
@@ -150,22 +156,30 @@ class Aside:
             cache = dispatcher._cache
             if all(cache is not c for c, _ in self.caches):
                 self.caches.append((cache, cache.__dict__.get("load_overload")))
-                cache.load_overload = self._waiting(cache.load_overload, {a for d, a in wanted if d is dispatcher})
+                compiled_aside = {a for d, a in wanted if d is dispatcher}
+                cache.load_overload = self._waiting(cache.load_overload, dispatcher, compiled_aside)
 
-    def _waiting(self, load, compiled_aside: set):
+    def _waiting(self, load, dispatcher, compiled_aside: set):
         def load_overload(sig, target_context):
-            if _args(sig) in compiled_aside:
-                self._wait()
+            args = _args(sig)
+            if args in compiled_aside:
+                self._wait(dispatcher, args)
             return load(sig, target_context)
 
         return load_overload
 
-    def _wait(self) -> None:
-        try:
-            self.proc.wait(timeout=WAIT_S)
-        except subprocess.TimeoutExpired:  # stuck: compile here
-            self.proc.kill()
-            self.proc.wait()
+    def _wait(self, dispatcher, args: tuple) -> None:
+        """Until the piece is in the cache index, the second process has ended (done, or failed: then this one
+        compiles the piece), or WAIT_S has passed (stuck: it is killed, and this one compiles the piece)."""
+        deadline = time.monotonic() + WAIT_S
+        while self.proc.poll() is None:
+            if _in_cache(dispatcher, args):
+                return
+            if time.monotonic() > deadline:
+                self.proc.kill()
+                self.proc.wait()
+                return
+            time.sleep(POLL_S)
 
     def stop(self) -> None:
         """Kill the second process if it is still running (this one is done and did not need the rest of its
@@ -185,19 +199,20 @@ class Aside:
 
 
 def start(pieces: Callable[[], tuple]) -> Aside | None:
-    """Start compiling, in a second process, the first piece `pieces()` returns ((dispatcher, argument types)
-    pairs, in the order a second process should take them) that is not compiled or cached yet: one piece, as
-    a kernel's list is ordered so that this process's own work covers the first (the lane kernel: its step,
-    else its contact loop; a second piece after the step would keep this process waiting for it); None where
-    it would not help (one CPU, no disk cache, nothing left to compile) or cannot start. It is called inside
-    Numba's compile, which only a speed-up must not break: an error in `pieces()` leaves the compile to this
-    process (tests/engine/test_aside.py would see the miss)."""
+    """Start compiling, in a second process, the pieces of the first group `pieces()` returns (groups of
+    (dispatcher, argument types) pairs) that holds a piece not compiled or cached yet. A kernel's groups are
+    alternatives, in the order a second process should take them: the lane kernel's step, else its contact loop
+    (after the step, the loop would come too late: this process would wait for it); the scalar kernel's one group,
+    its pieces in the order its typing reaches them. None where it would not help (one CPU, no disk cache,
+    nothing left to compile) or cannot start. It is called inside Numba's compile, which only a speed-up must not
+    break: an error in `pieces()` leaves the compile to this process (tests/engine/test_aside.py would see the
+    miss)."""
     from pounding_sweep.engine import jit
 
     if jit.CACHE_DIR is None or _cpus() < 2 or not sys.executable or getattr(sys, "frozen", False):
         return None  # no disk cache, no CPU to spare, or no Python to start (an embedding or frozen program)
     try:
-        wanted = _wanted(pieces(), limit=1)
+        wanted = _wanted(pieces())
     except Exception:  # noqa: BLE001 (see the docstring)
         return None
     if not wanted:

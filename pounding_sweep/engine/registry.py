@@ -17,7 +17,7 @@ from pounding_sweep.engine import lanes
 from pounding_sweep.engine.bookkeeping import score_pieces
 from pounding_sweep.engine.inputs import HistorySpec, KernelOptions, ScoreSpec
 from pounding_sweep.engine.nonlinear import integrate_nonlinear
-from pounding_sweep.engine.scalar import integrate_batch
+from pounding_sweep.engine.scalar import event_pieces, integrate_batch
 
 #: what a user may ask for (the scene's [execution] kernel, the command line): "auto" (the first kernel in
 #: KERNELS that can run the chunk), "scalar" (one run at a time: the tests and benchmarks compare the two),
@@ -46,7 +46,8 @@ class Kernel:
     laws: tuple  # the contact laws (codes.LAW_*) it integrates
     why_not: Callable[[Chunk], str | None]  # why it cannot run a chunk (None: it can)
     #: its self-contained pieces for a chunk, which a second process may compile while this one compiles the
-    #: rest (engine/aside.py): (dispatcher, argument types) pairs
+    #: rest (engine/aside.py): groups of (dispatcher, argument types) pairs, the second process taking the first
+    #: group with a piece not compiled or cached yet
     aside: Callable[[Chunk], tuple] = lambda chunk: ()
 
     @property
@@ -73,14 +74,23 @@ def _one_at_a_time(laws):
     return why_not
 
 
+def _scalar_pieces(chunk: Chunk) -> tuple:
+    """The scalar kernel's pieces a second process may compile, one group in the order its typing reaches them:
+    its event step's pieces (none for the paper's scheme), then the scoring code when the chunk scores."""
+    group = event_pieces(chunk.opts.scheme) + score_pieces(chunk.score)
+    return (group,) if group else ()
+
+
 def _scoring_pieces(chunk: Chunk) -> tuple:
-    """The scalar kernels' pieces a second process may compile: the scoring code, when the chunk scores."""
-    return score_pieces(chunk.score)
+    """The Hertz-type kernel's pieces a second process may compile: the scoring code, when the chunk scores."""
+    group = score_pieces(chunk.score)
+    return (group,) if group else ()
 
 
 def _lane_pieces(chunk: Chunk) -> tuple:
-    """The lane kernel's pieces a second process may compile: its scalar step, else its contact loop."""
-    return lanes.step_pieces(chunk.sys, chunk.opts, chunk.law)
+    """The lane kernel's pieces a second process may compile: its scalar step, else its contact loop (two groups:
+    the loop after the step would come too late, engine/aside.py start)."""
+    return tuple((piece,) for piece in lanes.step_pieces(chunk.sys, chunk.opts, chunk.law))
 
 
 def _lanes_why_not(chunk: Chunk) -> str | None:
@@ -106,7 +116,7 @@ KERNELS = (
         integrate_batch,
         KELVIN_VOIGT_LAWS,
         _one_at_a_time(KELVIN_VOIGT_LAWS),
-        _scoring_pieces,
+        _scalar_pieces,
     ),
     Kernel(
         "nonlinear",

@@ -527,3 +527,29 @@ def integrate_batch(start, stop, model, opts, runs, records, histories, experime
     Records (engine/inputs.py): model Structure, opts KernelOptions, runs RunArrays, records Records,
     histories HistorySpec, experiment ScoreSpec, out Outputs."""
     _VARIANTS[opts.scheme][experiment.active](start, stop, model, opts, runs, records, histories, experiment, out)
+
+
+def event_pieces(scheme: int) -> tuple:
+    """The event step's pieces a second process can compile for this kernel (engine/aside.py), with the argument
+    types the step calls them with, in the order the kernel's typing reaches them: _advance, bookkeeping.pair_pieces
+    (through _accept) and _switch, about 1 s of the README scene's compile. None for the paper's scheme, whose time
+    loop has no event step. The types are those of integrate_batch's run state (LinearState, of C-contiguous arrays
+    of the kernel's dtypes): tests/engine/test_aside.py checks that the kernel finds the pieces in the cache."""
+    if scheme == SCHEME_PAPER:
+        return ()
+    from numba import typeof, types
+
+    f1, f2 = np.empty(0), np.empty((0, 0))
+    b1, i1 = np.empty(0, dtype=np.bool_), np.empty(0, dtype=np.int64)
+    phases = (b1, f1, f2, i1)
+    pr = Pairs(b1, b1, b1, f1, f1, 0.0, False)
+    st = typeof(
+        LinearState(f1, f2, f2, i1, i1, 0.0, f1, f1, f1, f1, f1, f1, f1, pr, b1, f1, f1, f1, f1, f1, phases, f1, f2, f1)
+    )
+    f64, i64 = types.float64, types.int64
+    tf1, tb1 = typeof(f1), typeof(b1)
+    return (
+        (_advance, (st, f64, f64, f64, types.boolean)),
+        (bk.pair_pieces, (tf1, i64, tf1, tf1, tb1, tb1, f64, f64, typeof(phases))),
+        (_switch, (st, f64, f64)),
+    )

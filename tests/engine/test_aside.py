@@ -19,7 +19,8 @@ import numpy as np
 import pytest
 from conftest import SWEEPS
 
-from pounding_sweep.engine import aside, bookkeeping
+from pounding_sweep.codes import SCHEME_EVENT, SCHEME_IMPLICIT, SCHEME_PAPER
+from pounding_sweep.engine import aside, bookkeeping, scalar
 from pounding_sweep.engine.inputs import ScoreSpec
 
 RUN = f"""
@@ -42,6 +43,12 @@ for law in laws:
     driver.compile_kernel(prep.sysarr, prep.opts, prep.hist, prep.score, kernel, prep.law_codes_used)
     sig = piece.signatures[0]
     print(law, len(piece.signatures), piece.stats.cache_hits.get(sig, 0), piece.stats.cache_misses.get(sig, 0))
+if sys.argv[1] == "scored":  # the scalar kernel's event-step pieces, compiled aside before the scoring
+    from pounding_sweep.engine import scalar
+
+    for d, _ in scalar.event_pieces(prep.opts.scheme):
+        sig = d.signatures[0]
+        print(d.py_func.__name__, len(d.signatures), d.stats.cache_hits.get(sig, 0), d.stats.cache_misses.get(sig, 0))
 if sys.argv[1] == "lanes":  # a new pair of floor counts (4 + 2), the step cached: the contact loop is aside
     from pounding_sweep.engine.lanes.groups import _integrate_groups
     from pounding_sweep.engine.lanes.loops import contact_loop
@@ -147,12 +154,20 @@ def _compile_with_an_empty_cache(tmp_path, what: str) -> list[list[str]]:
 
 
 def test_both_scalar_kernels_load_the_scoring_code_the_second_process_compiled(tmp_path):
-    """With an empty cache: the second process compiles score_run, and the scalar kernel's compile loads it from
-    the cache (a hit, no compile here; it waits for the second process if it needs the piece first); the
-    Hertz-type kernel then calls it with the same types (still one signature). A signature that drifted from
-    the kernels' call would show as a miss."""
+    """With an empty cache: the second process compiles the scalar kernel's event-step pieces, then score_run, and
+    the scalar kernel's compile loads each from the cache (a hit, no compile here; it waits for the second process
+    if it needs a piece first); the Hertz-type kernel then calls score_run with the same types (still one
+    signature). A signature that drifted from the kernels' call (scalar.event_pieces,
+    bookkeeping.score_run_signature) would show as a miss."""
     got = _compile_with_an_empty_cache(tmp_path, "scored")
-    assert got == [["classic", "1", "1", "0"], ["hertzdamp", "1", "1", "0"], NO_COPIES]
+    assert got == [
+        ["classic", "1", "1", "0"],
+        ["hertzdamp", "1", "1", "0"],
+        ["_advance", "1", "1", "0"],
+        ["pair_pieces", "1", "1", "0"],
+        ["_switch", "1", "1", "0"],
+        NO_COPIES,
+    ]
 
 
 def test_the_lane_kernel_loads_the_step_the_second_process_compiled(tmp_path):
@@ -171,11 +186,29 @@ def test_the_lane_kernel_loads_the_step_the_second_process_compiled(tmp_path):
     ]
 
 
-def test_nothing_to_leave_aside_without_scoring():
-    """No scoring, no pieces: the second process is not started."""
+def test_nothing_to_leave_aside_without_scoring_or_event_step():
+    """No scoring and no event step (the paper's scheme), no pieces: the second process is not started."""
     assert bookkeeping.score_pieces(ScoreSpec.none()) == ()
     assert bookkeeping.score_pieces(None) == ()
+    assert scalar.event_pieces(SCHEME_PAPER) == ()
+    assert len(scalar.event_pieces(SCHEME_EVENT)) == len(scalar.event_pieces(SCHEME_IMPLICIT)) == 3
     assert aside.start(tuple) is None
+
+
+def test_waiting_ends_when_the_piece_is_saved_not_when_the_second_process_ends(monkeypatch):
+    """This process waits for the piece it needs, not for the second process's later pieces: a piece in the cache
+    index ends the wait while the second process runs on."""
+    _plus_one(np.int64(1))  # compiled and saved to the cache by this process
+    assert aside._in_cache(_plus_one, (numba.int64,))
+    proc = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    monkeypatch.setattr(aside, "WAIT_S", 30.0)
+    a = aside.Aside(proc, [(_plus_one, (numba.int64,))])
+    try:
+        a._wait(_plus_one, (numba.int64,))
+        assert proc.poll() is None  # still running: not waited for, not killed
+    finally:
+        a.stop()
+    assert proc.poll() is not None
 
 
 def test_an_error_listing_the_pieces_leaves_the_compile_here(monkeypatch):
@@ -254,25 +287,28 @@ def test_pieces_compiled_here_or_not_importable_are_left_out():
         return x + 1.0
 
     _plus_one(1.0)
-    assert aside._wanted([(_plus_one, (numba.float64,))]) == []
-    assert aside._wanted([(local, (numba.float64,))]) == []
+    assert aside._wanted([[(_plus_one, (numba.float64,))]]) == []
+    assert aside._wanted([[(local, (numba.float64,))]]) == []
 
 
 def test_only_the_pieces_a_second_process_takes_are_looked_up():
-    """start() takes one piece: the pieces after it are not looked at (their cache index not read)."""
+    """start() takes the first group with a piece to compile, all of that group's missing pieces: the groups after
+    it are not looked at (their cache indexes not read)."""
 
     class Untouchable:
         @property
         def _cache(self):
             raise AssertionError("looked up")
 
-    def pieces():
-        yield _plus_one, (numba.int16,)  # never compiled: wanted
-        yield Untouchable(), (numba.float64,)
-
-    assert aside._wanted(pieces(), limit=1) == [(_plus_one, (numba.int16,))]
+    _plus_one(1.0)
+    done = ((_plus_one, (numba.float64,)),)  # compiled here: nothing to take in this group
+    wanted = ((_plus_one, (numba.int16,)), (_plus_one, (numba.float64,)), (_plus_one, (numba.int8,)))
+    assert aside._wanted((done, wanted, ((Untouchable(), (numba.float64,)),))) == [
+        (_plus_one, (numba.int16,)),
+        (_plus_one, (numba.int8,)),
+    ]
     with pytest.raises(AssertionError, match="looked up"):
-        aside._wanted(pieces())
+        aside._wanted((done, ((Untouchable(), (numba.float64,)),)))
 
 
 def test_the_second_process_skips_a_piece_whose_cache_is_elsewhere():
@@ -290,7 +326,7 @@ def test_no_python_to_start_starts_nothing(monkeypatch):
     monkeypatch.setattr(aside, "_cpus", lambda: 2)
     for exe in (None, ""):
         monkeypatch.setattr(sys, "executable", exe)
-        assert aside.start(lambda: ((_plus_one, (numba.int64,)),)) is None
+        assert aside.start(lambda: (((_plus_one, (numba.int64,)),),)) is None
 
 
 def test_a_stuck_second_process_is_killed_and_the_caches_are_put_back(monkeypatch):
@@ -300,9 +336,9 @@ def test_a_stuck_second_process_is_killed_and_the_caches_are_put_back(monkeypatc
     cache = _plus_one._cache
     proc = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
     monkeypatch.setattr(aside, "WAIT_S", 0.1)
-    a = aside.Aside(proc, [(_plus_one, (numba.int64,))])
+    a = aside.Aside(proc, [(_plus_one, (numba.uint16,))])  # a signature nothing compiles: never in the cache
     assert "load_overload" in cache.__dict__
-    a._wait()
+    a._wait(_plus_one, (numba.uint16,))
     assert proc.poll() is not None
     a.stop()
     assert "load_overload" not in cache.__dict__

@@ -13,7 +13,7 @@ from pounding_sweep import codes
 from pounding_sweep.engine import layout as L
 from pounding_sweep.engine.events import ground_acceleration
 from pounding_sweep.engine.jit import inline_kernel, njit_inner, njit_kernel, njit_piece_once
-from pounding_sweep.engine.score import N_SCORES, score_channel, sos_filter
+from pounding_sweep.engine.score import N_SCORES, _score_channel, _sos_filter
 
 
 @njit_inner
@@ -290,8 +290,8 @@ def score_run(scores, run, xs, experiment, k_filled, status):
                 scores[run, c, q] = np.nan
         else:
             if experiment.kind[c] == codes.H_ABS_ACC and experiment.sos.shape[0] > 0:
-                sos_filter(experiment.sos, xs[c])
-            score_channel(xs[c], exp_x[c], exp_t, experiment.max_lag, experiment.dt_sample, scores[run, c])
+                _sos_filter(experiment.sos, xs[c])
+            _score_channel(xs[c], exp_x[c], exp_t, experiment.max_lag, experiment.dt_sample, scores[run, c])
     return status
 
 

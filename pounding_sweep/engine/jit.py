@@ -161,6 +161,15 @@ def njit_piece_once(fn):
     return _cached(numba.njit(no_cpython_wrapper=True, **KERNEL_JIT))(linking.optimised_once(fn))
 
 
+def njit_piece(fn):
+    """Decorate a function of the scoring code (engine/score.py) that only compiled code calls: the scalar kernels'
+    flags and Numba's runtime (it allocates), no Python entry, its code optimised only in its callers' modules
+    (engine/linking.py, as njit_inner's): compiled for the kernels' scoring (bookkeeping.score_run), it was
+    optimised and made machine code of its own, then optimised again in score_run's module (2.3 s of score_run's
+    6.5 s compile, in the second process, engine/aside.py). Python calls it through an njit_kernel entry."""
+    return _cached(numba.njit(no_cpython_wrapper=True, **KERNEL_JIT))(linking.optimised_by_callers(fn))
+
+
 def njit_inner(fn):
     """Decorate a helper of the scalar kernels' time loop that allocates nothing: no reference counts on
     its array arguments and no Python entry wrapper (as njit_step), with the scalar kernels' flags; its code

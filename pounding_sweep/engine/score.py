@@ -1,14 +1,16 @@
 """Scores of a numerical history against an experimental one (Numba, callable from Python too).
 
 The kernel samples each run at the experiment's time stamps while it integrates and calls
-`score_channel` at the end of the run, so no run's history outlives the run.
+`_score_channel` at the end of the run, so no run's history outlives the run. The functions the kernel calls
+have no Python entry (engine/jit.py njit_piece); the public names at the end of the module are their entries
+from Python.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from pounding_sweep.engine.jit import njit_kernel
+from pounding_sweep.engine.jit import njit_kernel, njit_piece
 
 # slots of the per-channel score vector
 S_REL_RMS_PCT, S_PEAK_NUM, S_PEAK_NUM_TIME, S_PEAK_DIFF_PCT, S_CORR, S_CORR_MAX, S_LAG = range(7)
@@ -35,8 +37,8 @@ ACC_SCORE_NAMES = (
 )
 
 
-@njit_kernel
-def relative_rms_error_pct(xd, xe):
+@njit_piece
+def _relative_rms_error_pct(xd, xe):
     """eps_rel = sqrt(mean((xd - xe)^2)) / sqrt(mean(xe^2)) * 100, the paper's eq. (20)."""
     num = 0.0
     den = 0.0
@@ -49,8 +51,8 @@ def relative_rms_error_pct(xd, xe):
     return np.sqrt(num / den) * 100.0
 
 
-@njit_kernel
-def peak_abs(x, t):
+@njit_piece
+def _peak_abs(x, t):
     """Largest |x| and the time it occurs (first occurrence)."""
     best = 0.0
     tb = t[0] if t.size > 0 else 0.0
@@ -61,8 +63,8 @@ def peak_abs(x, t):
     return best, tb
 
 
-@njit_kernel
-def lagged_correlation(xd, xe, lag):
+@njit_piece
+def _lagged_correlation(xd, xe, lag):
     """Pearson correlation of xd[k + lag] with xe[k] over the samples both have."""
     n = xe.size
     k0 = max(0, -lag)
@@ -97,22 +99,22 @@ FFT_MIN_LAGS = 128
 _U = 1.1102230246251565e-16  # unit roundoff of float64, 2^-53
 
 
-@njit_kernel
-def best_lag_direct(xd, xe, max_lag):
+@njit_piece
+def _best_lag_direct(xd, xe, max_lag):
     """The largest lagged_correlation over lags -max_lag..max_lag and its lag (the first, in ascending
     order, on a tie; NaN never wins; (NaN, 0) when every lag is NaN). Costs n (2 max_lag + 1)."""
     best = -np.inf
     best_lag = 0
     for lag in range(-max_lag, max_lag + 1):
-        c = lagged_correlation(xd, xe, lag)
+        c = _lagged_correlation(xd, xe, lag)
         if c > best:  # NaN never wins
             best = c
             best_lag = lag
     return (best if best > -np.inf else np.nan), best_lag
 
 
-@njit_kernel
-def best_lag(xd, xe, max_lag, fft_min_lags=FFT_MIN_LAGS):
+@njit_piece
+def _best_lag(xd, xe, max_lag, fft_min_lags=FFT_MIN_LAGS):
     """What best_lag_direct returns, bit for bit, at the cost of an FFT cross-correlation.
 
     Every lag's correlation is first estimated from FFT cross-correlation sums (overlap-save blocks, so
@@ -124,11 +126,11 @@ def best_lag(xd, xe, max_lag, fft_min_lags=FFT_MIN_LAGS):
     left out is provably below the best, so the result is the direct search's, exactly."""
     n = xe.size
     if 2 * max_lag + 1 < fft_min_lags or n < 2:
-        return best_lag_direct(xd, xe, max_lag)
+        return _best_lag_direct(xd, xe, max_lag)
     for k in range(n):
         if not (np.isfinite(xd[k]) and np.isfinite(xe[k])):
-            return best_lag_direct(xd, xe, max_lag)
-    est, bound, trusted = lag_estimates(xd, xe, max_lag)
+            return _best_lag_direct(xd, xe, max_lag)
+    est, bound, trusted = _lag_estimates(xd, xe, max_lag)
     lower = -np.inf
     for i in range(est.size):
         if trusted[i] and est[i] - bound[i] > lower:
@@ -138,15 +140,15 @@ def best_lag(xd, xe, max_lag, fft_min_lags=FFT_MIN_LAGS):
     for i in range(est.size):
         if trusted[i] and est[i] + bound[i] < lower:
             continue  # provably below the best: the direct search would not pick it
-        c = lagged_correlation(xd, xe, i - max_lag)
+        c = _lagged_correlation(xd, xe, i - max_lag)
         if c > best:
             best = c
             best_lag = i - max_lag
     return (best if best > -np.inf else np.nan), best_lag
 
 
-@njit_kernel
-def lag_estimates(xd, xe, max_lag):
+@njit_piece
+def _lag_estimates(xd, xe, max_lag):
     """For every lag -max_lag..max_lag (index lag + max_lag): the Pearson correlation of xd[k + lag] with
     xe[k] over their overlap estimated through the FFT, a bound on |estimate - lagged_correlation|, and
     whether the estimate can be trusted at all (its overlap variances clear of zero).
@@ -270,7 +272,7 @@ def lag_estimates(xd, xe, max_lag):
     return est, bound, trusted
 
 
-@njit_kernel
+@njit_piece
 def _bit_reverse(N):
     rev = np.zeros(N, dtype=np.int64)
     bits = 0
@@ -286,7 +288,7 @@ def _bit_reverse(N):
     return rev
 
 
-@njit_kernel
+@njit_piece
 def _fft(z, tw, rev):
     """In-place radix-2 FFT of z (length N, a power of two), twiddles tw[k] = exp(-2 pi i k / N) computed
     each from its own cos and sin (no recurrence: an error of a few u log2 N relative to ||z||)."""
@@ -310,8 +312,8 @@ def _fft(z, tw, rev):
         half *= 2
 
 
-@njit_kernel
-def sos_filter(sos, x):
+@njit_piece
+def _sos_filter(sos, x):
     """Filter x in place through the cascade of second-order sections `sos` (rows [b0, b1, b2, 1, a1, a2]),
     causally and from rest (zero initial state). Each section in the transposed direct form II,
     y[n] = b0 x[n] + z1, z1 = b1 x[n] - a1 y[n] + z2, z2 = b2 x[n] - a2 y[n] (Oppenheim & Schafer,
@@ -329,16 +331,62 @@ def sos_filter(sos, x):
         x[n] = xc
 
 
-@njit_kernel
-def score_channel(xd, xe, t, max_lag, dt_sample, out):
+@njit_piece
+def _score_channel(xd, xe, t, max_lag, dt_sample, out):
     """Fill out[0:N_SCORES] for one channel: eq. 20, Table 4 peak difference, correlation and lag."""
-    out[S_REL_RMS_PCT] = relative_rms_error_pct(xd, xe)
-    pn, tn = peak_abs(xd, t)
-    pe, _ = peak_abs(xe, t)
+    out[S_REL_RMS_PCT] = _relative_rms_error_pct(xd, xe)
+    pn, tn = _peak_abs(xd, t)
+    pe, _ = _peak_abs(xe, t)
     out[S_PEAK_NUM] = pn
     out[S_PEAK_NUM_TIME] = tn
     out[S_PEAK_DIFF_PCT] = (pe - pn) / pe * 100.0 if pe > 0.0 else np.nan
-    out[S_CORR] = lagged_correlation(xd, xe, 0)
-    best, best_lag_ = best_lag(xd, xe, max_lag, FFT_MIN_LAGS)  # = the direct search over every lag, exactly
+    out[S_CORR] = _lagged_correlation(xd, xe, 0)
+    best, best_lag_ = _best_lag(xd, xe, max_lag, FFT_MIN_LAGS)  # = the direct search over every lag, exactly
     out[S_CORR_MAX] = best
     out[S_LAG] = best_lag_ * dt_sample
+
+
+# Python entries: the functions above have none (engine/jit.py njit_piece: the kernels' scoring links their code
+# and optimises it once, in its own module); these call them, for the sweep layer, the plots and the tests
+
+
+@njit_kernel
+def relative_rms_error_pct(xd, xe):
+    """_relative_rms_error_pct from Python: the paper's eq. (20) [%]."""
+    return _relative_rms_error_pct(xd, xe)
+
+
+@njit_kernel
+def peak_abs(x, t):
+    """_peak_abs from Python: the largest |x| and its time."""
+    return _peak_abs(x, t)
+
+
+@njit_kernel
+def lagged_correlation(xd, xe, lag):
+    """_lagged_correlation from Python: Pearson's r of xd[k + lag] with xe[k] over their overlap."""
+    return _lagged_correlation(xd, xe, lag)
+
+
+@njit_kernel
+def best_lag_direct(xd, xe, max_lag):
+    """_best_lag_direct from Python: the best lagged correlation and its lag, every lag computed."""
+    return _best_lag_direct(xd, xe, max_lag)
+
+
+@njit_kernel
+def best_lag(xd, xe, max_lag, fft_min_lags=FFT_MIN_LAGS):
+    """_best_lag from Python: what best_lag_direct returns, bit for bit, through the FFT's estimates."""
+    return _best_lag(xd, xe, max_lag, fft_min_lags)
+
+
+@njit_kernel
+def lag_estimates(xd, xe, max_lag):
+    """_lag_estimates from Python: every lag's correlation estimated through the FFT, its bound, its trust."""
+    return _lag_estimates(xd, xe, max_lag)
+
+
+@njit_kernel
+def score_channel(xd, xe, t, max_lag, dt_sample, out):
+    """_score_channel from Python: one channel's scores into out[0:N_SCORES]."""
+    _score_channel(xd, xe, t, max_lag, dt_sample, out)

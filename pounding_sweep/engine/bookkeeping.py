@@ -12,7 +12,7 @@ import numpy as np
 from pounding_sweep import codes
 from pounding_sweep.engine import layout as L
 from pounding_sweep.engine.events import ground_acceleration
-from pounding_sweep.engine.jit import inline_kernel, njit_inner, njit_kernel, njit_piece_once
+from pounding_sweep.engine.jit import inline_kernel, njit_inner, njit_piece_once
 from pounding_sweep.engine.score import N_SCORES, _score_channel, _sos_filter
 
 
@@ -258,7 +258,7 @@ def _sift_down(x, i, n):
         i = c
 
 
-@njit_kernel
+@njit_inner
 def close_row(out, pbase, npair, phases, status):
     """Close the phases still open at the run's end; per pair the phase count and median duration.
     Returns the status with STATUS_MEDIAN_TRUNCATED where the buffer overflowed."""
@@ -309,6 +309,24 @@ def score_run_signature(score) -> tuple:
         typeof(score),
         types.int64,
         types.int64,
+    )
+
+
+def row_end_pieces() -> tuple:
+    """The run's end book-keeping both scalar kernels call with the same types (close_row, energy_row, run_counts),
+    which a second process can compile for them (engine/aside.py): about 0.5 s of a first compile. The argument
+    types: the run's metric row (out.metrics[run]), int64 offsets, counts and status, the phases tuple
+    (bool, float64, 2-d float64 and int64 arrays), the model's m and K, the end state's u and v, the six energies
+    (tests/engine/test_aside.py checks that the kernels find them)."""
+    from numba import typeof, types
+
+    f1, f2 = typeof(np.empty(0)), typeof(np.empty((0, 0)))
+    phases = typeof((np.empty(0, dtype=np.bool_), np.empty(0), np.empty((0, 0)), np.empty(0, dtype=np.int64)))
+    i64 = types.int64
+    return (
+        (close_row, (f1, i64, i64, phases, i64)),
+        (energy_row, (f1, i64, f1, f2, f1, f1, types.UniTuple(types.float64, 6), i64)),
+        (run_counts, (f1, i64, i64, i64, i64, i64)),
     )
 
 

@@ -14,7 +14,7 @@ from typing import NamedTuple
 
 from pounding_sweep.codes import CONTACT_LAWS, HERTZ_LAWS, KELVIN_VOIGT_LAWS
 from pounding_sweep.engine import lanes
-from pounding_sweep.engine.bookkeeping import score_pieces
+from pounding_sweep.engine.bookkeeping import row_end_pieces, score_pieces
 from pounding_sweep.engine.inputs import HistorySpec, KernelOptions, ScoreSpec
 from pounding_sweep.engine.nonlinear import integrate_nonlinear
 from pounding_sweep.engine.scalar import event_pieces, integrate_batch
@@ -76,15 +76,15 @@ def _one_at_a_time(laws):
 
 def _scalar_pieces(chunk: Chunk) -> tuple:
     """The scalar kernel's pieces a second process may compile, one group in the order its typing reaches them:
-    its event step's pieces (none for the paper's scheme), then the scoring code when the chunk scores."""
-    group = event_pieces(chunk.opts.scheme) + score_pieces(chunk.score)
-    return (group,) if group else ()
+    its event step's pieces (none for the paper's scheme), the run's end book-keeping, then the scoring code when
+    the chunk scores."""
+    return (event_pieces(chunk.opts.scheme) + row_end_pieces() + score_pieces(chunk.score),)
 
 
-def _scoring_pieces(chunk: Chunk) -> tuple:
-    """The Hertz-type kernel's pieces a second process may compile: the scoring code, when the chunk scores."""
-    group = score_pieces(chunk.score)
-    return (group,) if group else ()
+def _hertz_pieces(chunk: Chunk) -> tuple:
+    """The Hertz-type kernel's pieces a second process may compile: the run's end book-keeping, then the scoring
+    code when the chunk scores."""
+    return (row_end_pieces() + score_pieces(chunk.score),)
 
 
 def _lane_pieces(chunk: Chunk) -> tuple:
@@ -125,7 +125,7 @@ KERNELS = (
         integrate_nonlinear,
         HERTZ_LAWS,
         _one_at_a_time(HERTZ_LAWS),
-        _scoring_pieces,
+        _hertz_pieces,
     ),
 )
 

@@ -43,10 +43,10 @@ for law in laws:
     driver.compile_kernel(prep.sysarr, prep.opts, prep.hist, prep.score, kernel, prep.law_codes_used)
     sig = piece.signatures[0]
     print(law, len(piece.signatures), piece.stats.cache_hits.get(sig, 0), piece.stats.cache_misses.get(sig, 0))
-if sys.argv[1] == "scored":  # the scalar kernel's event-step pieces, compiled aside before the scoring
+if sys.argv[1] == "scored":  # the scalar kernel's event-step pieces and the run's end, compiled aside before the scoring
     from pounding_sweep.engine import scalar
 
-    for d, _ in scalar.event_pieces(prep.opts.scheme):
+    for d, _ in scalar.event_pieces(prep.opts.scheme) + bk.row_end_pieces():
         sig = d.signatures[0]
         print(d.py_func.__name__, len(d.signatures), d.stats.cache_hits.get(sig, 0), d.stats.cache_misses.get(sig, 0))
 if sys.argv[1] == "lanes":  # a new pair of floor counts (4 + 2), the step cached: the contact loop is aside
@@ -154,11 +154,12 @@ def _compile_with_an_empty_cache(tmp_path, what: str) -> list[list[str]]:
 
 
 def test_both_scalar_kernels_load_the_scoring_code_the_second_process_compiled(tmp_path):
-    """With an empty cache: the second process compiles the scalar kernel's event-step pieces, then score_run, and
-    the scalar kernel's compile loads each from the cache (a hit, no compile here; it waits for the second process
-    if it needs a piece first); the Hertz-type kernel then calls score_run with the same types (still one
-    signature). A signature that drifted from the kernels' call (scalar.event_pieces,
-    bookkeeping.score_run_signature) would show as a miss."""
+    """With an empty cache: the second process compiles the scalar kernel's event-step pieces, the run's end
+    book-keeping, then score_run, and the scalar kernel's compile loads each from the cache (a hit, no compile
+    here; it waits for the second process if it needs a piece first); the Hertz-type kernel then calls score_run
+    and the book-keeping with the same types (still one signature each). A signature that drifted from the
+    kernels' call (scalar.event_pieces, bookkeeping.row_end_pieces, bookkeeping.score_run_signature) would show
+    as a miss."""
     got = _compile_with_an_empty_cache(tmp_path, "scored")
     assert got == [
         ["classic", "1", "1", "0"],
@@ -166,6 +167,9 @@ def test_both_scalar_kernels_load_the_scoring_code_the_second_process_compiled(t
         ["_advance", "1", "1", "0"],
         ["pair_pieces", "1", "1", "0"],
         ["_switch", "1", "1", "0"],
+        ["close_row", "1", "1", "0"],
+        ["energy_row", "1", "1", "0"],
+        ["run_counts", "1", "1", "0"],
         NO_COPIES,
     ]
 
@@ -186,8 +190,9 @@ def test_the_lane_kernel_loads_the_step_the_second_process_compiled(tmp_path):
     ]
 
 
-def test_nothing_to_leave_aside_without_scoring_or_event_step():
-    """No scoring and no event step (the paper's scheme), no pieces: the second process is not started."""
+def test_only_the_pieces_a_scene_compiles_are_left_aside():
+    """No scoring code without scoring, no event-step pieces for the paper's scheme (it has no event step); no
+    pieces, no second process."""
     assert bookkeeping.score_pieces(ScoreSpec.none()) == ()
     assert bookkeeping.score_pieces(None) == ()
     assert scalar.event_pieces(SCHEME_PAPER) == ()

@@ -6,8 +6,9 @@ the functions it calls, runs LLVM's full module pipeline (O3) over the whole and
 optimises everything again, so code called from deep inside a kernel (the event step's pieces, four levels
 down) is optimised once per level.
 
-The scalar kernels' pieces that only compiled code calls (engine/jit.py njit_inner and njit_generic: the time
-loop, the event step and their helpers, without a Python or C entry) never run from their own library: only a
+The scalar kernels' pieces that only compiled code calls (engine/jit.py njit_inner, njit_piece and njit_generic:
+the time loop, the event step, the scoring's functions and their helpers, without a Python or C entry) never run
+from their own library: only a
 caller's copy of their code runs, and that caller (in the end a kernel's entry, called from Python) optimises
 the whole module, their code included, with the same pipeline. Those decorators register their functions here
 (`optimised_by_callers`), and `install` makes a registered function's library skip its own module pipeline

@@ -87,7 +87,8 @@ def test_a_compile_with_its_largest_piece_cached_is_estimated_and_recorded_apart
 
     piece(1.0)  # the largest piece, compiled already
     compile_times.record_compile("lanes", 40.0)
-    with driver._announced("lanes", "the lane kernel", announce, lambda: ((piece, (numba.float64,)),)):
+    # the kernel's pieces in groups (engine/aside.py): the first, the largest piece, cached
+    with driver._announced("lanes", "the lane kernel", announce, lambda: (((piece, (numba.float64,)),),)):
         kernel(1.0)
     assert heard == [("lanes", compile_times.TYPICAL_COMPILE_S["lanes_again"], False)]
     assert compile_times.compile_estimate("lanes") == ((40.0, 40.0), True)

@@ -120,7 +120,7 @@ def install() -> None:
     cls = caching.IndexDataCacheFile
     if installed():
         return
-    known = source_digest() in KNOWN_SOURCES
+    known = numba_source.known([(caching.IndexDataCacheFile, name) for name in _METHODS], KNOWN_SOURCES)
     save = functools.wraps(cls.save)(_save) if known else _locked(cls.save)
     for name, method in (("save", save), ("flush", _locked(cls.flush))):
         method.pounding_sweep_locked = True  # type: ignore[attr-defined]

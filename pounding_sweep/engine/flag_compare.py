@@ -40,19 +40,12 @@ def source_digest() -> str:
     return numba_source.digest(METHODS)
 
 
-def _known() -> bool:
-    try:
-        return source_digest() in KNOWN_SOURCES
-    except (OSError, TypeError, AttributeError):  # no source to read: not the Numba this was written for
-        return False
-
-
 def install() -> bool:
     """Replace TargetConfig.__hash__ and __eq__ by the shortcuts above; True when installed now or before."""
     cls = targetconfig.TargetConfig
     if getattr(cls.__hash__, "hashes_by_class", False):
         return True
-    if not _known():
+    if not numba_source.known(METHODS, KNOWN_SOURCES):
         return False
     numba_hash, numba_eq = cls.__hash__, cls.__eq__
 

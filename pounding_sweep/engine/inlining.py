@@ -34,6 +34,8 @@ from pounding_sweep.engine import numba_source
 #: SHA-256 (16 hex digits) of the source of InlineWorker.inline_function, run_untyped_passes and inline_ir as
 #: this module was written against (numba 0.68.1)
 KNOWN_SOURCES = frozenset({"8d7eb51b681f9b24"})
+#: the inliner's methods that digest covers
+_METHODS = tuple((InlineWorker, name) for name in ("inline_function", "run_untyped_passes", "inline_ir"))
 
 
 def _copy_sharing_scope(block, memo):
@@ -48,17 +50,13 @@ def _copy_sharing_scope(block, memo):
 
 def inliner_source_digest() -> str:
     """The digest KNOWN_SOURCES holds, of this Numba's inliner (its own methods, not the installed wrapper)."""
-    return numba_source.digest((InlineWorker, name) for name in ("inline_function", "run_untyped_passes", "inline_ir"))
+    return numba_source.digest(_METHODS)
 
 
 def _layout_known() -> bool:
     """Numba's inliner as this module was written against: its source as read, ir.Block without a deep copy
     of its own."""
-    try:
-        known = inliner_source_digest() in KNOWN_SOURCES
-    except (OSError, TypeError, AttributeError):  # no source to read: not the Numba this was written for
-        return False
-    return known and "__deepcopy__" not in vars(ir.Block)
+    return numba_source.known(_METHODS, KNOWN_SOURCES) and "__deepcopy__" not in vars(ir.Block)
 
 
 def install() -> bool:

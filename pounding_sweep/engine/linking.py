@@ -171,10 +171,7 @@ def _in_recursion(library) -> bool:
 
 def _known() -> bool:
     """Whether this Numba's METHODS are the ones this module was written against."""
-    try:
-        return source_digest() in KNOWN_SOURCES
-    except (OSError, TypeError, AttributeError):  # no source to read: not the Numba this was written for
-        return False
+    return numba_source.known(METHODS, KNOWN_SOURCES)
 
 
 def install() -> bool:

@@ -14,3 +14,12 @@ def digest(methods) -> str:
     for owner, name in methods:
         h.update(inspect.getsource(inspect.unwrap(getattr(owner, name))).encode())
     return h.hexdigest()[:16]
+
+
+def known(methods, known_sources) -> bool:
+    """Whether the digest of `methods` is one of `known_sources`: the Numba a patch was written against. False
+    where there is no source to read (then it is not that Numba either)."""
+    try:
+        return digest(methods) in known_sources
+    except (OSError, TypeError, AttributeError):
+        return False

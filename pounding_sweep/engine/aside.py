@@ -107,6 +107,15 @@ def _in_cache(dispatcher, args: tuple) -> bool:
     return cache._index_key(args, dispatcher.targetctx.codegen()) in cache._cache_file._load_index()
 
 
+def _saved(dispatcher, args: tuple) -> bool:
+    """_in_cache, False where the index cannot be read (called inside Numba's compile: a speed-up must not break
+    it; the wait then ends with the second process, or at WAIT_S)."""
+    try:
+        return _in_cache(dispatcher, args)
+    except Exception:  # noqa: BLE001
+        return False
+
+
 def _compiled_or_cached(dispatcher, args: tuple) -> bool:
     """Whether a piece needs no compile: compiled in this process, or in its disk cache (where it has one)."""
     return args in dispatcher.overloads or (
@@ -173,7 +182,7 @@ class Aside:
         compiles the piece), or WAIT_S has passed (stuck: it is killed, and this one compiles the piece)."""
         deadline = time.monotonic() + WAIT_S
         while self.proc.poll() is None:
-            if _in_cache(dispatcher, args):
+            if _saved(dispatcher, args):
                 return
             if time.monotonic() > deadline:
                 self.proc.kill()

@@ -165,8 +165,9 @@ def njit_piece(fn):
     """Decorate a function of the scoring code (engine/score.py) that only compiled code calls: the scalar kernels'
     flags and Numba's runtime (it allocates), no Python entry, its code optimised only in its callers' modules
     (engine/linking.py, as njit_inner's): compiled for the kernels' scoring (bookkeeping.score_run), it was
-    optimised and made machine code of its own, then optimised again in score_run's module (2.3 s of score_run's
-    6.5 s compile, in the second process, engine/aside.py). Python calls it through an njit_kernel entry."""
+    optimised and made machine code of its own, then optimised again in score_run's module (score_run's compile,
+    in the second process, engine/aside.py: 6.5-6.7 s before, 5.2 s after). Python calls it through an
+    njit_kernel entry."""
     return _cached(numba.njit(no_cpython_wrapper=True, **KERNEL_JIT))(linking.optimised_by_callers(fn))
 
 

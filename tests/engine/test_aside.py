@@ -171,7 +171,7 @@ def test_both_scalar_kernels_load_the_scoring_code_the_second_process_compiled(t
         ["energy_row", "1", "1", "0"],
         ["run_counts", "1", "1", "0"],
         NO_COPIES,
-    ]
+    ], got  # every line, not only the first that differs
 
 
 def test_the_lane_kernel_loads_the_step_the_second_process_compiled(tmp_path):
@@ -187,7 +187,7 @@ def test_the_lane_kernel_loads_the_step_the_second_process_compiled(tmp_path):
         ["optimised_once", "True"],
         ["recorded", "lanes", "lanes_again"],
         NO_COPIES,
-    ]
+    ], got  # every line, not only the first that differs
 
 
 def test_only_the_pieces_a_scene_compiles_are_left_aside():

@@ -312,6 +312,12 @@ def score_run_signature(score) -> tuple:
     )
 
 
+def empty_phases() -> tuple:
+    """An empty phases tuple of the kernels' types (in_comp, comp_acc, durations, nphase: bool, float64, 2-d float64,
+    int64 arrays), for the signatures a second process compiles pieces with (engine/aside.py)."""
+    return (np.empty(0, dtype=np.bool_), np.empty(0), np.empty((0, 0)), np.empty(0, dtype=np.int64))
+
+
 def row_end_pieces() -> tuple:
     """The run's end book-keeping both scalar kernels call with the same types (close_row, energy_row, run_counts),
     which a second process can compile for them (engine/aside.py): about 0.5 s of a first compile. The argument
@@ -321,7 +327,7 @@ def row_end_pieces() -> tuple:
     from numba import typeof, types
 
     f1, f2 = typeof(np.empty(0)), typeof(np.empty((0, 0)))
-    phases = typeof((np.empty(0, dtype=np.bool_), np.empty(0), np.empty((0, 0)), np.empty(0, dtype=np.int64)))
+    phases = typeof(empty_phases())
     i64 = types.int64
     return (
         (close_row, (f1, i64, i64, phases, i64)),

@@ -39,7 +39,7 @@ LOCK_NAME = "pounding_sweep-index.lock"
 #: SHA-256 (16 hex digits) of IndexDataCacheFile's save, _load_index, _save_index and _save_data as this module was
 #: written against (numba 0.68.1)
 KNOWN_SOURCES = frozenset({"c2faa5ef3b4c927e"})
-_METHODS = ("save", "_load_index", "_save_index", "_save_data")
+_METHODS = tuple((caching.IndexDataCacheFile, name) for name in ("save", "_load_index", "_save_index", "_save_data"))
 
 _held: set[int] = set()  # lock descriptors open now: a child forked meanwhile closes its copies
 
@@ -79,7 +79,7 @@ def folder_lock(folder: str):
 
 def source_digest() -> str:
     """The digest KNOWN_SOURCES holds, of this Numba's IndexDataCacheFile methods the save relies on."""
-    return numba_source.digest((caching.IndexDataCacheFile, name) for name in _METHODS)
+    return numba_source.digest(_METHODS)
 
 
 def _save(self, key, data) -> None:
@@ -120,7 +120,7 @@ def install() -> None:
     cls = caching.IndexDataCacheFile
     if installed():
         return
-    known = numba_source.known([(caching.IndexDataCacheFile, name) for name in _METHODS], KNOWN_SOURCES)
+    known = numba_source.known(_METHODS, KNOWN_SOURCES)
     save = functools.wraps(cls.save)(_save) if known else _locked(cls.save)
     for name, method in (("save", save), ("flush", _locked(cls.flush))):
         method.pounding_sweep_locked = True  # type: ignore[attr-defined]

@@ -539,9 +539,8 @@ def event_pieces(scheme: int) -> tuple:
         return ()
     from numba import typeof, types
 
-    f1, f2 = np.empty(0), np.empty((0, 0))
-    b1, i1 = np.empty(0, dtype=np.bool_), np.empty(0, dtype=np.int64)
-    phases = (b1, f1, f2, i1)
+    phases = bk.empty_phases()
+    b1, f1, f2, i1 = phases
     pr = Pairs(b1, b1, b1, f1, f1, 0.0, False)
     st = typeof(
         LinearState(f1, f2, f2, i1, i1, 0.0, f1, f1, f1, f1, f1, f1, f1, pr, b1, f1, f1, f1, f1, f1, phases, f1, f2, f1)

@@ -257,12 +257,16 @@ def stop(aside: Aside | None) -> None:
 
 def main() -> int:
     """The second process: compile each piece whose cache is where the first process reads it; exit 1 if one
-    was not (another checkout or configuration: its entries would help no one)."""
+    was not (another checkout or configuration: its entries would help no one), saying which on standard error (the
+    first process discards it; tests/engine/test_aside.py shows it)."""
     names = pickle.load(sys.stdin.buffer)
     missed = 0
     for module, name, args, cache_path in names:
         dispatcher = getattr(importlib.import_module(module), name)
-        if getattr(dispatcher._cache, "_cache_path", None) != cache_path:
+        mine = getattr(dispatcher._cache, "_cache_path", None)
+        if mine != cache_path:
+            print(f"aside: {module}.{name} not compiled: its cache here is {mine}, the first process reads {cache_path}",
+                  file=sys.stderr)  # fmt: skip
             missed += 1
             continue
         dispatcher.compile(args)

@@ -92,6 +92,7 @@ print("compiled again for a constant:", *sorted(copies))
 #: and the second ones alike
 SITE = """
 import os
+import sys
 import time
 from numba.core import caching
 
@@ -102,6 +103,17 @@ def _log(what, index="", key=""):
 
 
 _log("start")
+if os.environ.pop("ASIDE_PARENT", None) is None:  # a second process (the variable is gone from its environment):
+    # its standard error (discarded by engine/aside.py start) into a file, and its exit code into the log
+    _err = open(os.environ["ASIDE_LOG"] + f".stderr.{os.getpid()}", "w")
+    os.dup2(_err.fileno(), 2)
+    _exit = sys.exit
+
+    def _exit_logged(code=0):
+        _log("exit", "", str(code))
+        _exit(code)
+
+    sys.exit = _exit_logged
 _save = caching.IndexDataCacheFile.save
 
 
@@ -119,8 +131,9 @@ caching.IndexDataCacheFile.save = save
 NO_COPIES = ["compiled", "again", "for", "a", "constant:"]
 
 
-def _compile_with_an_empty_cache(tmp_path, what: str) -> list[list[str]]:
-    """Compile in a fresh process with an empty cache; its lines. A second process must have saved entries, and no
+def _compile_with_an_empty_cache(tmp_path, what: str) -> tuple[list[list[str]], str]:
+    """Compile in a fresh process with an empty cache; its lines, and what the second processes said on their
+    standard error and how they exited (a miss would be theirs to explain). A second process must have saved entries, and no
     function's index may be written by this process and a second one with different keys while that one runs: the two
     share no work (engine/cache_lock.py makes such saves safe; Numba's own, caching.py IndexDataCacheFile.save, is
     not)."""
@@ -128,10 +141,18 @@ def _compile_with_an_empty_cache(tmp_path, what: str) -> list[list[str]]:
     (tmp_path / "site" / "sitecustomize.py").write_text(SITE)
     log = tmp_path / "saves.log"
     path = os.pathsep.join([str(tmp_path / "site"), os.environ.get("PYTHONPATH", "")])
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), PYTHONPATH=path, ASIDE_LOG=str(log))
+    env = dict(
+        os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), PYTHONPATH=path, ASIDE_LOG=str(log), ASIDE_PARENT="1"
+    )
     r = subprocess.run([sys.executable, "-c", RUN, what], env=env, cwd=tmp_path, capture_output=True, text=True)
     assert r.returncode == 0, r.stderr[-3000:]
     events = [line.split("|") for line in log.read_text().splitlines()]
+    # what the second processes said and how they ended, for the messages of the tests' assertions
+    said = {p.name.rsplit(".", 1)[1]: p.read_text()[-2000:] for p in tmp_path.glob("saves.log.stderr.*")}
+    ended = {pid: key for pid, kind, _, _, key in events if kind == "exit"}
+    report = "; ".join(
+        f"second process {pid}: exit {ended.get(pid, '?')}, stderr {text!r}" for pid, text in said.items()
+    )
     starts = {pid: float(t) for pid, kind, t, _, _ in events if kind == "start"}
     saves = []  # (pid, began, ended, index, key): a process saves one entry at a time
     for pid, kind, t, index, key in events:
@@ -142,15 +163,15 @@ def _compile_with_an_empty_cache(tmp_path, what: str) -> list[list[str]]:
             entry[2] = float(t)
     parent = min(starts, key=starts.get)
     children = {e[0] for e in saves} - {parent}
-    assert children, "this process saved every entry"
+    assert children, ("this process saved every entry", report)
     for child in children:
         mine = [e for e in saves if e[0] == child]
         until = max(e[2] for e in mine)  # its last save ended: it writes nothing after
         # a save of this process that overlaps the child's life, from its start to its last save's end
         during = [e for e in saves if e[0] == parent and e[1] <= until and e[2] >= starts[child]]
         for _, _, _, index, key in during:
-            assert all(k == key for _, _, _, i, k in mine if i == index), (index, key, mine)
-    return [line.split() for line in r.stdout.splitlines()]
+            assert all(k == key for _, _, _, i, k in mine if i == index), (index, key, mine, report)
+    return [line.split() for line in r.stdout.splitlines()], report
 
 
 def test_both_scalar_kernels_load_the_scoring_code_the_second_process_compiled(tmp_path):
@@ -160,7 +181,7 @@ def test_both_scalar_kernels_load_the_scoring_code_the_second_process_compiled(t
     and the book-keeping with the same types (still one signature each). A signature that drifted from the
     kernels' call (scalar.event_pieces, bookkeeping.row_end_pieces, bookkeeping.score_run_signature) would show
     as a miss."""
-    got = _compile_with_an_empty_cache(tmp_path, "scored")
+    got, report = _compile_with_an_empty_cache(tmp_path, "scored")
     assert got == [
         ["classic", "1", "1", "0"],
         ["hertzdamp", "1", "1", "0"],
@@ -171,7 +192,7 @@ def test_both_scalar_kernels_load_the_scoring_code_the_second_process_compiled(t
         ["energy_row", "1", "1", "0"],
         ["run_counts", "1", "1", "0"],
         NO_COPIES,
-    ], got  # every line, not only the first that differs
+    ], (got, report)  # every line, not only the first that differs
 
 
 def test_the_lane_kernel_loads_the_step_the_second_process_compiled(tmp_path):
@@ -179,7 +200,7 @@ def test_the_lane_kernel_loads_the_step_the_second_process_compiled(tmp_path):
     then, for a new pair of floor counts with the step cached, that pair's contact loop (loops.loop_signatures
     against _integrate_groups' call), loaded from the cache, and no new compile of the group driver. The second
     compile's time is recorded apart from the first's (engine/compile_times.py AGAIN)."""
-    got = _compile_with_an_empty_cache(tmp_path, "lanes")
+    got, report = _compile_with_an_empty_cache(tmp_path, "lanes")
     assert got == [
         ["classic", "1", "1", "0"],
         ["4+2", "1", "1", "0"],
@@ -187,7 +208,7 @@ def test_the_lane_kernel_loads_the_step_the_second_process_compiled(tmp_path):
         ["optimised_once", "True"],
         ["recorded", "lanes", "lanes_again"],
         NO_COPIES,
-    ], got  # every line, not only the first that differs
+    ], (got, report)  # every line, not only the first that differs
 
 
 def test_only_the_pieces_a_scene_compiles_are_left_aside():
@@ -318,12 +339,14 @@ def test_only_the_pieces_a_second_process_takes_are_looked_up():
 
 def test_the_second_process_skips_a_piece_whose_cache_is_elsewhere():
     """A second process that finds a piece's cache in another folder than this one's (another checkout first on
-    its path) compiles nothing there and says so (exit 1)."""
+    its path) compiles nothing there and says so (exit 1, and which piece on its standard error)."""
     names = [("pounding_sweep.engine.bookkeeping", "score_run", (), "/nowhere/this/process/reads")]
     r = subprocess.run(
         [sys.executable, "-m", "pounding_sweep.engine.aside"], input=pickle.dumps(names), capture_output=True
     )
     assert r.returncode == 1, r.stderr[-2000:]
+    assert b"pounding_sweep.engine.bookkeeping.score_run not compiled" in r.stderr, r.stderr[-2000:]
+    assert b"/nowhere/this/process/reads" in r.stderr, r.stderr[-2000:]
 
 
 def test_no_python_to_start_starts_nothing(monkeypatch):

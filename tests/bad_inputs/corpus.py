@@ -2188,6 +2188,16 @@ CASES += [
         import_argv(),
     ),
     _c(
+        "import_axis_vertical",
+        "table",
+        "import --axis z on exports whose Z axis reads gravity",
+        ["ground.csv", "--axis z", "Acc_Z", "9.810 m/s^2"],
+        "the vertical one, not a shaking axis",
+        None,
+        XSENS_PAIR,
+        import_argv("--axis", "z"),
+    ),
+    _c(
         "import_max_lag_negative",
         "table",
         "import --max-lag -1",

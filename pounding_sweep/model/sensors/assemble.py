@@ -106,6 +106,13 @@ def _axis(sf: SensorFile, choice: str) -> tuple[str, str, dict]:
         col = f"Acc_{choice.upper()}"
         if col not in acc:
             raise SensorError(f"{sf.path}: --axis {choice}: no column {col} (columns: {', '.join(acc)})")
+        if col == grav:  # asked for by name: the models are horizontal, so a vertical channel is never what is meant
+            others = ", ".join(c.removeprefix("Acc_").lower() for c in acc if c != grav)
+            raise SensorError(
+                f"{sf.path}: --axis {choice}: {col} is the axis gravity acts along (mean {stats[grav]['mean']:.3f} "
+                f"m/s^2), the vertical one, not a shaking axis: give a horizontal one ({others}) or leave --axis out "
+                "(each sensor's shaking axis)"
+            )
         return col, grav, stats
     horizontal = [c for c in acc if c != grav] or list(acc)
     return max(horizontal, key=lambda c: stats[c]["std"]), grav, stats
@@ -174,10 +181,10 @@ def import_sensors(
             raise SensorError(
                 f"{sf.path}: sensor {n} holds the same samples as sensor {twin} ({files[twin]}): the same export twice"
             )
-        if col == grav:
+        if col == grav:  # (with --axis auto: an export holding no other acceleration axis)
             warnings.append(
                 f"{sf.path}: axis {col} is the one gravity acts along (mean {stats[grav]['mean']:.3f} m/s^2): the "
-                "vertical axis, not the shaking one; choose a horizontal axis (--axis)"
+                "vertical axis, not the shaking one, and the export holds no horizontal one"
             )
         elif share < 0.8:
             warnings.append(

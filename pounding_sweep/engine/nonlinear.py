@@ -554,6 +554,37 @@ def _nonlinear_kernel(scored: bool):
 _VARIANTS = (_nonlinear_kernel(False), _nonlinear_kernel(True))
 
 
+def event_pieces() -> tuple:
+    """The pieces of this kernel's step a second process can compile for it (engine/aside.py), with the argument
+    types the kernel calls them with, in the order its typing reaches them: solve_pairs (from the time loop; the
+    substep calls it with the same types), _advance, bookkeeping.pair_pieces (through _accept; the scalar kernel's
+    event step calls it with the same types) and _switch, about 2 s of a first compile. Every scheme's: the time
+    loop holds the event step whatever the scheme. The types are those of integrate_nonlinear's run state
+    (HertzState, of C-contiguous arrays of the kernel's dtypes): tests/engine/test_aside.py checks that the kernel
+    finds the pieces in the cache."""
+    from numba import typeof, types
+
+    phases = bk.empty_phases()
+    b1, f1, f2, i1 = phases
+    pr = Pairs(b1, b1, b1, f1, f1, 1.0, np.bool_(False))
+    work = (f2, f2, f2, f1, f1, f1, f2)
+    st = typeof(
+        HertzState(
+            f1, f2, f2, i1, i1, 0.0, f1, f1, f1, f1, f1, f1, f1, pr, 0, 0.0, f1, b1, 0.0, i1, 0, 0.0, b1, f1, f1, f1,
+            f1, f1, phases, f1, work,
+        )
+    )  # fmt: skip
+    f64, i64 = types.float64, types.int64
+    tf1, tf2, tb1 = typeof(f1), typeof(f2), typeof(b1)
+    law = types.Tuple((i64, f64, tf1, tf1))
+    return (
+        (solve_pairs, (tf2, tf1, tf1, f64, f64, law, tb1, tf1, tf1, tf2)),
+        (_advance, (st, f64, f64, f64, types.boolean)),
+        (bk.pair_pieces, (tf1, i64, tf1, tf1, tb1, tb1, f64, f64, typeof(phases))),
+        (_switch, (st, f64, f64)),
+    )
+
+
 def integrate_nonlinear(start, stop, model, opts, runs, records, histories, experiment, out):
     """engine.scalar.integrate_batch for a Hertz-type law (runs.law: codes.LAW_HERTZ, LAW_HERTZDAMP,
     LAW_JANKOWSKI): runs start..stop-1 of the chunk into out (metrics, run_time, histories, scores).

@@ -13,11 +13,11 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 from pounding_sweep.codes import CONTACT_LAWS, HERTZ_LAWS, KELVIN_VOIGT_LAWS
-from pounding_sweep.engine import lanes
+from pounding_sweep.engine import lanes, nonlinear, scalar
 from pounding_sweep.engine.bookkeeping import row_end_pieces, score_pieces
 from pounding_sweep.engine.inputs import HistorySpec, KernelOptions, ScoreSpec
 from pounding_sweep.engine.nonlinear import integrate_nonlinear
-from pounding_sweep.engine.scalar import event_pieces, integrate_batch
+from pounding_sweep.engine.scalar import integrate_batch
 
 #: what a user may ask for (the scene's [execution] kernel, the command line): "auto" (the first kernel in
 #: KERNELS that can run the chunk), "scalar" (one run at a time: the tests and benchmarks compare the two),
@@ -78,13 +78,14 @@ def _scalar_pieces(chunk: Chunk) -> tuple:
     """The scalar kernel's pieces a second process may compile, one group in the order its typing reaches them:
     its event step's pieces (none for the paper's scheme), the run's end book-keeping, then the scoring code when
     the chunk scores."""
-    return (event_pieces(chunk.opts.scheme) + row_end_pieces() + score_pieces(chunk.score),)
+    return (scalar.event_pieces(chunk.opts.scheme) + row_end_pieces() + score_pieces(chunk.score),)
 
 
 def _hertz_pieces(chunk: Chunk) -> tuple:
-    """The Hertz-type kernel's pieces a second process may compile: the run's end book-keeping, then the scoring
-    code when the chunk scores."""
-    return (row_end_pieces() + score_pieces(chunk.score),)
+    """The Hertz-type kernel's pieces a second process may compile, one group in the order its typing reaches them:
+    its contact solve and event step's pieces (every scheme's: its time loop holds them all), the run's end
+    book-keeping, then the scoring code when the chunk scores."""
+    return (nonlinear.event_pieces() + row_end_pieces() + score_pieces(chunk.score),)
 
 
 def _lane_pieces(chunk: Chunk) -> tuple:

@@ -20,7 +20,7 @@ import pytest
 from conftest import SWEEPS
 
 from pounding_sweep.codes import SCHEME_EVENT, SCHEME_IMPLICIT, SCHEME_PAPER
-from pounding_sweep.engine import aside, bookkeeping, scalar
+from pounding_sweep.engine import aside, bookkeeping, nonlinear, scalar
 from pounding_sweep.engine.inputs import ScoreSpec
 
 RUN = f"""
@@ -49,6 +49,13 @@ if sys.argv[1] == "scored":  # the scalar kernel's event-step pieces and the run
     for d, _ in scalar.event_pieces(prep.opts.scheme) + bk.row_end_pieces():
         sig = d.signatures[0]
         print(d.py_func.__name__, len(d.signatures), d.stats.cache_hits.get(sig, 0), d.stats.cache_misses.get(sig, 0))
+    # the Hertz-type kernel's own pieces (pair_pieces, the scalar kernel's, was cached before it)
+    from pounding_sweep.engine import nonlinear
+
+    for d, _ in nonlinear.event_pieces():
+        sig = d.signatures[0]
+        hits, misses = d.stats.cache_hits.get(sig, 0), d.stats.cache_misses.get(sig, 0)
+        print("hertz", d.py_func.__name__, len(d.signatures), hits, misses)
 if sys.argv[1] == "lanes":  # a new pair of floor counts (4 + 2), the step cached: the contact loop is aside
     from pounding_sweep.engine.lanes.groups import _integrate_groups
     from pounding_sweep.engine.lanes.loops import contact_loop
@@ -177,10 +184,11 @@ def _compile_with_an_empty_cache(tmp_path, what: str) -> tuple[list[list[str]], 
 def test_both_scalar_kernels_load_the_scoring_code_the_second_process_compiled(tmp_path):
     """With an empty cache: the second process compiles the scalar kernel's event-step pieces, the run's end
     book-keeping, then score_run, and the scalar kernel's compile loads each from the cache (a hit, no compile
-    here; it waits for the second process if it needs a piece first); the Hertz-type kernel then calls score_run
-    and the book-keeping with the same types (still one signature each). A signature that drifted from the
-    kernels' call (scalar.event_pieces, bookkeeping.row_end_pieces, bookkeeping.score_run_signature) would show
-    as a miss."""
+    here; it waits for the second process if it needs a piece first); the Hertz-type kernel then calls score_run,
+    the book-keeping and pair_pieces with the same types (still one signature each), and a second process compiles
+    its own contact solve and event-step pieces. A signature that drifted from the kernels' call
+    (scalar.event_pieces, nonlinear.event_pieces, bookkeeping.row_end_pieces, bookkeeping.score_run_signature)
+    would show as a miss."""
     got, report = _compile_with_an_empty_cache(tmp_path, "scored")
     assert got == [
         ["classic", "1", "1", "0"],
@@ -191,6 +199,10 @@ def test_both_scalar_kernels_load_the_scoring_code_the_second_process_compiled(t
         ["close_row", "1", "1", "0"],
         ["energy_row", "1", "1", "0"],
         ["run_counts", "1", "1", "0"],
+        ["hertz", "solve_pairs", "1", "1", "0"],
+        ["hertz", "_advance", "1", "1", "0"],
+        ["hertz", "pair_pieces", "1", "1", "0"],
+        ["hertz", "_switch", "1", "1", "0"],
         NO_COPIES,
     ], (got, report)  # every line, not only the first that differs
 
@@ -218,6 +230,7 @@ def test_only_the_pieces_a_scene_compiles_are_left_aside():
     assert bookkeeping.score_pieces(None) == ()
     assert scalar.event_pieces(SCHEME_PAPER) == ()
     assert len(scalar.event_pieces(SCHEME_EVENT)) == len(scalar.event_pieces(SCHEME_IMPLICIT)) == 3
+    assert len(nonlinear.event_pieces()) == 4  # its time loop holds the event step whatever the scheme
     assert aside.start(tuple) is None
 
 

@@ -322,6 +322,33 @@ def test_accelerations_in_g_are_converted_with_a_warning_and_unknown_units_refus
         import_sensors(files, "ground")
 
 
+def _keep_acc(path: Path, keep: str) -> None:
+    """Leave only the acceleration column `keep` (Acc_X/Y/Z, columns 5-7) in the export: one axis exported."""
+    lines, k = _rows(path)
+    drop = [i for i, name in zip((5, 6, 7), ("Acc_X", "Acc_Y", "Acc_Z")) if name != keep]
+    for i in range(k - 1, len(lines)):
+        f = lines[i].split(",")
+        lines[i] = ",".join(v for j, v in enumerate(f) if j not in drop)
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+
+
+def test_gravitys_axis_asked_for_by_name_is_refused(tmp_path, truth):
+    """--axis naming the vertical axis is an error that says which to give instead; where the export holds no
+    horizontal axis the error says so (with --axis or without: there is no shaking axis to import)."""
+    files = _files(tmp_path, truth, shared_clock=True)
+    with pytest.raises(SensorError, match=r"ground.csv: --axis z: Acc_Z is the axis gravity acts along \(mean 9\.\d+ "
+                       r"m/s\^2\), the vertical one, not a shaking axis: give a horizontal one \(x, y\)"):  # fmt: skip
+        import_sensors(files, "ground", axis="z")
+    for path in files.values():
+        _keep_acc(Path(path), "Acc_Z")
+    with pytest.raises(SensorError, match=r"the export holds no horizontal acceleration axis \(columns: Acc_Z\)"):
+        import_sensors(files, "ground", axis="z")
+    with pytest.raises(SensorError, match=r"ground.csv: Acc_Z is the axis gravity acts along .* no horizontal"):
+        import_sensors(files, "ground")
+    with pytest.raises(SensorError, match=r"--axis x: no column Acc_X \(columns: Acc_Z\)"):
+        import_sensors(files, "ground", axis="x")
+
+
 def test_a_sample_beyond_any_measurement_and_a_line_cut_short_are_named_by_line(tmp_path, truth):
     files = _files(tmp_path, truth, shared_clock=True)
     path = Path(files["b1f2"])

@@ -96,26 +96,33 @@ GRAVITY_AXIS_SHARE = 0.5
 
 def _axis(sf: SensorFile, choice: str) -> tuple[str, str, dict]:
     """(shaking axis, gravity axis ('' where no exported axis reads gravity), per-axis statistics) of a sensor's
-    accelerations."""
+    accelerations. SensorError where the shaking axis would be gravity's (named by `choice`, or the export's only
+    acceleration axis): the models are horizontal shear frames, so a vertical channel is never what is meant."""
     acc = {c: v for c, v in sf.channels.items() if sf.kinds[c] == "acceleration"}
     stats = {c: {"mean": float(np.mean(v)), "std": float(np.std(v))} for c, v in acc.items()}
     grav = max(acc, key=lambda c: abs(stats[c]["mean"]))  # g outweighs any tilt's share and any shaking's mean
     if abs(stats[grav]["mean"]) < GRAVITY_AXIS_SHARE * G_STANDARD:  # an export without its vertical axis
         grav = ""
-    if choice != "auto":
+    horizontal = [c for c in acc if c != grav]
+    if choice == "auto":
+        col = max(horizontal, key=lambda c: stats[c]["std"]) if horizontal else grav
+    else:
         col = f"Acc_{choice.upper()}"
         if col not in acc:
             raise SensorError(f"{sf.path}: --axis {choice}: no column {col} (columns: {', '.join(acc)})")
-        if col == grav:  # asked for by name: the models are horizontal, so a vertical channel is never what is meant
-            others = ", ".join(c.removeprefix("Acc_").lower() for c in acc if c != grav)
-            raise SensorError(
-                f"{sf.path}: --axis {choice}: {col} is the axis gravity acts along (mean {stats[grav]['mean']:.3f} "
-                f"m/s^2), the vertical one, not a shaking axis: give a horizontal one ({others}) or leave --axis out "
-                "(each sensor's shaking axis)"
-            )
-        return col, grav, stats
-    horizontal = [c for c in acc if c != grav] or list(acc)
-    return max(horizontal, key=lambda c: stats[c]["std"]), grav, stats
+    if col == grav:
+        named = f"--axis {choice}: " if choice != "auto" else ""
+        what = (
+            f"give a horizontal one ({', '.join(c.removeprefix('Acc_').lower() for c in horizontal)}) or leave --axis "
+            "out (each sensor's shaking axis)"
+            if horizontal
+            else f"and the export holds no horizontal acceleration axis (columns: {', '.join(acc)})"
+        )
+        raise SensorError(
+            f"{sf.path}: {named}{col} is the axis gravity acts along (mean {stats[grav]['mean']:.3f} m/s^2), the "
+            f"vertical one, not a shaking axis: {what}"
+        )
+    return col, grav, stats
 
 
 def import_sensors(
@@ -181,12 +188,7 @@ def import_sensors(
             raise SensorError(
                 f"{sf.path}: sensor {n} holds the same samples as sensor {twin} ({files[twin]}): the same export twice"
             )
-        if col == grav:  # (with --axis auto: an export holding no other acceleration axis)
-            warnings.append(
-                f"{sf.path}: axis {col} is the one gravity acts along (mean {stats[grav]['mean']:.3f} m/s^2): the "
-                "vertical axis, not the shaking one, and the export holds no horizontal one"
-            )
-        elif share < 0.8:
+        if share < 0.8:
             warnings.append(
                 f"{sf.path}: the shaking axis {col} holds only {100 * share:.0f} % of the horizontal variance: the "
                 "sensor is turned about the vertical, and the other horizontal axis sees part of the motion"

@@ -2,8 +2,9 @@
 
 A kernel's first compile is one thread's work: Numba holds one lock. Some of the pieces it calls stand alone:
 functions cached on their own, called with one signature, such as the scoring code (bookkeeping.score_run,
-about 5 s of the README scene's compile), the scalar kernel's event-step pieces (about 1 s) and the lane
-kernel's scalar step (lanes.lane_step, 17 s of its 30 s). A second process compiles them into the disk cache
+about 5 s of the README scene's compile), the scalar kernel's event-step pieces (about 1 s), the Hertz-type
+kernel's contact solve and event-step pieces (about 2 s) and the lane kernel's scalar step (lanes.lane_step,
+17 s of its 30 s). A second process compiles them into the disk cache
 while this one compiles the rest. When the kernel's typing reaches their call, Numba finds them there
 (numba/core/dispatcher.py `Dispatcher.compile` looks in the cache before compiling).
 
@@ -211,8 +212,8 @@ def start(pieces: Callable[[], tuple]) -> Aside | None:
     """Start compiling, in a second process, the pieces of the first group `pieces()` returns (groups of
     (dispatcher, argument types) pairs) that holds a piece not compiled or cached yet. A kernel's groups are
     alternatives, in the order a second process should take them: the lane kernel's step, else its contact loop
-    (after the step, the loop would come too late: this process would wait for it); the scalar kernel's one group,
-    its pieces in the order its typing reaches them. None where it would not help (one CPU, no disk cache,
+    (after the step, the loop would come too late: this process would wait for it); each scalar kernel's one
+    group, its pieces in the order its typing reaches them. None where it would not help (one CPU, no disk cache,
     nothing left to compile) or cannot start. It is called inside Numba's compile, which only a speed-up must not
     break: an error in `pieces()` leaves the compile to this process (tests/engine/test_aside.py would see the
     miss)."""
@@ -265,8 +266,8 @@ def main() -> int:
         dispatcher = getattr(importlib.import_module(module), name)
         mine = getattr(dispatcher._cache, "_cache_path", None)
         if mine != cache_path:
-            print(f"aside: {module}.{name} not compiled: its cache here is {mine}, the first process reads {cache_path}",
-                  file=sys.stderr)  # fmt: skip
+            here = "it has no disk cache here" if mine is None else f"its cache here is {mine}"
+            print(f"aside: {module}.{name} not compiled: {here}, the first process reads {cache_path}", file=sys.stderr)
             missed += 1
             continue
         dispatcher.compile(args)

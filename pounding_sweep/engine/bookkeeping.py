@@ -318,6 +318,17 @@ def empty_phases() -> tuple:
     return (np.empty(0, dtype=np.bool_), np.empty(0), np.empty((0, 0)), np.empty(0, dtype=np.int64))
 
 
+def pair_pieces_signature() -> tuple:
+    """The argument types both scalar kernels' event steps call pair_pieces with (through their _accept): the run's
+    metric row, its int64 offset, pen_prev and F, the contact set and the last piece's (bool), the piece's length
+    and end time, the phases tuple; a second process compiles it with them (scalar.event_pieces,
+    nonlinear.event_pieces)."""
+    from numba import typeof, types
+
+    f1, b1 = typeof(np.empty(0)), typeof(np.empty(0, dtype=np.bool_))
+    return (f1, types.int64, f1, f1, b1, b1, types.float64, types.float64, typeof(empty_phases()))
+
+
 def row_end_pieces() -> tuple:
     """The run's end book-keeping both scalar kernels call with the same types (close_row, energy_row, run_counts),
     which a second process can compile for them (engine/aside.py): about 0.5 s of a first compile. The argument

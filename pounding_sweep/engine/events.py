@@ -56,6 +56,13 @@ class Pairs(NamedTuple):
     no_tension: bool  # the indicator is min(penetration, F / k_s) (codes.LAW_NO_TENSION), else the penetration
 
 
+def empty_pairs() -> Pairs:
+    """A Pairs of the kernels' types (empty bool and float64 arrays, a float, a bool), for the signatures a second
+    process compiles the event steps' pieces with (engine/aside.py; scalar.event_pieces, nonlinear.event_pieces)."""
+    b1, f1 = np.empty(0, dtype=np.bool_), np.empty(0)
+    return Pairs(b1, b1, b1, f1, f1, 0.0, False)
+
+
 class Ground(NamedTuple):
     """A run's ground motion inside a step: harmonic (exact at any instant) or sampled (linear between samples)."""
 

@@ -55,6 +55,7 @@ from pounding_sweep.engine.events import (
     Ground,
     Pairs,
     bisect_crossing,
+    empty_pairs,
     event_functions,
     ground_acceleration,
     hermite_indicator,
@@ -566,7 +567,7 @@ def event_pieces() -> tuple:
 
     phases = bk.empty_phases()
     b1, f1, f2, i1 = phases
-    pr = Pairs(b1, b1, b1, f1, f1, 1.0, np.bool_(False))
+    pr = empty_pairs()
     work = (f2, f2, f2, f1, f1, f1, f2)
     st = typeof(
         HertzState(
@@ -580,7 +581,7 @@ def event_pieces() -> tuple:
     return (
         (solve_pairs, (tf2, tf1, tf1, f64, f64, law, tb1, tf1, tf1, tf2)),
         (_advance, (st, f64, f64, f64, types.boolean)),
-        (bk.pair_pieces, (tf1, i64, tf1, tf1, tb1, tb1, f64, f64, typeof(phases))),
+        (bk.pair_pieces, bk.pair_pieces_signature()),
         (_switch, (st, f64, f64)),
     )
 

@@ -50,6 +50,7 @@ from pounding_sweep.engine.events import (
     Ground,
     Pairs,
     bisect_crossing,
+    empty_pairs,
     event_functions,
     ground_acceleration,
 )
@@ -541,14 +542,13 @@ def event_pieces(scheme: int) -> tuple:
 
     phases = bk.empty_phases()
     b1, f1, f2, i1 = phases
-    pr = Pairs(b1, b1, b1, f1, f1, 0.0, False)
+    pr = empty_pairs()
     st = typeof(
         LinearState(f1, f2, f2, i1, i1, 0.0, f1, f1, f1, f1, f1, f1, f1, pr, b1, f1, f1, f1, f1, f1, phases, f1, f2, f1)
     )
-    f64, i64 = types.float64, types.int64
-    tf1, tb1 = typeof(f1), typeof(b1)
+    f64 = types.float64
     return (
         (_advance, (st, f64, f64, f64, types.boolean)),
-        (bk.pair_pieces, (tf1, i64, tf1, tf1, tb1, tb1, f64, f64, typeof(phases))),
+        (bk.pair_pieces, bk.pair_pieces_signature()),
         (_switch, (st, f64, f64)),
     )

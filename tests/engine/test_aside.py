@@ -140,10 +140,10 @@ NO_COPIES = ["compiled", "again", "for", "a", "constant:"]
 
 def _compile_with_an_empty_cache(tmp_path, what: str) -> tuple[list[list[str]], str]:
     """Compile in a fresh process with an empty cache; its lines, and what the second processes said on their
-    standard error and how they exited (a miss would be theirs to explain). A second process must have saved entries, and no
-    function's index may be written by this process and a second one with different keys while that one runs: the two
-    share no work (engine/cache_lock.py makes such saves safe; Numba's own, caching.py IndexDataCacheFile.save, is
-    not)."""
+    standard error and how they exited (a miss would be theirs to explain). A second process must have saved
+    entries, and no function's index may be written by this process and a second one with different keys while
+    that one runs: the two share no work (engine/cache_lock.py makes such saves safe; Numba's own, caching.py
+    IndexDataCacheFile.save, is not)."""
     (tmp_path / "site").mkdir()
     (tmp_path / "site" / "sitecustomize.py").write_text(SITE)
     log = tmp_path / "saves.log"

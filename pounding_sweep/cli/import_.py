@@ -35,7 +35,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--reference", default="ground", help="the sensor on the shaking table (default: ground)")
     p.add_argument("--format", default="auto", help="file format (default: recognised from the file's head)")
     p.add_argument(
-        "--axis", default="auto", help="x, y or z, a horizontal axis of every sensor (default: each one's shaking axis)"
+        "--axis",
+        default="auto",
+        help="every sensor's shaking axis: x, y or z, a horizontal one (default: each one's own)",
     )
     p.add_argument("--clock", default="auto", choices=["auto", "device", "xcorr"], help="how clocks are aligned")
     p.add_argument(

@@ -4,8 +4,9 @@ A kernel's first compile is one thread's work: Numba holds one lock. Some of the
 functions cached on their own, called with one signature, such as the scoring code (bookkeeping.score_run,
 about 5 s of the README scene's compile), the scalar kernel's event-step pieces (about 1 s), the Hertz-type
 kernel's contact solve and event-step pieces (about 2 s) and the lane kernel's scalar step (lanes.lane_step,
-17 s of its 30 s). A second process compiles them into the disk cache while this one compiles the rest. When the kernel's typing reaches their call, Numba finds them there
-(numba/core/dispatcher.py `Dispatcher.compile` looks in the cache before compiling).
+17 s of its 30 s). A second process compiles them into the disk cache while this one compiles the rest. When
+the kernel's typing reaches their call, Numba finds them there (numba/core/dispatcher.py `Dispatcher.compile`
+looks in the cache before compiling).
 
 A kernel lists its pieces in groups (`pieces()`): the second process takes the first group that holds a piece
 not compiled or cached yet, and compiles that group's missing pieces one after the other, in the order the

@@ -6,16 +6,16 @@ the functions it calls, runs LLVM's full module pipeline (O3) over the whole and
 optimises everything again, so code called from deep inside a kernel (the event step's pieces, four levels
 down) is optimised once per level.
 
-The scalar kernels' pieces that only compiled code calls (engine/jit.py njit_inner, njit_piece and njit_generic:
-the time loop, the event step, the scoring's functions and their helpers, without a Python or C entry) never run
-from their own library: only a caller's copy of their code runs, and that caller (in the end a kernel's entry,
-called from Python) optimises the whole module, their code included, with the same pipeline. Those decorators
-register their functions here (`optimised_by_callers`), and `install` makes a registered function's library skip
-its own module pipeline and its machine code; it still runs Numba's function passes (the cleanup before
-linking), and the disk cache keeps its module for the next caller to link. Not registered: the lane kernel's own pieces (jit.njit_step,
-jit.njit_generic_lanes), of which LLVM makes faster code in two passes (optimised once, its event case took
-1.18x as long and its quiet loop 1.14x). Nor a piece in a recursion Numba resolves at run time (its own code
-is jumped to), nor anything else: a user's own Numba functions, Numba's overloads and @cfunc callbacks keep
+The scalar kernels' pieces that only compiled code calls (engine/jit.py njit_inner, njit_piece and njit_generic: the
+time loop, the event step, the scoring's functions and their helpers, without a Python or C entry) never run from
+their own library: only a caller's copy of their code runs, and that caller (in the end a kernel's entry, called
+from Python) optimises the whole module, their code included, with the same pipeline. Those decorators register
+their functions here (`optimised_by_callers`), and `install` makes a registered function's library skip its own
+module pipeline and its machine code; it still runs Numba's function passes (the cleanup before linking), and the
+disk cache keeps its module for the next caller to link. Not registered: the lane kernel's own pieces
+(jit.njit_step, jit.njit_generic_lanes), of which LLVM makes faster code in two passes (optimised once, its event
+case took 1.18x as long and its quiet loop 1.14x). Nor a piece in a recursion Numba resolves at run time (its own
+code is jumped to), nor anything else: a user's own Numba functions, Numba's overloads and @cfunc callbacks keep
 Numba's pipeline.
 
 The other way round, a large piece with a module of its own that LLVM has already optimised (the lane kernel's

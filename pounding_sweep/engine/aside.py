@@ -8,16 +8,15 @@ kernel's contact solve and event-step pieces (about 2 s) and the lane kernel's s
 the kernel's typing reaches their call, Numba finds them there (numba/core/dispatcher.py `Dispatcher.compile`
 looks in the cache before compiling).
 
-A kernel lists its pieces in groups (`pieces()`): the second process takes the first group that holds a piece
-not compiled or cached yet, and compiles that group's missing pieces one after the other, in the order the
-kernel's typing reaches them. It starts only where it can help: a second CPU (its time, too: a cgroup quota of
-one CPU counts as one), a disk cache, and a piece not cached yet. When this process needs a piece the second
-one has not saved yet, it waits for that piece's entry in the cache index (not for the others), then loads it.
-If the second process failed, this one compiles the piece itself; the code is the same either way. The
-second process is a plain child, killed when this one is done. `python -m pounding_sweep.engine.aside` is
-the child: it reads the pieces (module, name, argument types, cache folder) from its standard input, pickled
-by this process (Numba's types
-only pickle), not a command for users (tests/cli/test_bad_inputs.py names it as the one exception).
+A kernel lists its pieces in groups (`pieces()`): the second process takes the first group that holds a piece not
+compiled or cached yet, and compiles that group's missing pieces one after the other, in the order the kernel's
+typing reaches them. It starts only where it can help: a second CPU (its time, too: a cgroup quota of one CPU counts
+as one), a disk cache, and a piece not cached yet. When this process needs a piece the second one has not saved yet,
+it waits for that piece's entry in the cache index (not for the others) and for the save that wrote it to end, then
+loads it. If the second process failed, this one compiles the piece itself; the code is the same either way. The
+second process is a plain child, killed when this one is done. `python -m pounding_sweep.engine.aside` is the child:
+it reads the pieces (module, name, argument types, cache folder) from its standard input, pickled by this process
+(Numba's types only pickle), not a command for users (tests/cli/test_bad_inputs.py names it as the one exception).
 """
 
 from __future__ import annotations
@@ -33,6 +32,8 @@ from pathlib import Path
 
 from numba.core import sigutils
 from numba.core.caching import NullCache
+
+from pounding_sweep.engine import cache_lock
 
 
 def _quota_cpus(cgroups: Path = Path("/proc/self/cgroup"), root: Path = Path("/sys/fs/cgroup")) -> float | None:
@@ -117,6 +118,15 @@ def _saved(dispatcher, args: tuple) -> bool:
         return False
 
 
+def _save_done(dispatcher) -> None:
+    """Return once a save that has named the piece in the index is done: every save holds the cache folder's
+    lock throughout (engine/cache_lock.py), and where ours is not installed (another Numba), Numba's own writes
+    the index before the data, so an entry can be listed before its data file is there (a load then misses,
+    and this process compiles the piece again)."""
+    with cache_lock.folder_lock(dispatcher._cache._cache_path):
+        pass
+
+
 def _compiled_or_cached(dispatcher, args: tuple) -> bool:
     """Whether a piece needs no compile: compiled in this process, or in its disk cache (where it has one)."""
     return args in dispatcher.overloads or (
@@ -179,11 +189,13 @@ class Aside:
         return load_overload
 
     def _wait(self, dispatcher, args: tuple) -> None:
-        """Until the piece is in the cache index, the second process has ended (done, or failed: then this one
-        compiles the piece), or WAIT_S has passed (stuck: it is killed, and this one compiles the piece)."""
+        """Until the piece is in the cache index and the save that put it there is done, the second process has
+        ended (done, or failed: then this one compiles the piece), or WAIT_S has passed (stuck: it is killed, and
+        this one compiles the piece)."""
         deadline = time.monotonic() + WAIT_S
         while self.proc.poll() is None:
             if _saved(dispatcher, args):
+                _save_done(dispatcher)
                 return
             if time.monotonic() > deadline:
                 self.proc.kill()

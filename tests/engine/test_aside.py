@@ -13,6 +13,7 @@ import os
 import pickle
 import subprocess
 import sys
+import time
 
 import numba
 import numpy as np
@@ -96,7 +97,9 @@ print("compiled again for a constant:", *sorted(copies))
 
 
 #: logs when a process starts and every cache entry it saves (pid, what, time, index file, key), in this process
-#: and the second ones alike
+#: and the second ones alike. It wraps Numba's Cache.save_overload, not IndexDataCacheFile.save: engine/cache_lock.py
+#: replaces that one with its own save (data, then index) only where it reads as Numba's, so a wrapper there made
+#: these processes run Numba's save (index, then data) under the lock, not the engine's
 SITE = """
 import os
 import sys
@@ -121,16 +124,17 @@ if os.environ.pop("ASIDE_PARENT", None) is None:  # a second process (the variab
         _exit(code)
 
     sys.exit = _exit_logged
-_save = caching.IndexDataCacheFile.save
+_save = caching.Cache.save_overload
 
 
-def save(self, key, data):
-    _log("saving", os.path.basename(self._index_path), key[0])
-    _save(self, key, data)
-    _log("saved", os.path.basename(self._index_path), key[0])
+def save_overload(self, sig, data):
+    index, key = os.path.basename(self._cache_file._index_path), self._index_key(sig, data.codegen)
+    _log("saving", index, key[0])
+    _save(self, sig, data)
+    _log("saved", index, key[0])
 
 
-caching.IndexDataCacheFile.save = save
+caching.Cache.save_overload = save_overload
 """
 
 
@@ -248,6 +252,64 @@ def test_waiting_ends_when_the_piece_is_saved_not_when_the_second_process_ends(m
     finally:
         a.stop()
     assert proc.poll() is not None
+
+
+#: a second process that saves `twice` as Numba's own save does (engine/cache_lock.py installs ours only on the
+#: Numba it was written against), under the cache folder's lock: the index first, then, once this process has
+#: loaded (the file `loaded`) or 2 s have passed, the data
+SAVE_LATE = """
+import inspect, os, sys, time
+import numba
+from numba.core import caching
+from pounding_sweep.engine import cache_lock
+
+folder = sys.argv[1]
+sys.path.insert(0, folder)
+import piece_for_aside
+
+cls = caching.IndexDataCacheFile
+cls.save = cache_lock._locked(inspect.unwrap(cls.save))
+write_data = cls._save_data
+
+
+def data_written_late(self, name, data):
+    open(os.path.join(folder, "listed"), "w").close()
+    t = time.monotonic()
+    while not os.path.exists(os.path.join(folder, "loaded")) and time.monotonic() - t < 2.0:
+        time.sleep(0.01)
+    write_data(self, name, data)
+
+
+cls._save_data = data_written_late
+numba.njit(cache=True)(piece_for_aside.twice).compile((numba.float64,))
+"""
+
+
+def test_a_piece_listed_before_its_data_is_written_is_loaded_once_the_save_is_done(tmp_path, monkeypatch):
+    """Where a save lists the entry in the index before its data file is written (Numba's own order), the wait
+    ends only when that save, which holds the cache folder's lock throughout, is done: the load finds the data
+    and the piece is not compiled twice. (The lane kernel once compiled its step itself so, this file's SITE
+    having put Numba's save back.) Without the lock taken, the load comes while the second process holds the
+    data back, and misses; with it, the load waits for the data (2 s later)."""
+    (tmp_path / "piece_for_aside.py").write_text("def twice(x):\n    return 2.0 * x\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setattr(numba.config, "CACHE_DIR", str(tmp_path / "cache"))  # read when a function is decorated
+    import piece_for_aside
+
+    mine = numba.njit(cache=True)(piece_for_aside.twice)
+    args = (numba.float64,)
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    proc = subprocess.Popen([sys.executable, "-c", SAVE_LATE, str(tmp_path)], env=env)
+    a = aside.Aside(proc, [(mine, args)])
+    try:
+        while not (tmp_path / "listed").exists():  # the index names the entry; the data is held back
+            assert proc.poll() is None, "the second process ended before it saved"
+            time.sleep(0.01)
+        loaded = mine._cache.load_overload(args, mine.targetctx)  # as the kernel's typing calls it
+        (tmp_path / "loaded").touch()
+    finally:
+        a.stop()
+    assert loaded is not None
 
 
 def test_an_error_listing_the_pieces_leaves_the_compile_here(monkeypatch):

@@ -66,8 +66,17 @@ def test_notebook_runs_top_to_bottom(tmp_path):
         nb, RESULTS=str(missing), WORK_DIR=str(tmp_path / "work"), SCENE=str(REPO / "sweeps" / "scored_6hz.toml")
     )  # found also from a non-editable install
     nb.cells.append(nbformat.v4.new_code_cell(CHECKS))
-    nbclient.NotebookClient(  # the cell timeout is a safety net (the whole notebook takes about 15 s warm)
-        nb, km=_kernel_manager(tmp_path), timeout=SAFETY_S, resources={"metadata": {"path": str(tmp_path)}}
+    # every timeout a safety net (the whole notebook takes about 15 s warm): nbclient's defaults give the kernel
+    # 60 s to start and a cell's output 4 s after its reply, then drop that output without an error (a loaded
+    # machine would lose a figure); here a late output waits, and one that never comes is an error
+    nbclient.NotebookClient(
+        nb,
+        km=_kernel_manager(tmp_path),
+        timeout=SAFETY_S,
+        startup_timeout=SAFETY_S,
+        iopub_timeout=SAFETY_S,
+        raise_on_iopub_timeout=True,
+        resources={"metadata": {"path": str(tmp_path)}},
     ).execute()
     outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])]
     assert not [o for o in outputs if o.output_type == "error"]

@@ -118,15 +118,6 @@ def _saved(dispatcher, args: tuple) -> bool:
         return False
 
 
-def _save_done(dispatcher) -> None:
-    """Return once a save that has named the piece in the index is done: every save holds the cache folder's
-    lock throughout (engine/cache_lock.py), and where ours is not installed (another Numba), Numba's own writes
-    the index before the data, so an entry can be listed before its data file is there (a load then misses,
-    and this process compiles the piece again)."""
-    with cache_lock.folder_lock(dispatcher._cache._cache_path):
-        pass
-
-
 def _compiled_or_cached(dispatcher, args: tuple) -> bool:
     """Whether a piece needs no compile: compiled in this process, or in its disk cache (where it has one)."""
     return args in dispatcher.overloads or (
@@ -182,26 +173,37 @@ class Aside:
     def _waiting(self, load, dispatcher, compiled_aside: set):
         def load_overload(sig, target_context):
             args = _args(sig)
-            if args in compiled_aside:
-                self._wait(dispatcher, args)
+            if args in compiled_aside and not self._wait(dispatcher, args):
+                return None  # its entry may name data its save never wrote: compiled here
             return load(sig, target_context)
 
         return load_overload
 
-    def _wait(self, dispatcher, args: tuple) -> None:
-        """Until the piece is in the cache index and the save that put it there is done, the second process has
+    def _wait(self, dispatcher, args: tuple) -> bool:
+        """Until the piece is in the cache index and the save that put it there has ended, the second process has
         ended (done, or failed: then this one compiles the piece), or WAIT_S has passed (stuck: it is killed, and
-        this one compiles the piece)."""
+        this one compiles the piece). False where it was killed inside that save: the entry is not loaded."""
         deadline = time.monotonic() + WAIT_S
         while self.proc.poll() is None:
             if _saved(dispatcher, args):
-                _save_done(dispatcher)
-                return
+                # every save holds the cache folder's lock throughout (engine/cache_lock.py), and Numba's own (run
+                # where ours is not installed: another Numba, or a wrapper over its save) writes the index before
+                # the data: the entry may name a data file not written yet (the load would miss, and the piece be
+                # compiled twice) or an older one of that name
+                if cache_lock.saves_ended(dispatcher._cache._cache_path, deadline, POLL_S):
+                    return True
+                self._kill()
+                return False
             if time.monotonic() > deadline:
-                self.proc.kill()
-                self.proc.wait()
-                return
+                self._kill()
+                return True
             time.sleep(POLL_S)
+        return True
+
+    def _kill(self) -> None:
+        """Stop a second process stuck past WAIT_S (its lock, if it held one, goes with it)."""
+        self.proc.kill()
+        self.proc.wait()
 
     def stop(self) -> None:
         """Kill the second process if it is still running (this one is done and did not need the rest of its

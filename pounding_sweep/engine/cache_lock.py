@@ -24,6 +24,7 @@ import contextlib
 import functools
 import itertools
 import os
+import time
 
 from numba.core import caching
 
@@ -75,6 +76,31 @@ def folder_lock(folder: str):
         if fd is not None:
             _held.discard(fd)
             os.close(fd)  # closing the only descriptor of this open releases its lock
+
+
+def saves_ended(folder: str, deadline: float, poll_s: float) -> bool:
+    """Whether no save holds the folder's lock (the save under way when called has ended), looked at every poll_s
+    until `deadline` (time.monotonic): False if it is still held then. True at once where the lock cannot be taken
+    (no fcntl, or no lock file: saves there take none either)."""
+    if fcntl is None:
+        return True
+    try:
+        fd = os.open(os.path.join(folder, LOCK_NAME), os.O_RDONLY | os.O_CREAT, 0o666)
+    except OSError:
+        return True
+    try:
+        while True:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                return True  # released when fd is closed, below
+            except BlockingIOError:
+                if time.monotonic() > deadline:
+                    return False
+                time.sleep(poll_s)
+            except OSError:
+                return True
+    finally:
+        os.close(fd)
 
 
 def source_digest() -> str:

@@ -21,7 +21,7 @@ import pytest
 from conftest import SWEEPS
 
 from pounding_sweep.codes import SCHEME_EVENT, SCHEME_IMPLICIT, SCHEME_PAPER
-from pounding_sweep.engine import aside, bookkeeping, nonlinear, scalar
+from pounding_sweep.engine import aside, bookkeeping, cache_lock, nonlinear, scalar
 from pounding_sweep.engine.inputs import ScoreSpec
 
 RUN = f"""
@@ -34,6 +34,7 @@ from pounding_sweep.scene import load_scene
 from pounding_sweep.sweep.prepare import prepare
 
 aside._cpus = lambda: 2  # as on a machine with a CPU to spare, whatever this one has
+aside.WAIT_S = float("inf")  # however slow the machine: the wait still ends when the second process does
 name, piece, laws = {{"scored": ("scored_6hz", bk.score_run, ("classic", "hertzdamp")),
                      "lanes": ("paper_duzce", lane_step, ("classic",))}}[sys.argv[1]]
 scene = load_scene({str(SWEEPS)!r} + f"/{{name}}.toml")
@@ -127,11 +128,11 @@ if os.environ.pop("ASIDE_PARENT", None) is None:  # a second process (the variab
 _save = caching.Cache.save_overload
 
 
-def save_overload(self, sig, data):
-    index, key = os.path.basename(self._cache_file._index_path), self._index_key(sig, data.codegen)
-    _log("saving", index, key[0])
+def save_overload(self, sig, data):  # sig: the first item of the entry's key
+    index = os.path.basename(self._cache_file._index_path)
+    _log("saving", index, sig)
     _save(self, sig, data)
-    _log("saved", index, key[0])
+    _log("saved", index, sig)
 
 
 caching.Cache.save_overload = save_overload
@@ -177,7 +178,8 @@ def _compile_with_an_empty_cache(tmp_path, what: str) -> tuple[list[list[str]], 
     assert children, ("this process saved every entry", report)
     for child in children:
         mine = [e for e in saves if e[0] == child]
-        until = max(e[2] for e in mine)  # its last save ended: it writes nothing after
+        # its last save ended: it writes nothing after (a save killed by this process's stop() never ends)
+        until = max(float("inf") if e[2] is None else e[2] for e in mine)
         # a save of this process that overlaps the child's life, from its start to its last save's end
         during = [e for e in saves if e[0] == parent and e[1] <= until and e[2] >= starts[child]]
         for _, _, _, index, key in during:
@@ -285,15 +287,17 @@ numba.njit(cache=True)(piece_for_aside.twice).compile((numba.float64,))
 """
 
 
+@pytest.mark.skipif(cache_lock.fcntl is None, reason="no fcntl here: saves take no lock, none to wait for")
 def test_a_piece_listed_before_its_data_is_written_is_loaded_once_the_save_is_done(tmp_path, monkeypatch):
     """Where a save lists the entry in the index before its data file is written (Numba's own order), the wait
-    ends only when that save, which holds the cache folder's lock throughout, is done: the load finds the data
-    and the piece is not compiled twice. (The lane kernel once compiled its step itself so, this file's SITE
-    having put Numba's save back.) Without the lock taken, the load comes while the second process holds the
-    data back, and misses; with it, the load waits for the data (2 s later)."""
+    ends only when that save, which holds the cache folder's lock throughout, has ended: the load finds the data
+    and the piece is not compiled here. (The lane kernel once compiled its step itself so, this file's SITE
+    having put Numba's save back.) Without the lock looked at, the load comes while the second process holds
+    the data back, and misses; with it, it waits for the data (2 s later)."""
     (tmp_path / "piece_for_aside.py").write_text("def twice(x):\n    return 2.0 * x\n")
     monkeypatch.syspath_prepend(str(tmp_path))
     monkeypatch.setattr(numba.config, "CACHE_DIR", str(tmp_path / "cache"))  # read when a function is decorated
+    monkeypatch.delitem(sys.modules, "piece_for_aside", raising=False)  # this test's own file, on every run
     import piece_for_aside
 
     mine = numba.njit(cache=True)(piece_for_aside.twice)
@@ -305,11 +309,41 @@ def test_a_piece_listed_before_its_data_is_written_is_loaded_once_the_save_is_do
         while not (tmp_path / "listed").exists():  # the index names the entry; the data is held back
             assert proc.poll() is None, "the second process ended before it saved"
             time.sleep(0.01)
-        loaded = mine._cache.load_overload(args, mine.targetctx)  # as the kernel's typing calls it
+        mine.compile(args)  # as the kernel's typing does: the cache first (waiting), else a compile here
         (tmp_path / "loaded").touch()
     finally:
         a.stop()
-    assert loaded is not None
+        sys.modules.pop("piece_for_aside", None)
+    assert (mine.stats.cache_hits.get(args, 0), mine.stats.cache_misses.get(args, 0)) == (1, 0)
+
+
+@pytest.mark.skipif(cache_lock.fcntl is None, reason="no fcntl here: saves take no lock, none to wait for")
+def test_a_second_process_stuck_inside_its_save_is_killed_and_its_entry_not_loaded(tmp_path, monkeypatch):
+    """The wait for a save to end keeps to WAIT_S too: a second process that holds the cache folder's lock past
+    it is killed, and the piece it listed is compiled here, not loaded (its data may never have been written)."""
+    _plus_one(np.int64(1))  # compiled and saved: listed in the index
+    folder = _plus_one._cache._cache_path
+    holds = tmp_path / "holds"
+    hold = (
+        "import fcntl, os, sys, time\n"
+        f"fd = os.open(os.path.join({folder!r}, {cache_lock.LOCK_NAME!r}), os.O_RDONLY | os.O_CREAT, 0o666)\n"
+        "fcntl.flock(fd, fcntl.LOCK_EX)\n"
+        f"open({str(holds)!r}, 'w').close()\n"
+        "time.sleep(600)\n"
+    )
+    proc = subprocess.Popen([sys.executable, "-c", hold])
+    monkeypatch.setattr(aside, "WAIT_S", 0.5)
+    a = aside.Aside(proc, [(_plus_one, (numba.int64,))])
+    try:
+        while not holds.exists():
+            assert proc.poll() is None, "the process meant to hold the lock ended"
+            time.sleep(0.01)
+        # the entry is there, and loads once the second process has ended; not while it held the lock
+        assert _plus_one._cache.load_overload((numba.int64,), _plus_one.targetctx) is None
+        assert proc.poll() is not None  # killed, its lock gone with it
+        assert _plus_one._cache.load_overload((numba.int64,), _plus_one.targetctx) is not None
+    finally:
+        a.stop()
 
 
 def test_an_error_listing_the_pieces_leaves_the_compile_here(monkeypatch):

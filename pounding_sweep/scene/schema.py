@@ -279,6 +279,11 @@ class ExecutionConfig:
     )
     dask_address: str = _f("scheduler address, e.g. 'tcp://10.0.0.5:8786' (empty: start a LocalCluster here)", "")
     dask_workers: int = _f("worker processes of the LocalCluster, one thread each (0: all cores)", 0)
+    dask_timeout_s: float = _f(
+        "seconds a Dask scheduler has to answer, and a lost scheduler or lost workers to come back, before the "
+        "sweep stops (the parts written so far are kept)",
+        10.0,
+    )
     chunk_runs: int = _f("runs per result part (Parquet file) and per task", 4096)
     max_runs: int = _f("largest grid run without confirmation (the command line's --yes lifts it)", 2_000_000)
 

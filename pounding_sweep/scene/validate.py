@@ -244,6 +244,8 @@ def _validate_rest(s: Scene, axes: dict) -> None:
     check_workers(s.execution.dask_workers, "[execution] dask_workers")
     if s.execution.dask_address:
         check_dask_address(s.execution.dask_address, "[execution] dask_address")
+    if not (s.execution.dask_timeout_s > 0 and math.isfinite(s.execution.dask_timeout_s)):
+        raise ConfigError(f"[execution] dask_timeout_s = {s.execution.dask_timeout_s!r}: must be > 0 s and finite")
     if s.execution.max_runs < 1:
         raise ConfigError(f"[execution] max_runs = {s.execution.max_runs}: must be >= 1")
     if s.execution.chunk_runs < 1:

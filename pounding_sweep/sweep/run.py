@@ -215,7 +215,11 @@ def _run_claimed(scene, folder, threads, progress, executor, kernel, size, notes
     exe = None
     if todo:
         exe = executor or make_executor(
-            ex.executor, threads if threads is not None else ex.threads, ex.dask_address, ex.dask_workers
+            ex.executor,
+            threads if threads is not None else ex.threads,
+            ex.dask_address,
+            ex.dask_workers,
+            ex.dask_timeout_s,
         )
     t_run = time.perf_counter()
     try:

@@ -2308,6 +2308,14 @@ CASES += [
         BASE + '\n[execution]\nexecutor = "dask"\ndask_address = "not an address"\n',
     ),
     _c(
+        "scene_dask_timeout_zero",
+        "execution",
+        "[execution] dask_timeout_s = 0",
+        [S, "[execution] dask_timeout_s"],
+        "must be > 0 s and finite",
+        BASE + "\n[execution]\ndask_timeout_s = 0\n",
+    ),
+    _c(
         "dask_address_malformed",
         "execution",
         '--dask-address "not an address"',

@@ -12,12 +12,14 @@ from __future__ import annotations
 
 import dataclasses
 import errno
+import json
 import os
 import shutil
 import signal
 import socket
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pandas as pd
@@ -352,10 +354,17 @@ def test_a_lost_dask_node_completes_the_sweep_exactly_once(tmp_path):
     pd.testing.assert_frame_equal(got, table(ref.path), check_exact=True)
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+def _scheduler_address(scheduler: subprocess.Popen, file: Path) -> str:
+    """The address a scheduler started on a port of its own choosing (--port 0: no other process can take it
+    first) writes to its scheduler file; a safety net only bounds the wait."""
+    deadline = time.monotonic() + SAFETY_S
+    while True:
+        try:
+            return json.loads(file.read_text())["address"]
+        except (OSError, ValueError, KeyError):  # not written yet, or half written
+            assert scheduler.poll() is None, "the Dask scheduler ended before it wrote its address"
+            assert time.monotonic() < deadline, f"safety net: no scheduler address within {SAFETY_S:g} s"
+            time.sleep(0.05)
 
 
 @needs_dask
@@ -363,19 +372,31 @@ def test_a_lost_scheduler_is_one_line_and_the_sweep_resumes(tmp_path):
     bindir = Path(sys.executable).parent
     if not (bindir / "dask").exists():
         pytest.skip("the dask command is not installed beside this Python")
-    port = _free_port()
-    address = f"tcp://127.0.0.1:{port}"
     quiet = dict(stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    file = tmp_path / "scheduler.json"
     scheduler = subprocess.Popen(
-        [bindir / "dask", "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"], **quiet
+        [
+            bindir / "dask",
+            "scheduler",
+            "--host",
+            "127.0.0.1",
+            "--port",
+            "0",
+            "--no-dashboard",
+            "--scheduler-file",
+            file,
+        ],
+        **quiet,
     )
-    workers = subprocess.Popen(
-        [bindir / "dask", "worker", address, "--nworkers", "2", "--nthreads", "1", "--no-dashboard"], **quiet
-    )
+    workers = None
     scene_file = gated_scene_file(tmp_path)
     out = tmp_path / "out.parquet"
     sweep = None
     try:
+        address = _scheduler_address(scheduler, file)
+        workers = subprocess.Popen(
+            [bindir / "dask", "worker", address, "--nworkers", "2", "--nthreads", "1", "--no-dashboard"], **quiet
+        )
         with dask_distributed.Client(address, timeout=f"{SAFETY_S}s") as c:  # up and staffed before the sweep
             c.wait_for_workers(2, timeout=SAFETY_S)
         sweep = gated(tmp_path, scene_file, out, "part-2", "--dask-address", address)
@@ -391,6 +412,8 @@ def test_a_lost_scheduler_is_one_line_and_the_sweep_resumes(tmp_path):
         if sweep is not None:
             sweep.kill()
         for p in (scheduler, workers):
+            if p is None:
+                continue
             try:
                 os.killpg(p.pid, signal.SIGKILL)
             except ProcessLookupError:
@@ -403,8 +426,10 @@ def test_a_lost_scheduler_is_one_line_and_the_sweep_resumes(tmp_path):
 def test_an_unreachable_scheduler_is_reported_at_once(tmp_path):
     """Nothing listens: the connection is refused, said by the probe before Dask's own connect (which would retry
     for its whole timeout, then report a timeout)."""
-    port = _free_port()  # nothing listens there
-    with pytest.raises(ClusterError, match=rf"cannot reach a Dask scheduler at tcp://127.0.0.1:{port}"):
+    held = socket.socket()  # bound, never listening: the port is refused, and no other process can take it
+    held.bind(("127.0.0.1", 0))
+    port = held.getsockname()[1]
+    with held, pytest.raises(ClusterError, match=rf"cannot reach a Dask scheduler at tcp://127.0.0.1:{port}"):
         s = small_scene()
         run_scene(
             dataclasses.replace(
@@ -436,10 +461,10 @@ def test_a_server_that_is_not_a_dask_scheduler_is_one_line(tmp_path):
         assert str(e.value).startswith(
             f"no Dask scheduler at {address}: something listens there, but no Dask handshake"
         )
-        s = small_scene()
-        bad = dataclasses.replace(s, execution=dataclasses.replace(s.execution, executor="dask", dask_address=address))
-        with pytest.raises(ClusterError, match="no Dask scheduler at"):
-            run_scene(bad, out_path=tmp_path / "o.parquet")
+        s = small_scene()  # the scene's dask_timeout_s is the probe's wait
+        ex = dataclasses.replace(s.execution, executor="dask", dask_address=address, dask_timeout_s=1.5)
+        with pytest.raises(ClusterError, match=r"no Dask scheduler at .* no Dask handshake within 1\.5 s"):
+            run_scene(dataclasses.replace(s, execution=ex), out_path=tmp_path / "o.parquet")
         assert list(tmp_path.iterdir()) == []
     finally:
         server.close()

@@ -39,6 +39,7 @@ from bad_inputs.corpus import (
 )
 from bad_inputs.make_outcomes import OUTCOMES, render_row, row_ids, rows_by_id
 from conftest import REPO
+from gates import SAFETY_S
 
 BY_ID = {c.id: c for c in CASES}
 INDEX = {c.id: i for i, c in enumerate(CASES, 1)}
@@ -102,7 +103,8 @@ def real_runs(tmp_path_factory):
     cases = [c for c in CASES if c.subprocess]
     dirs = {c.id: fresh_dir(root, c) for c in cases}
     with ThreadPoolExecutor(2) as pool:
-        outcomes = dict(zip(dirs, pool.map(lambda c: run_subprocess(c, dirs[c.id]), cases)))
+        # the timeout a safety net only: a bad input ends its command at once, however loaded the machine
+        outcomes = dict(zip(dirs, pool.map(lambda c: run_subprocess(c, dirs[c.id], timeout=SAFETY_S), cases)))
     return {k: (outcomes[k], dirs[k]) for k in dirs}
 
 

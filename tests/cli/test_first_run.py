@@ -13,10 +13,12 @@ from __future__ import annotations
 
 import dataclasses
 import io
+import itertools
 import os
 import subprocess
 import sys
 import threading
+import types
 
 import numba
 import pandas as pd
@@ -44,8 +46,17 @@ def test_help_lists_every_subcommand():
 # ------------------------------------------------------------------ compiling
 
 
+def _compile_clock(monkeypatch, step_s: float = 1.25) -> None:
+    """driver.py's clock, stepped by step_s at every reading: a compile (two readings) takes step_s, however fast
+    the machine compiles (a real compile of a small function takes milliseconds, which the record rounds to 0.01 s,
+    and 0 s reads as no record)."""
+    clock = itertools.count(100.0, step_s)
+    monkeypatch.setattr(driver, "time", types.SimpleNamespace(perf_counter=lambda: next(clock)))
+
+
 def test_a_real_compile_is_announced_once_and_timed(tmp_path, monkeypatch):
     monkeypatch.setattr(jit, "_root", lambda: tmp_path)  # the compile-time record goes here, not to ~/.cache
+    _compile_clock(monkeypatch)
     heard, ended = [], []
 
     def announce(kernel, label, estimate_s, measured_here):
@@ -59,9 +70,9 @@ def test_a_real_compile_is_announced_once_and_timed(tmp_path, monkeypatch):
     with driver._announced("scalar", "the scalar kernel", announce):
         fresh(1.0)
     assert heard == [("scalar", "the scalar kernel", compile_times.TYPICAL_COMPILE_S["scalar"], False)]
-    assert len(ended) == 1 and ended[0] > 0
-    # the next estimate: the time taken, as JSON rounds it (to 0.01 s)
-    assert compile_times.compile_estimate("scalar") == ((pytest.approx(ended[0], abs=0.01),) * 2, True)
+    assert ended == [1.25]  # the stepped clock's two readings
+    # the next estimate: the time taken
+    assert compile_times.compile_estimate("scalar") == ((1.25, 1.25), True)
     with driver._announced("scalar", "the scalar kernel", announce):
         fresh(2.0)  # compiled already: nothing to announce
     assert len(heard) == 1
@@ -71,6 +82,7 @@ def test_a_compile_with_its_largest_piece_cached_is_estimated_and_recorded_apart
     """The lane kernel for a new pair of floor counts, its step cached, compiles in a third of a first compile's
     time: it has a range of its own and its own record; the first compile's record is left as it was."""
     monkeypatch.setattr(jit, "_root", lambda: tmp_path)
+    _compile_clock(monkeypatch)
     heard = []
 
     def announce(kernel, label, estimate_s, measured_here):
@@ -93,7 +105,7 @@ def test_a_compile_with_its_largest_piece_cached_is_estimated_and_recorded_apart
     assert heard == [("lanes", compile_times.TYPICAL_COMPILE_S["lanes_again"], False)]
     assert compile_times.compile_estimate("lanes") == ((40.0, 40.0), True)
     (least, most), here = compile_times.compile_estimate("lanes_again")
-    assert here and least == most < 40.0
+    assert here and least == most == 1.25
     # a key with no range of its own falls back to the first compile's
     assert compile_times.compile_estimate("nonlinear_again") == (compile_times.TYPICAL_COMPILE_S["nonlinear"], False)
 

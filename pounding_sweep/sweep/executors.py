@@ -267,8 +267,8 @@ def _reason(e: BaseException) -> str:
     return (text[0] if text else type(e).__name__)[:160]
 
 
-def make_executor(kind: str, threads: int = 0, address: str = "", workers: int = 0, timeout_s: float = 10.0):
-    """The executor a scene's [execution] (or the command line) asks for."""
+def make_executor(kind: str, threads: int = 0, address: str = "", workers: int = 0, *, timeout_s: float):
+    """The executor a scene's [execution] (or the command line) asks for (timeout_s: its dask_timeout_s)."""
     if kind == "dask":
         return DaskExecutor(address, workers, timeout_s=timeout_s)
     return LocalExecutor(threads)

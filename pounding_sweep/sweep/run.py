@@ -219,7 +219,7 @@ def _run_claimed(scene, folder, threads, progress, executor, kernel, size, notes
             threads if threads is not None else ex.threads,
             ex.dask_address,
             ex.dask_workers,
-            ex.dask_timeout_s,
+            timeout_s=ex.dask_timeout_s,
         )
     t_run = time.perf_counter()
     try:

@@ -201,8 +201,8 @@ class Aside:
         return True
 
     def _kill(self) -> None:
-        """Stop a second process stuck past WAIT_S (its lock, if it held one, goes with it)."""
-        self.proc.kill()
+        """Kill the second process, if it has not ended, and reap it (a lock it held goes with it)."""
+        self.proc.kill()  # (Popen.kill does nothing once the process has ended)
         self.proc.wait()
 
     def stop(self) -> None:
@@ -211,9 +211,7 @@ class Aside:
         data first), which the next save of that function overwrites, or a temporary file) and put the caches'
         loading back as it was."""
         try:
-            if self.proc.poll() is None:
-                self.proc.kill()
-            self.proc.wait()
+            self._kill()
         finally:
             for cache, before in self.caches:
                 if before is not None:

@@ -56,14 +56,19 @@ if hasattr(os, "register_at_fork"):
     os.register_at_fork(after_in_child=_close_held_in_child)
 
 
+def _open_lock(folder: str) -> int:
+    """The folder's lock file, opened read-only (flock needs no write access, so processes of other users sharing
+    the cache lock it too) and created where missing; OSError where it cannot be."""
+    return os.open(os.path.join(folder, LOCK_NAME), os.O_RDONLY | os.O_CREAT, 0o666)
+
+
 @contextlib.contextmanager
 def folder_lock(folder: str):
-    """Hold the cache folder's exclusive lock inside (nothing where it cannot be taken). The lock file is opened
-    read-only (flock needs no write access), so processes of other users sharing the cache lock it too."""
+    """Hold the cache folder's exclusive lock inside (nothing where it cannot be taken)."""
     fd = None
     if fcntl is not None:
         try:
-            fd = os.open(os.path.join(folder, LOCK_NAME), os.O_RDONLY | os.O_CREAT, 0o666)
+            fd = _open_lock(folder)
             fcntl.flock(fd, fcntl.LOCK_EX)
             _held.add(fd)
         except OSError:
@@ -85,7 +90,7 @@ def saves_ended(folder: str, deadline: float, poll_s: float) -> bool:
     if fcntl is None:
         return True
     try:
-        fd = os.open(os.path.join(folder, LOCK_NAME), os.O_RDONLY | os.O_CREAT, 0o666)
+        fd = _open_lock(folder)
     except OSError:
         return True
     try:

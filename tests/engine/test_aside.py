@@ -325,11 +325,11 @@ def test_a_second_process_stuck_inside_its_save_is_killed_and_its_entry_not_load
     folder = _plus_one._cache._cache_path
     holds = tmp_path / "holds"
     hold = (
-        "import fcntl, os, sys, time\n"
-        f"fd = os.open(os.path.join({folder!r}, {cache_lock.LOCK_NAME!r}), os.O_RDONLY | os.O_CREAT, 0o666)\n"
-        "fcntl.flock(fd, fcntl.LOCK_EX)\n"
-        f"open({str(holds)!r}, 'w').close()\n"
-        "time.sleep(600)\n"
+        "import time\n"
+        "from pounding_sweep.engine import cache_lock\n"
+        f"with cache_lock.folder_lock({folder!r}):\n"
+        f"    open({str(holds)!r}, 'w').close()\n"
+        "    time.sleep(600)\n"
     )
     proc = subprocess.Popen([sys.executable, "-c", hold])
     monkeypatch.setattr(aside, "WAIT_S", 0.5)
